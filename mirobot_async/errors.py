@@ -1,0 +1,170 @@
+"""The one exception tree of mirobot-async.
+
+Every error the library raises derives from :class:`MirobotError`, so ``except MirobotError``
+catches them all; the leaves carry structured fields and build their own message, which names the
+command involved and quotes the firmware's own words.
+
+::
+
+    MirobotError
+    ├── MirobotUsageError (also ValueError)      bad arguments, caught before a byte is written
+    ├── MirobotConnectionError                   the serial link could not be opened or failed
+    │   └── MirobotLinkLostError                 the link closed or broke while in use
+    ├── MirobotProtocolError                     garbled or unexpected bytes from the robot
+    ├── MirobotTimeoutError (also TimeoutError)  a reply or condition did not come in time
+    ├── MirobotResetError                        the robot reset while commands were pending
+    └── MirobotCommandError                      the firmware refused a line (error: / Error, Ennn)
+        ├── MotionRefusedError                   "ok but dropped": locked, soft limit, unreachable
+        └── MirobotAlarmError                    the robot is in Alarm (hard limit, abort, ...)
+"""
+
+from __future__ import annotations
+
+import enum
+
+__all__ = [
+    "MirobotAlarmError",
+    "MirobotCommandError",
+    "MirobotConnectionError",
+    "MirobotError",
+    "MirobotLinkLostError",
+    "MirobotProtocolError",
+    "MirobotResetError",
+    "MirobotTimeoutError",
+    "MirobotUsageError",
+    "MotionRefusedError",
+    "RefusalReason",
+]
+
+
+def _quote_command(command: str | bytes | None) -> str:
+    if command is None:
+        return ""
+    if isinstance(command, bytes):
+        command = command.decode("ascii", "replace")
+    return command.rstrip("\r\n")
+
+
+class MirobotError(Exception):
+    """Root of every error raised by mirobot-async."""
+
+
+class MirobotUsageError(MirobotError, ValueError):
+    """A caller passed a bad argument; raised before anything is written to the robot."""
+
+
+class MirobotConnectionError(MirobotError):
+    """The serial link could not be opened, or failed."""
+
+
+class MirobotLinkLostError(MirobotConnectionError):
+    """The link closed (EOF, I/O error, ``close()``) while calls were pending or afterwards."""
+
+
+class MirobotProtocolError(MirobotError):
+    """The robot printed bytes that do not fit the protocol (garbled status, overlong line...)."""
+
+    def __init__(self, message: str, *, data: bytes | str | None = None) -> None:
+        self.data = data
+        super().__init__(message)
+
+
+class MirobotTimeoutError(MirobotError, TimeoutError):
+    """A reply or a condition did not arrive in time. ``waited_for`` says what."""
+
+    def __init__(
+        self, waited_for: str, timeout: float | None = None, *, command: str | bytes | None = None
+    ) -> None:
+        self.waited_for = waited_for
+        self.timeout = timeout
+        self.command = _quote_command(command) or None
+        msg = f"timed out waiting for {waited_for}"
+        if timeout is not None:
+            msg += f" after {timeout:g} s"
+        if self.command:
+            msg += f" (command {self.command!r})"
+        super().__init__(msg)
+
+
+class MirobotResetError(MirobotError):
+    """The robot reset (its banner appeared) while this command was pending; it was not run."""
+
+    def __init__(self, command: str | bytes | None = None, detail: str = "") -> None:
+        self.command = _quote_command(command) or None
+        msg = "the robot reset"
+        if self.command:
+            msg = f"{self.command!r} failed: the robot reset before acknowledging it"
+        if detail:
+            msg += f" ({detail})"
+        super().__init__(msg)
+
+
+class MirobotCommandError(MirobotError):
+    """The firmware refused a line. ``command`` is the line, ``text`` the firmware's words.
+
+    ``code`` is the numeric code when the firmware printed one (2021: ``Error, E113,...`` -> 113).
+    """
+
+    def __init__(
+        self,
+        command: str | bytes | None,
+        text: str,
+        code: int | None = None,
+        *,
+        output: tuple[str, ...] = (),
+    ) -> None:
+        self.command = _quote_command(command)
+        self.text = text
+        self.code = code
+        self.output = output
+        super().__init__(self._message())
+
+    def _message(self) -> str:
+        where = f"{self.command!r}" if self.command else "command"
+        code = f" (E{self.code})" if self.code is not None else ""
+        return f"{where} refused by the firmware{code}: {self.text!r}"
+
+
+class RefusalReason(enum.Enum):
+    """Why the firmware acknowledged a motion line with ``ok`` but dropped it."""
+
+    LOCKED = "locked"
+    SOFT_LIMIT = "soft limit"
+    UNREACHABLE = "unreachable"
+    ANGLE_OUT_OF_LIMIT = "angle out of limit"
+
+
+class MotionRefusedError(MirobotCommandError):
+    """The firmware said ``ok`` but dropped the motion (locked, soft limit, unreachable...).
+
+    ``reason`` is a :class:`RefusalReason`; ``axis`` the firmware axis letter for soft limits.
+    """
+
+    def __init__(
+        self,
+        command: str | bytes | None,
+        text: str,
+        reason: RefusalReason,
+        *,
+        axis: str | None = None,
+        output: tuple[str, ...] = (),
+    ) -> None:
+        self.reason = reason
+        self.axis = axis
+        super().__init__(command, text, None, output=output)
+
+    def _message(self) -> str:
+        where = f"{self.command!r}" if self.command else "motion"
+        return f"{where} was acknowledged but not executed ({self.reason.value}): {self.text!r}"
+
+
+class MirobotAlarmError(MirobotCommandError):
+    """The robot is in Alarm; motion is impossible until it is cleared (``$X``, homing, reset).
+
+    ``text`` is the alarm text (``Hard limit``, ``Abort during cycle``...) or the firmware's
+    ``Alarm lock`` refusal.
+    """
+
+    def _message(self) -> str:
+        where = f"{self.command!r} failed: " if self.command else ""
+        return f"{where}the robot is in Alarm: {self.text!r}"
