@@ -1,0 +1,798 @@
+"""The workspace safety envelope: refuse a move before it is sent if it would leave allowed space.
+
+An :class:`Envelope` has three optional parts:
+
+- **joint limits**: the firmware's ranges (:data:`~mirobot_async.kinematics.JOINT_LIMITS`) by
+  default; an envelope may only *narrow* them;
+- **a Cartesian box** for the tool point (the x, y, z of forward kinematics including the tool
+  offset, in the arm's base frame, the frame of the status report's pose). Each side of each axis
+  is optional: ``z=(20, None)`` is "at least 20 mm above the table", ``x=None`` no bound on x;
+- **a rail range** (the D axis, mm).
+
+Semantics of the checks (each raises :class:`~mirobot_async.errors.MirobotUsageError` naming the
+violated bound, and returns ``None`` when the move is allowed):
+
+- **Joint moves** (``M21``, and the joint-space motion of a Cartesian ``G0``) are checked by their
+  target: joint limits, rail range, and the tool point at the target inside the box. When the start
+  joints are known the straight joint-space path is sampled too (linear joint interpolation, as the
+  firmware moves), so that the tool point may not leave the box on the way.
+- **Cartesian linear moves** (``M20 G1``) and **arcs** (``G2``/``G3``) are checked by samples of
+  the path, at most ``path_step_mm`` apart: every sample in the box, and every sample's
+  firmware-branch IK (PROTOCOL 8.3) reachable and within the joint limits. The box test of lines and
+  arcs is exact (a box is convex; an arc's extreme points are added to its samples).
+- **Sampling limit**: joint-space paths and the IK of path samples are only checked at the
+  samples; a violation shallower than about ``path_step_mm / 2`` between two samples can pass.
+- **Recovery**: a move whose start is already outside the envelope (after homing, after an
+  opt-out, or when the envelope was made while the arm was elsewhere) is allowed if its target is
+  inside and, along the way, it never goes farther outside any bound than where it started.
+- **Relative moves** (``G91``) are checked against the last known position, which the caller
+  passes (``current_joints`` / ``current_pose``); without it they are refused.
+- **Raw lines** (``Mirobot.send``) are parsed by :meth:`Envelope.check_line` with the modal state
+  :class:`MotionModes` (M20/M21, G90/G91, G0/G1/G2/G3), which the client keeps up to date with
+  :func:`update_modes`. Missing axis words keep their value; relative words add. A mode may be
+  unknown (:meth:`MotionModes.unknown`, e.g. on connecting to an arm in use, or after ``M2``):
+  a motion line must then state it. Lines that do not move (``M3``, ``G4``, ``$$``, settings...)
+  pass. Lines the checker cannot judge (``G5`` jumps,
+  unknown G codes, unparsable text, a relative move from an unknown position) are refused: the
+  opt-out is ``Mirobot.send(line, check_envelope=False)``, which logs a WARNING (client side).
+- ASSUMED: homing (``$H``, ``$HH``, ``$H0``..``$H7``, ``$HE``) passes: its path to the switches
+  cannot be bounded; it resets the modes and leaves the position unknown until the next status.
+
+The envelope's ``dh`` and ``tool`` must match the robot's settings (``$29..$34``, ``$46..$48``):
+the box is checked on the envelope's own kinematic model. Pure module: no I/O, no asyncio.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from types import MappingProxyType
+from typing import Final, TypeAlias
+
+import numpy as np
+import numpy.typing as npt
+
+from .errors import MirobotUsageError
+from .gcode import fmt_number, normalize_line, parse_words
+from .kinematics import (
+    DH,
+    DH_2021,
+    JOINT_LIMITS,
+    LIMIT_TOL,
+    Joints,
+    Pose,
+    forward,
+    forward_many,
+    inverse,
+    sample_line,
+)
+
+__all__ = [
+    "Bound",
+    "Envelope",
+    "LineCheck",
+    "MotionModes",
+    "update_modes",
+]
+
+Bound: TypeAlias = tuple[float | None, float | None]
+"""``(low, high)``; ``None`` on a side means no bound on that side."""
+FloatArray: TypeAlias = npt.NDArray[np.float64]
+
+BOX_TOL: Final = 1e-6
+"""Tolerance (mm) of the box test, so that a bound value itself survives rounding."""
+_AXES: Final = ("x", "y", "z")
+_MOTION_CODES: Final = frozenset({0, 1, 2, 3, 5})
+_KNOWN_G: Final = frozenset({0, 1, 2, 3, 4, 5, 90, 91})
+_AXIS_LETTERS: Final = "XYZABCD"
+_OTHER_LETTERS: Final = frozenset("MGFPSER")
+_HOMING: Final = frozenset({"$H", "$HH", "$HE", *(f"$H{n}" for n in range(8))})
+_ZERO_JOINTS: Final[Joints] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+def _num(value: float) -> str:
+    """A bound for a message: short, exact, no exponent (``20``, ``-30``, ``198.67``)."""
+    return fmt_number(value, 6)
+
+
+def _real(value: object, what: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise MirobotUsageError(f"{what}={value!r} must be a number")
+    out = float(value)
+    if not math.isfinite(out):
+        raise MirobotUsageError(f"{what}={out!r} must be a finite number")
+    return out
+
+
+def _vector(values: object, n: int, what: str) -> tuple[float, ...]:
+    if not isinstance(values, Sequence | np.ndarray) or isinstance(values, str | bytes):
+        raise MirobotUsageError(f"{what} must be {n} numbers, got {values!r}")
+    if len(values) != n:
+        raise MirobotUsageError(f"{what} must be {n} numbers, got {len(values)}")
+    return tuple(_real(v, f"{what}[{i}]") for i, v in enumerate(values))
+
+
+def _joints6(values: object, what: str) -> Joints:
+    q = _vector(values, 6, what)
+    return (q[0], q[1], q[2], q[3], q[4], q[5])
+
+
+def _pose6(values: object, what: str) -> Pose:
+    p = _vector(values, 6, what)
+    return (p[0], p[1], p[2], p[3], p[4], p[5])
+
+
+def _fmt(values: Sequence[float]) -> str:
+    return "(" + ", ".join(f"{v:.3f}" for v in values) + ")"
+
+
+def _bound(value: object, what: str) -> Bound | None:
+    """Validate an optional ``(low, high)`` pair with optional sides."""
+    if value is None:
+        return None
+    if not isinstance(value, Sequence) or isinstance(value, str | bytes) or len(value) != 2:
+        raise MirobotUsageError(f"{what}={value!r} must be a (low, high) pair or None")
+    lo = None if value[0] is None else _real(value[0], f"{what} low")
+    hi = None if value[1] is None else _real(value[1], f"{what} high")
+    if lo is not None and hi is not None and lo > hi:
+        raise MirobotUsageError(f"{what}=({_num(lo)}, {_num(hi)}): low is above high")
+    return (lo, hi)
+
+
+# --------------------------------------------------------------------------------------------
+# Modal state of raw lines
+
+
+@dataclass(frozen=True, slots=True)
+class MotionModes:
+    """The modal words that decide what a raw motion line means (power-on defaults).
+
+    ``None`` means unknown (:meth:`unknown`, e.g. when connecting to an arm already in use): a
+    motion line that relies on an unknown mode is refused until the mode is stated again.
+    Reset it (``MotionModes()``) after a ``%`` reset, a reset banner and homing; ``cartesian``
+    may also be taken from a status report's ``Motion_MODE`` (1 = M20).
+    """
+
+    cartesian: bool | None = False
+    """``M20`` in effect (else ``M21``, joint mode)."""
+    relative: bool | None = False
+    """``G91`` in effect (else ``G90``)."""
+    motion: int | None = 0
+    """The motion code in effect: 0, 1, 2, 3 (or 5, the 2021 jump)."""
+
+    @classmethod
+    def unknown(cls) -> MotionModes:
+        """Nothing known: every motion line must state M20/M21, G90/G91 and G0..G3 itself."""
+        return cls(None, None, None)
+
+
+@dataclass(frozen=True, slots=True)
+class _Parsed:
+    modes: MotionModes  # in effect for this line's motion
+    after: MotionModes  # in effect after the line
+    axes: dict[str, float]
+    radius: float | None
+
+
+def _parse(norm: str, modes: MotionModes) -> _Parsed:
+    """Parse a normalized G-code line (not ``$``); refuse what the checker cannot judge."""
+    try:
+        words = parse_words(norm)
+    except MirobotUsageError as exc:
+        raise MirobotUsageError(f"the envelope cannot check this line: {exc}") from None
+    motion: int | None = None
+    relative: bool | None = None
+    cartesian: bool | None = None
+    program_end = False
+    axes: dict[str, float] = {}
+    radius: float | None = None
+    for letter, value in words:
+        if letter == "G":
+            code = int(value)
+            if not value.is_integer() or code not in _KNOWN_G:
+                raise MirobotUsageError(
+                    f"G{fmt_number(value, 3)} is not a code the envelope can check"
+                )
+            if code in _MOTION_CODES:
+                if motion is not None:
+                    raise MirobotUsageError(f"two motion codes (G{motion} and G{code}) in one line")
+                motion = code
+            elif code in (90, 91):
+                if relative is not None:
+                    raise MirobotUsageError("G90 and G91 in one line")
+                relative = code == 91
+        elif letter == "M":
+            if value in (20.0, 21.0):
+                if cartesian is not None:
+                    raise MirobotUsageError("M20 and M21 in one line")
+                cartesian = value == 20.0
+            elif value in (2.0, 30.0):
+                program_end = True
+        elif letter in _AXIS_LETTERS:
+            if letter in axes:
+                raise MirobotUsageError(f"the axis word {letter} appears twice in one line")
+            axes[letter] = value
+        elif letter == "R":
+            radius = value
+        elif letter not in _OTHER_LETTERS:
+            raise MirobotUsageError(f"the letter {letter} is not one the envelope can check")
+    new = MotionModes(
+        modes.cartesian if cartesian is None else cartesian,
+        modes.relative if relative is None else relative,
+        modes.motion if motion is None else motion,
+    )
+    # ASSUMED: GRBL's program end (M2/M30) resets the distance and motion modes; what the
+    # Mirobot firmware does is not documented, so they become unknown.
+    after = replace(new, relative=None, motion=None) if program_end else new
+    return _Parsed(new, after, axes, radius)
+
+
+def update_modes(line: str | bytes, modes: MotionModes) -> MotionModes:
+    """The modes after ``line`` is executed, without any envelope check; never raises.
+
+    For every line the client sends (checked or not). Homing resets the modes; a line that the
+    firmware would reject leaves them as they were.
+    """
+    norm = normalize_line(line)
+    if norm in _HOMING:
+        return MotionModes()
+    if not norm or norm.startswith("$"):
+        return modes
+    try:
+        return _parse(norm, modes).after
+    except MirobotUsageError:
+        return modes
+
+
+@dataclass(frozen=True, slots=True)
+class LineCheck:
+    """The result of :meth:`Envelope.check_line`: the new modes and where the arm ends up.
+
+    ``joints``/``pose``/``rail`` are the target when computable, else the current values passed in
+    (for lines that do not move) or ``None`` (unknown, e.g. after homing).
+    """
+
+    modes: MotionModes
+    moves: bool
+    joints: Joints | None
+    pose: Pose | None
+    rail: float | None
+
+
+# --------------------------------------------------------------------------------------------
+# The envelope
+
+
+@dataclass(frozen=True, slots=True)
+class Envelope:
+    """Allowed space: optional box for the tool point, joint limits (narrowing only), rail range.
+
+    ``x``/``y``/``z``/``rail`` are ``(low, high)`` with ``None`` for an open side, or ``None``.
+    ``joints`` maps joint numbers 1..6 to ``(low, high)`` (``None`` side = the firmware's value).
+    Raises MirobotUsageError for a reversed, non-finite or widened range or an unknown joint.
+    """
+
+    x: Bound | None = None
+    y: Bound | None = None
+    z: Bound | None = None
+    joints: Mapping[int, Bound] | None = field(default=None, compare=False, hash=False)
+    rail: Bound | None = None
+    dh: DH = DH_2021
+    tool: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    path_step_mm: float = 2.0
+    joint_limits: tuple[tuple[float, float], ...] = field(init=False)
+    """The effective J1..J6 ranges in degrees (firmware ranges narrowed by ``joints``)."""
+    _lo: tuple[float, float, float] = field(init=False, repr=False, compare=False)
+    _hi: tuple[float, float, float] = field(init=False, repr=False, compare=False)
+    _reach: float = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        set_ = object.__setattr__
+        boxes = [_bound(getattr(self, a), a) for a in _AXES]
+        for name, box in zip(_AXES, boxes, strict=True):
+            set_(self, name, box)
+        set_(self, "rail", _bound(self.rail, "rail"))
+        lo = tuple(-math.inf if b is None or b[0] is None else b[0] for b in boxes)
+        hi = tuple(math.inf if b is None or b[1] is None else b[1] for b in boxes)
+        set_(self, "_lo", lo)
+        set_(self, "_hi", hi)
+        if not isinstance(self.dh, DH):
+            raise MirobotUsageError(f"dh={self.dh!r} must be a kinematics.DH")
+        tool = _vector(self.tool, 3, "tool")
+        set_(self, "tool", (tool[0], tool[1], tool[2]))
+        step = _real(self.path_step_mm, "path_step_mm")
+        if step <= 0:
+            raise MirobotUsageError(f"path_step_mm={_num(step)} must be > 0")
+        set_(self, "path_step_mm", step)
+        set_(self, "joint_limits", self._narrow(self.joints))
+        if self.joints is not None:
+            set_(self, "joints", MappingProxyType(dict(self.joints)))
+        dh = self.dh
+        # Upper bound of the tool point's distance from any joint axis (for joint-path sampling).
+        reach = abs(dh.a1) + abs(dh.a2) + dh.forearm + abs(dh.l) + math.hypot(*self.tool)
+        set_(self, "_reach", reach)
+
+    @staticmethod
+    def _narrow(joints: object) -> tuple[tuple[float, float], ...]:
+        limits = [tuple(r) for r in JOINT_LIMITS]
+        if joints is None:
+            return tuple((lo, hi) for lo, hi in limits)
+        if not isinstance(joints, Mapping):
+            raise MirobotUsageError(f"joints={joints!r} must be a mapping {{1: (low, high), ...}}")
+        for key, value in joints.items():
+            if isinstance(key, bool) or not isinstance(key, int) or not 1 <= key <= 6:
+                raise MirobotUsageError(f"joints has key {key!r}: joint numbers are 1..6")
+            pair = _bound(value, f"joints[{key}]")
+            if pair is None:
+                continue
+            fw_lo, fw_hi = JOINT_LIMITS[key - 1]
+            shown = ", ".join("None" if v is None else _num(v) for v in pair)
+            for value in pair:
+                if value is not None and not fw_lo <= value <= fw_hi:
+                    raise MirobotUsageError(
+                        f"joints[{key}]=({shown}) is wider than the firmware's J{key} range "
+                        f"{_num(fw_lo)}..{_num(fw_hi)} deg: an envelope may only narrow the "
+                        "joint limits"
+                    )
+            lo = fw_lo if pair[0] is None else pair[0]
+            hi = fw_hi if pair[1] is None else pair[1]
+            limits[key - 1] = (lo, hi)
+        return tuple((lo, hi) for lo, hi in limits)
+
+    # ----------------------------------------------------------------------------------------
+    # Elementary tests
+
+    @property
+    def has_box(self) -> bool:
+        """True when at least one side of the Cartesian box is bounded."""
+        return any(math.isfinite(v) for v in (*self._lo, *self._hi))
+
+    def _joint_problem(self, q: Sequence[float], what: str, prefix: str = "") -> str | None:
+        for i, (value, (lo, hi)) in enumerate(zip(q, self.joint_limits, strict=True)):
+            if not lo - LIMIT_TOL <= value <= hi + LIMIT_TOL:
+                return (
+                    f"{prefix}j{i + 1}={value:.3f} is outside the envelope's J{i + 1} range "
+                    f"{_num(lo)}..{_num(hi)} deg ({what})"
+                )
+        return None
+
+    def _rail_problem(self, rail: float | None, what: str) -> str | None:
+        if rail is None or self.rail is None:
+            return None
+        lo, hi = self.rail
+        if lo is not None and rail < lo - BOX_TOL:
+            return (
+                f"rail d={rail:.3f} mm is below the envelope's minimum rail={_num(lo)} mm ({what})"
+            )
+        if hi is not None and rail > hi + BOX_TOL:
+            return (
+                f"rail d={rail:.3f} mm is above the envelope's maximum rail={_num(hi)} mm ({what})"
+            )
+        return None
+
+    def _excess(self, points: FloatArray) -> FloatArray:
+        """``(N, 6)`` amounts by which points exceed each side: x low, x high, y low, ..."""
+        lo = np.asarray(self._lo)
+        hi = np.asarray(self._hi)
+        out = np.empty((points.shape[0], 6), dtype=np.float64)
+        out[:, 0::2] = lo[None, :] - points[:, :3]
+        out[:, 1::2] = points[:, :3] - hi[None, :]
+        return out
+
+    def _box_message(self, side: int, point: Sequence[float], subject: str, what: str) -> str:
+        axis = _AXES[side // 2]
+        value = point[side // 2]
+        if side % 2 == 0:
+            where, bound = "below the envelope's minimum", self._lo[side // 2]
+        else:
+            where, bound = "above the envelope's maximum", self._hi[side // 2]
+        return f"{subject} {axis}={value:.3f} mm is {where} {axis}={_num(bound)} mm ({what})"
+
+    def _box_problem(
+        self, point: Sequence[float], what: str, subject: str = "target"
+    ) -> str | None:
+        if not self.has_box:
+            return None
+        excess = self._excess(np.asarray([point[:3]], dtype=np.float64))[0]
+        side = int(np.argmax(excess))
+        if excess[side] > BOX_TOL:
+            return self._box_message(side, point, subject, what)
+        return None
+
+    def _path_box_problem(self, points: FloatArray, what: str, kind: str) -> str | None:
+        """Samples (row 0 = start) inside the box, or no farther out than the start on any side."""
+        if not self.has_box or len(points) == 0:
+            return None
+        excess = self._excess(points)
+        allowed = np.maximum(excess[0], 0.0) + BOX_TOL
+        bad = excess[1:] > allowed[None, :]
+        if not bad.any():
+            return None
+        row, side = (int(v) for v in np.argwhere(bad)[0])
+        point = points[row + 1]
+        pct = 100.0 * (row + 1) / max(1, len(points) - 1)
+        subject = f"the {kind} reaches (at {pct:.0f}% of the way, tool point {_fmt(point[:3])})"
+        return self._box_message(side, point, subject, what)
+
+    # ----------------------------------------------------------------------------------------
+    # Predicates
+
+    def contains_point(self, point: Sequence[float]) -> bool:
+        """True when the point ``(x, y, z)`` (or the position of a 6-number pose) is in the box."""
+        values = np.asarray(point, dtype=np.float64)
+        if values.ndim != 1 or len(values) not in (3, 6) or not np.isfinite(values).all():
+            raise MirobotUsageError(f"a point must be 3 (or 6) finite numbers, got {point!r}")
+        return self._box_problem(values.tolist(), "") is None
+
+    def contains_joints(self, joints: Sequence[float], rail: float | None = None) -> bool:
+        """True when the joints are within the limits, the rail in range and the tool in the box."""
+        q = _joints6(joints, "joints")
+        r = None if rail is None else _real(rail, "rail")
+        if self._joint_problem(q, "") or self._rail_problem(r, ""):
+            return False
+        return not self.has_box or self._box_problem(self.tool_point(q), "") is None
+
+    def tool_point(self, joints: Sequence[float]) -> tuple[float, float, float]:
+        """The tool point ``(x, y, z)`` of ``joints`` on the envelope's model."""
+        x, y, z, *_ = forward(joints, self.dh, self.tool)
+        return (x, y, z)
+
+    # ----------------------------------------------------------------------------------------
+    # Checks
+
+    def check_joints(
+        self,
+        target: Sequence[float],
+        rail: float | None = None,
+        *,
+        start: Sequence[float] | None = None,
+        what: str = "move",
+    ) -> None:
+        """Check a joint-space move to ``target`` (J1..J6, degrees) and ``rail`` (mm).
+
+        Joint limits, rail range and the tool point at the target in the box; with ``start`` (the
+        current joints) also the tool point along the joint-space path (:meth:`check_joint_path`).
+        """
+        q = _joints6(target, "target joints")
+        r = None if rail is None else _real(rail, "rail")
+        problem = self._joint_problem(q, what) or self._rail_problem(r, what)
+        if problem is None and self.has_box:
+            problem = self._box_problem(self.tool_point(q), what)
+        if problem is not None:
+            raise MirobotUsageError(problem)
+        if start is not None:
+            self.check_joint_path(start, q, what=what)
+
+    def joint_path_steps(self, start: Sequence[float], target: Sequence[float]) -> int:
+        """Samples needed so the tool point moves at most ``path_step_mm`` between two of them."""
+        turn = sum(abs(b - a) for a, b in zip(start, target, strict=True)) * math.pi / 180.0
+        return max(1, math.ceil(turn * self._reach / self.path_step_mm - 1e-9))
+
+    def check_joint_path(
+        self,
+        start: Sequence[float],
+        target: Sequence[float],
+        steps: int | None = None,
+        *,
+        what: str = "move",
+    ) -> None:
+        """Check the tool point along the linear joint interpolation ``start`` -> ``target``.
+
+        ``steps`` intervals (default :meth:`joint_path_steps`). Only the box is tested here:
+        joint limits of a joint-space line are decided by its end points (:meth:`check_joints`).
+        """
+        a = np.asarray(_joints6(start, "start joints"))
+        b = np.asarray(_joints6(target, "target joints"))
+        if not self.has_box:
+            return
+        n = self.joint_path_steps(a.tolist(), b.tolist()) if steps is None else int(steps)
+        if n < 1:
+            raise MirobotUsageError(f"steps={steps!r} must be >= 1")
+        t = np.linspace(0.0, 1.0, n + 1)
+        samples = a[None, :] + t[:, None] * (b - a)[None, :]
+        points = forward_many(samples, self.dh, self.tool)[:, :3]
+        problem = self._path_box_problem(points, what, "joint-space path")
+        if problem is not None:
+            raise MirobotUsageError(problem)
+
+    def _ik(self, pose: Pose, what: str, subject: str) -> Joints:
+        try:
+            return inverse(pose, self.dh, "firmware", tool=self.tool)
+        except MirobotUsageError as exc:
+            raise MirobotUsageError(
+                f"{subject} {_fmt(pose)} is unreachable ({what}): {exc}"
+            ) from None
+
+    def check_pose(
+        self,
+        pose: Sequence[float],
+        *,
+        start: Sequence[float] | None = None,
+        what: str = "move_pose",
+    ) -> None:
+        """Check a point-to-point Cartesian move (``M20 G0``) to ``pose`` (x, y, z, rx, ry, rz).
+
+        The position in the box, the firmware-branch IK reachable and within the joint limits; with
+        ``start`` (current joints) also the joint-space path to the IK solution.
+        """
+        self._check_pose(_pose6(pose, "pose"), start, what)
+
+    def _check_pose(self, pose: Pose, start: Sequence[float] | None, what: str) -> Joints:
+        problem = self._box_problem(pose, what)
+        if problem is not None:
+            raise MirobotUsageError(problem)
+        q = self._ik(pose, what, "target pose")
+        problem = self._joint_problem(q, what, f"target pose {_fmt(pose)} needs (firmware IK) ")
+        if problem is not None:
+            raise MirobotUsageError(problem)
+        if start is not None:
+            self.check_joint_path(start, q, what=what)
+        return q
+
+    def check_linear_path(
+        self, start_pose: Sequence[float], end_pose: Sequence[float], *, what: str = "move_linear"
+    ) -> None:
+        """Check a straight Cartesian move (``M20 G1``): samples at ``path_step_mm`` in the box,
+        each sample's firmware-branch IK reachable and within the joint limits."""
+        a = _pose6(start_pose, "start pose")
+        b = _pose6(end_pose, "end pose")
+        self._check_pose_samples(sample_line(a, b, self.path_step_mm), what, "straight line")
+
+    def _check_pose_samples(self, samples: FloatArray, what: str, kind: str) -> Joints:
+        """Box and IK of pose samples (row 0 = start); returns the IK of the last sample."""
+        end = (*samples[-1].tolist(),)
+        end_pose: Pose = (end[0], end[1], end[2], end[3], end[4], end[5])
+        problem = self._box_problem(end_pose, what) or self._path_box_problem(
+            samples[:, :3], what, kind
+        )
+        if problem is not None:
+            raise MirobotUsageError(problem)
+        limits = np.asarray(self.joint_limits)
+        allowed = np.zeros(6)
+        last: Joints = _ZERO_JOINTS
+        for i, row in enumerate(samples):
+            v = row.tolist()
+            pose: Pose = (v[0], v[1], v[2], v[3], v[4], v[5])
+            where = "target pose" if i == len(samples) - 1 else f"the {kind} passes"
+            try:
+                q = inverse(pose, self.dh, "firmware", tool=self.tool)
+            except MirobotUsageError:
+                if i == 0:
+                    continue  # an unreachable start: the arm is not there; judge the rest
+                raise MirobotUsageError(
+                    f"{where} {_fmt(pose)}, which is unreachable ({what})"
+                ) from None
+            qa = np.asarray(q)
+            excess = np.maximum(limits[:, 0] - qa, qa - limits[:, 1])
+            if i == 0:
+                allowed = np.maximum(excess, 0.0)
+            elif i == len(samples) - 1 or (excess > allowed + LIMIT_TOL).any():
+                prefix = f"{where} {_fmt(pose)} with (firmware IK) "
+                problem = self._joint_problem(q, what, prefix)
+                if problem is not None:
+                    raise MirobotUsageError(problem)
+            last = q
+        return last
+
+    def _arc_samples(
+        self, start: Pose, end: Pose, radius: float, clockwise: bool, what: str
+    ) -> FloatArray:
+        """Samples of a GRBL ``G2``/``G3`` arc of radius ``R`` (minor arc), plus its extremes."""
+        name = "G2" if clockwise else "G3"
+        if radius <= 0:
+            raise MirobotUsageError(f"{name} R{fmt_number(radius, 3)}: the radius must be > 0")
+        dx, dy = end[0] - start[0], end[1] - start[1]
+        chord = math.hypot(dx, dy)
+        if chord == 0:
+            raise MirobotUsageError(f"{name} with a zero chord: a full circle is impossible with R")
+        disc = 4.0 * radius * radius - chord * chord
+        if disc < -1e-9:
+            raise MirobotUsageError(
+                f"{name}: the chord {chord:.3f} mm is longer than 2R = {2 * radius:.3f} mm "
+                f"(the firmware says 'Arc radius error') ({what})"
+            )
+        h = -math.sqrt(max(0.0, disc)) / chord
+        if not clockwise:
+            h = -h
+        ci, cj = 0.5 * (dx - dy * h), 0.5 * (dy + dx * h)
+        cx, cy = start[0] + ci, start[1] + cj
+        rx, ry = -ci, -cj  # start relative to the centre
+        ex, ey = end[0] - cx, end[1] - cy
+        travel = math.atan2(rx * ey - ry * ex, rx * ex + ry * ey)
+        if clockwise and travel >= -1e-9:
+            travel -= 2 * math.pi
+        elif not clockwise and travel <= 1e-9:
+            travel += 2 * math.pi
+        r = math.hypot(rx, ry)
+        a0 = math.atan2(ry, rx)
+        n = max(1, math.ceil(abs(travel) * r / self.path_step_mm - 1e-9))
+        ts = set(np.linspace(0.0, 1.0, n + 1).tolist())
+        lo, hi = sorted((a0, a0 + travel))
+        for k in range(math.ceil(lo / (math.pi / 2)), math.floor(hi / (math.pi / 2)) + 1):
+            ts.add((k * math.pi / 2 - a0) / travel)  # x/y extremes of the circle
+        t = np.asarray(sorted(v for v in ts if 0.0 <= v <= 1.0))
+        a = np.asarray(start)
+        out: FloatArray = a[None, :] + t[:, None] * (np.asarray(end) - a)[None, :]
+        angle = a0 + t * travel
+        out[:, 0] = cx + r * np.cos(angle)
+        out[:, 1] = cy + r * np.sin(angle)
+        out[0], out[-1] = a, np.asarray(end)
+        return out
+
+    def check_arc(
+        self,
+        start_pose: Sequence[float],
+        end_pose: Sequence[float],
+        radius: float,
+        *,
+        clockwise: bool,
+        what: str = "arc",
+    ) -> None:
+        """Check a ``G2`` (clockwise) / ``G3`` arc in the XY plane, radius ``R`` (the minor arc).
+
+        ASSUMED (GRBL): z and the orientation are interpolated linearly along the arc.
+        """
+        a = _pose6(start_pose, "start pose")
+        b = _pose6(end_pose, "end pose")
+        samples = self._arc_samples(a, b, _real(radius, "radius"), clockwise, what)
+        self._check_pose_samples(samples, what, "arc")
+
+    # ----------------------------------------------------------------------------------------
+    # Raw lines
+
+    def check_line(
+        self,
+        line: str | bytes,
+        current_joints: Sequence[float] | None,
+        current_pose: Sequence[float] | None = None,
+        modes: MotionModes = MotionModes(),  # frozen: a safe default
+        *,
+        current_rail: float | None = None,
+        what: str | None = None,
+    ) -> LineCheck:
+        """Check one raw line against the envelope, given the last known position and ``modes``.
+
+        Returns the modes after the line and the target (see :class:`LineCheck`); raises
+        MirobotUsageError when the move leaves the envelope or cannot be judged. ``current_pose``
+        defaults to the forward kinematics of ``current_joints``.
+        """
+        norm = normalize_line(line)
+        if what is None:
+            text = line.decode("latin-1") if isinstance(line, bytes) else line
+            what = f"line {text.strip()!r}"
+        joints = None if current_joints is None else _joints6(current_joints, "current joints")
+        pose = None if current_pose is None else _pose6(current_pose, "current pose")
+        if pose is None and joints is not None:
+            pose = forward(joints, self.dh, self.tool)
+        rail = None if current_rail is None else _real(current_rail, "current rail")
+        still = LineCheck(modes, False, joints, pose, rail)
+        if not norm:
+            return still
+        if norm.startswith("$"):
+            if norm in _HOMING:
+                return LineCheck(MotionModes(), True, None, None, None)
+            if norm == "$M":
+                self.check_joints(_ZERO_JOINTS, start=joints, what=what)
+                zero_pose = forward(_ZERO_JOINTS, self.dh, self.tool)
+                return LineCheck(modes, True, _ZERO_JOINTS, zero_pose, rail)
+            if norm.startswith("$J"):
+                raise MirobotUsageError(f"jog lines ($J) are not checked by the envelope ({what})")
+            return still
+        parsed = _parse(norm, modes)
+        new = parsed.modes
+        axes = parsed.axes
+        if not axes:
+            return replace(still, modes=parsed.after)
+        unknown = [
+            name
+            for name, value in (
+                ("coordinate mode (M20/M21)", new.cartesian),
+                ("distance mode (G90/G91)", new.relative),
+                ("motion mode (G0/G1/G2/G3)", new.motion),
+            )
+            if value is None
+        ]
+        if unknown:
+            raise MirobotUsageError(
+                f"the line relies on the {' and '.join(unknown)}, which "
+                f"{'is' if len(unknown) == 1 else 'are'} unknown; "
+                f"state {'it' if len(unknown) == 1 else 'them'} in the line ({what})"
+            )
+        if new.motion == 5:
+            raise MirobotUsageError(
+                f"G5 (jump) moves cannot be checked by the envelope ({what}); "
+                "use check_envelope=False to send it anyway"
+            )
+        relative = new.relative is True  # known here
+        motion = new.motion or 0
+        target_rail = self._rail_target(axes, relative, rail, what)
+        if new.cartesian:
+            return self._cartesian_line(
+                axes, parsed.radius, relative, motion, parsed.after, joints, pose, target_rail, what
+            )
+        if new.motion in (2, 3):
+            raise MirobotUsageError(f"G{new.motion} arcs need Cartesian mode (M20) ({what})")
+        if not any(k in axes for k in "XYZABC"):
+            problem = self._rail_problem(target_rail, what)
+            if problem is not None:
+                raise MirobotUsageError(problem)
+            return LineCheck(parsed.after, True, joints, pose, target_rail)
+        target = self._combine(axes, relative, joints, "current joint angles", what)
+        q = _joints6(target, "target joints")
+        self.check_joints(q, target_rail, start=joints, what=what)
+        return LineCheck(parsed.after, True, q, forward(q, self.dh, self.tool), target_rail)
+
+    def _rail_target(
+        self, axes: Mapping[str, float], relative: bool, rail: float | None, what: str
+    ) -> float | None:
+        if "D" not in axes:
+            return rail
+        if not relative:
+            return axes["D"]
+        if rail is not None:
+            return rail + axes["D"]
+        if self.rail is not None:
+            raise MirobotUsageError(
+                f"a relative rail move needs the current rail position ({what})"
+            )
+        return None
+
+    @staticmethod
+    def _combine(
+        axes: Mapping[str, float],
+        relative: bool,
+        base: Sequence[float] | None,
+        name: str,
+        what: str,
+    ) -> tuple[float, ...]:
+        """Target from axis words X..C: missing words stay, relative words add."""
+        letters = "XYZABC"
+        if base is None:
+            if relative or not all(k in axes for k in letters):
+                kind = "relative move" if relative else "move that leaves out an axis"
+                raise MirobotUsageError(
+                    f"a {kind} needs the {name}, which are unknown; query the status first ({what})"
+                )
+            return tuple(axes[k] for k in letters)
+        return tuple(
+            (b + axes.get(k, 0.0)) if relative else axes.get(k, b)
+            for k, b in zip(letters, base, strict=True)
+        )
+
+    def _cartesian_line(
+        self,
+        axes: Mapping[str, float],
+        radius: float | None,
+        relative: bool,
+        motion: int,
+        after: MotionModes,
+        joints: Joints | None,
+        pose: Pose | None,
+        rail: float | None,
+        what: str,
+    ) -> LineCheck:
+        problem = self._rail_problem(rail, what)
+        if problem is not None:
+            raise MirobotUsageError(problem)
+        if not any(k in axes for k in "XYZABC"):
+            return LineCheck(after, True, joints, pose, rail)
+        target = _pose6(self._combine(axes, relative, pose, "current pose", what), "target")
+        if motion == 0:
+            q = self._check_pose(target, joints, what)
+            return LineCheck(after, True, q, target, rail)
+        if pose is None:
+            raise MirobotUsageError(
+                f"a Cartesian G{motion} path needs the current pose, which is unknown; "
+                f"query the status first ({what})"
+            )
+        if motion == 1:
+            samples = sample_line(pose, target, self.path_step_mm)
+            q = self._check_pose_samples(samples, what, "straight line")
+        else:
+            if radius is None:
+                raise MirobotUsageError(f"G{motion} needs R<radius> ({what})")
+            samples = self._arc_samples(pose, target, radius, motion == 2, what)
+            q = self._check_pose_samples(samples, what, "arc")
+        return LineCheck(after, True, q, target, rail)
