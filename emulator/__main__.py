@@ -1,0 +1,186 @@
+"""``mirobot-emulator`` / ``python -m mirobot_emulator``: a virtual Mirobot on a pseudo-terminal.
+
+Prints the device path as the first line of stdout (flushed), then serves until SIGINT or
+SIGTERM (exit status 0, link removed, no traceback). Stdin is a control channel for fault
+injection (one command per line, answered ``ack <command>`` on stdout); EOF on stdin only stops
+reading it. Diagnostics go to stderr. See :mod:`mirobot_emulator.server` for what is modelled and
+:mod:`mirobot_emulator.faults` for the fault specifications and commands.
+
+Exit status: 0 after a signal or a ``close`` fault, 2 for bad arguments, 1 if the pty or the
+link cannot be created.
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from .server import ServerOptions
+
+_stopping = False
+
+
+def _early_stop(signum: int, frame: object) -> None:
+    # A signal before the server is running (e.g. while the firmware imports numpy).
+    global _stopping
+    _stopping = True
+
+
+def _build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="mirobot-emulator",
+        description="A virtual WLKATA Mirobot (firmware model) on a pseudo-terminal. The first "
+        "line of stdout is the device path; stdin takes fault-injection commands "
+        "(drop-ok [N], corrupt-status [N], ignore-status [N], stall S, hard-limit [AXIS], "
+        "reset, close, time-scale X), each answered 'ack <command>'.",
+    )
+    parser.add_argument(
+        "--firmware",
+        choices=("classic", "2021"),
+        default="2021",
+        help="firmware profile (default: 2021)",
+    )
+    parser.add_argument(
+        "--time-scale",
+        type=float,
+        default=1.0,
+        metavar="X",
+        help="simulated seconds per wall second; 0 = motion completes at once (default: 1)",
+    )
+    parser.add_argument("--link", metavar="PATH", help="also create a symlink to the device here")
+    parser.add_argument(
+        "--baud",
+        type=int,
+        metavar="N",
+        help="pace input and output at N/10 bytes per second (default: full speed)",
+    )
+    parser.add_argument(
+        "--reset-on-open",
+        action="store_true",
+        help="reset the firmware (banner reprinted) when a client opens the port, "
+        "like an arm whose DTR line resets it",
+    )
+    parser.add_argument(
+        "--usb-latency-ms",
+        type=float,
+        default=0.0,
+        metavar="N",
+        help="hold output until N ms old or 62 bytes, like an FTDI latency timer "
+        "(default: 0 = off)",
+    )
+    parser.add_argument("--seed", type=int, default=0, help="seed for random faults (default: 0)")
+    parser.add_argument(
+        "--fault",
+        action="append",
+        default=[],
+        metavar="SPEC",
+        help="inject a fault (repeatable): drop-ok:N, corrupt-status:N, "
+        "corrupt-status-rate:P, ignore-status:N, stall:AFTER_S:DURATION_S, "
+        "hard-limit:AFTER_S[:AXIS], reset:AFTER_S, close:AFTER_S",
+    )
+    parser.add_argument(
+        "--homing-seconds",
+        type=float,
+        metavar="S",
+        help="duration of the homing switch search (default: the firmware's)",
+    )
+    return parser
+
+
+def _say(line: str) -> None:
+    try:
+        sys.stdout.write(line + "\n")
+        sys.stdout.flush()
+    except (BrokenPipeError, ValueError, OSError):  # nobody listens any more: keep serving
+        pass
+
+
+def _log(message: str) -> None:
+    try:
+        sys.stderr.write(f"mirobot-emulator: {message}\n")
+        sys.stderr.flush()
+    except (ValueError, OSError):
+        pass
+
+
+def _options(args: argparse.Namespace, parser: argparse.ArgumentParser) -> ServerOptions:
+    from .faults import FaultSpecError, parse_fault
+    from .server import ServerOptions
+
+    try:
+        faults = tuple(parse_fault(spec) for spec in args.fault)
+    except FaultSpecError as exc:
+        parser.error(str(exc))
+    if not args.time_scale >= 0 or args.time_scale == float("inf"):
+        parser.error("--time-scale must be a finite number >= 0")
+    if args.baud is not None and args.baud <= 0:
+        parser.error("--baud must be positive")
+    if not args.usb_latency_ms >= 0:
+        parser.error("--usb-latency-ms must be >= 0")
+    if args.homing_seconds is not None and not 0 <= args.homing_seconds < float("inf"):
+        parser.error("--homing-seconds must be a finite number >= 0")
+    return ServerOptions(
+        firmware=args.firmware,
+        time_scale=args.time_scale,
+        link=args.link,
+        baud=args.baud,
+        reset_on_open=args.reset_on_open,
+        usb_latency_ms=args.usb_latency_ms,
+        seed=args.seed,
+        faults=faults,
+        homing_seconds=args.homing_seconds,
+    )
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``mirobot-emulator``; returns the exit status.
+
+    SIGINT and SIGTERM never raise in here: until the port is ready they only set a flag, then
+    they stop the server. Run as a program (``argv`` None), they are ignored from the moment the
+    server has stopped: Python restores the default handlers during finalisation, and a signal
+    arriving then (a second SIGTERM, or a SIGTERM racing a ``close`` fault) would turn exit
+    status 0 into a kill.
+    """
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, _early_stop)
+    parser = _build_parser()
+    options = _options(parser.parse_args(argv), parser)
+
+    from .server import EmulatorServer
+
+    try:
+        control_fd: int | None = sys.stdin.fileno() if sys.stdin is not None else None
+    except (ValueError, OSError):
+        control_fd = None
+    server = EmulatorServer(options, on_reply=_say, control_fd=control_fd, log=_log)
+    try:
+        try:
+            path = server.open()  # the pty, the firmware (numpy), the power-on banner, the link
+        except OSError as exc:
+            _log(f"cannot create the port: {exc}")
+            return 1
+
+        def stop(signum: int, frame: object) -> None:
+            server.request_stop()
+
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, stop)
+        if _stopping:
+            return 0
+        _say(path)
+        if server.serve() == "closed":
+            _log("port closed (close fault); exiting")
+        return 0
+    finally:
+        if argv is None:
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                signal.signal(sig, signal.SIG_IGN)
+        server.close()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

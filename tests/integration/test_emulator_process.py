@@ -1,0 +1,603 @@
+"""The emulator as a real process on a real pty, driven with raw pyserial (not our client).
+
+Every test starts ``python -m mirobot_emulator`` with stdin/stdout pipes, reads the device path
+from the first stdout line, and talks to the port with ``serial.Serial``. Waits are conditions
+with timeouts (read until a line appears); every process and port is closed in ``finally``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+import selectors
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator, Sequence
+from pathlib import Path
+
+import pytest
+import serial
+
+pytestmark = pytest.mark.timeout(30)
+
+MODULE = (sys.executable, "-m", "mirobot_emulator")
+SCRIPT = Path(sys.executable).parent / "mirobot-emulator"
+PROFILES = ("classic", "2021")
+BANNER_LAST = "Using reset pos!"
+STATUS_RE = re.compile(
+    r"<(?P<state>[A-Za-z]+),Angle\(ABCDXYZ\):(?P<angles>[-0-9.,]+),"
+    r"Cartesian coordinate\(XYZ RxRyRz\):(?P<pose>[-0-9.,]+),"
+    r"Pump PWM:\d+,Valve PWM:\d+(?:,Motion_MODE:\d+)?>"
+)
+
+
+class Emulator:
+    """A ``mirobot-emulator`` process: its path, its stdout lines, its control channel."""
+
+    def __init__(self, *args: str, program: Sequence[str] = MODULE) -> None:
+        self.spawned = time.monotonic()
+        self.proc = subprocess.Popen(
+            [*program, *args],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            bufsize=0,
+        )
+        self._buf = b""
+        self.stderr: str | None = None
+        self._selector = selectors.DefaultSelector()
+        assert self.proc.stdout is not None
+        self._selector.register(self.proc.stdout, selectors.EVENT_READ)
+        self.path = self.stdout_line(timeout=10)
+        self.path_seen = time.monotonic()
+        assert self.path.startswith("/dev/"), self.path
+
+    def stdout_line(self, timeout: float = 5.0) -> str:
+        assert self.proc.stdout is not None
+        deadline = time.monotonic() + timeout
+        while b"\n" not in self._buf:
+            left = deadline - time.monotonic()
+            if left <= 0 or not self._selector.select(left):
+                if time.monotonic() >= deadline:
+                    raise AssertionError(f"no stdout line within {timeout} s: {self._buf!r}")
+                continue
+            chunk = os.read(self.proc.stdout.fileno(), 4096)
+            if not chunk:
+                raise AssertionError(f"emulator stdout closed: {self._buf!r}")
+            self._buf += chunk
+        line, _, self._buf = self._buf.partition(b"\n")
+        return line.decode()
+
+    def command(self, text: str, timeout: float = 5.0) -> str:
+        """Send a control command and wait for its answer line."""
+        assert self.proc.stdin is not None
+        self.proc.stdin.write(text.encode() + b"\n")
+        self.proc.stdin.flush()
+        return self.stdout_line(timeout)
+
+    def port(self, timeout: float = 0.05) -> serial.Serial:
+        return serial.Serial(self.path, 115200, timeout=timeout)
+
+    def stop(self, sig: int = signal.SIGTERM, timeout: float = 5.0) -> tuple[int, str]:
+        """Signal the process, wait for it; return (exit status, stderr)."""
+        if self.proc.poll() is None:
+            self.proc.send_signal(sig)
+        self._finish(timeout)
+        return self.proc.returncode, self.stderr or ""
+
+    def _finish(self, timeout: float) -> None:
+        if self.proc.stdin is not None and self.proc.stdin.closed:
+            self.proc.stdin = None  # closed by the test: communicate() would trip on it
+        if self.stderr is None:
+            _, err = self.proc.communicate(timeout=timeout)
+            self.stderr = err.decode(errors="replace")
+
+    def close(self) -> None:
+        """Stop the process if needed (terminate, then kill) and close every pipe."""
+        try:
+            if self.proc.poll() is None:
+                self.proc.terminate()
+            try:
+                self._finish(timeout=3)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self._finish(timeout=3)
+        finally:
+            self._selector.close()
+            for pipe in (self.proc.stdin, self.proc.stdout, self.proc.stderr):
+                if pipe is not None:
+                    with contextlib.suppress(OSError):
+                        pipe.close()
+
+
+@pytest.fixture
+def emulator() -> Iterator[Callable[..., Emulator]]:
+    started: list[Emulator] = []
+
+    def start(*args: str, program: Sequence[str] = MODULE) -> Emulator:
+        emu = Emulator(*args, program=program)
+        started.append(emu)
+        return emu
+
+    try:
+        yield start
+    finally:
+        for emu in started:
+            emu.close()
+    for emu in started:  # the emulator logs a traceback when its firmware model raises
+        assert "Traceback" not in (emu.stderr or ""), emu.stderr
+
+
+# ----------------------------------------------------------------------------- serial helpers
+def read_until(
+    port: serial.Serial, predicate: Callable[[str], bool], timeout: float = 3.0
+) -> list[str]:
+    """Read lines until one satisfies ``predicate``; return all lines read (without endings)."""
+    lines: list[str] = []
+    deadline = time.monotonic() + timeout
+    pending = b""
+    while time.monotonic() < deadline:
+        pending += port.read_until(b"\n")
+        if pending.endswith(b"\n"):
+            line = pending.decode(errors="replace").rstrip("\r\n")
+            pending = b""
+            lines.append(line)
+            if predicate(line):
+                return lines
+    raise AssertionError(f"no matching line within {timeout} s; got {lines!r} + {pending!r}")
+
+
+def is_status(line: str) -> bool:
+    return line.startswith("<") and line.endswith(">")
+
+
+def status(port: serial.Serial, timeout: float = 3.0) -> re.Match[str]:
+    port.write(b"?")
+    line = read_until(port, is_status, timeout)[-1]
+    match = STATUS_RE.fullmatch(line)
+    assert match, line
+    return match
+
+
+def joints(match: re.Match[str]) -> list[float]:
+    """J1..J6 from a status line (printed in the order J4, J5, J6, D, J1, J2, J3)."""
+    a = [float(v) for v in match["angles"].split(",")]
+    return [a[-3], a[-2], a[-1], a[0], a[1], a[2]]
+
+
+def wait_idle(port: serial.Serial, timeout: float = 5.0) -> re.Match[str]:
+    deadline = time.monotonic() + timeout
+    while True:
+        match = status(port)
+        if match["state"] == "Idle":
+            return match
+        assert time.monotonic() < deadline, f"not Idle within {timeout} s: {match[0]}"
+
+
+def command(port: serial.Serial, line: str, timeout: float = 3.0) -> list[str]:
+    """Send a line, read until its final reply (ok or an error); return the lines read."""
+    port.write(line.encode() + b"\n")
+    return read_until(
+        port,
+        lambda text: text.endswith("ok") or text.startswith(("error", "Error")),
+        timeout,
+    )
+
+
+def unlock(port: serial.Serial, profile: str) -> None:
+    if profile == "2021":  # starts in Alarm: $X leaves it
+        command(port, "$X")
+    replies = command(port, "M50")
+    assert any("Unlock each axis" in text for text in replies), replies
+
+
+# ----------------------------------------------------------------------------- basics
+def test_startup_to_first_status_is_fast(emulator: Callable[..., Emulator]) -> None:
+    emu = emulator()
+    with emu.port(timeout=0.01) as port:
+        match = status(port, timeout=2.0)
+    elapsed = time.monotonic() - emu.spawned
+    print(f"spawn -> path {emu.path_seen - emu.spawned:.3f} s, -> first status {elapsed:.3f} s")
+    assert match["state"] in ("Idle", "Alarm")
+    assert elapsed < 1.0
+
+
+@pytest.mark.parametrize("profile", PROFILES)
+def test_banner_on_open_with_reset_on_open(emulator: Callable[..., Emulator], profile: str) -> None:
+    emu = emulator("--firmware", profile, "--reset-on-open", "--time-scale", "0")
+    for _ in range(2):  # every open resets
+        with emu.port() as port:
+            lines = read_until(port, lambda text: BANNER_LAST in text)
+            assert any("Qinnew Robot" in text for text in lines), lines
+            version = "20191228_2" if profile == "classic" else "20210516"
+            assert any(version in text for text in lines), lines
+            assert status(port)["state"] == ("Idle" if profile == "classic" else "Alarm")
+
+
+def test_state_survives_reopen_without_reset_on_open(emulator: Callable[..., Emulator]) -> None:
+    emu = emulator("--firmware", "classic", "--time-scale", "0")
+    with emu.port() as port:
+        unlock(port, "classic")
+        command(port, "M21 G90 G1 X10 F2000")
+        assert joints(wait_idle(port))[0] == pytest.approx(10.0, abs=0.01)
+    with emu.port() as port:
+        # No banner on reopen: the first line after "?" is the status, at the same place.
+        port.write(b"?")
+        first = read_until(port, lambda text: text != "")[-1]
+        assert is_status(first), first
+        match = STATUS_RE.fullmatch(first)
+        assert match
+        assert joints(match)[0] == pytest.approx(10.0, abs=0.01)
+        command(port, "G1 X20 F2000")  # still unlocked
+        assert joints(wait_idle(port))[0] == pytest.approx(20.0, abs=0.01)
+
+
+@pytest.mark.parametrize("profile", PROFILES)
+@pytest.mark.parametrize("scale", ["100", "0"])
+def test_joint_move(emulator: Callable[..., Emulator], profile: str, scale: str) -> None:
+    emu = emulator("--firmware", profile, "--time-scale", scale)
+    with emu.port() as port:
+        unlock(port, profile)
+        replies = command(port, "M21 G90 G1 X10 F2000")
+        assert replies[-1] == "ok", replies
+        seen = []
+        while True:
+            match = status(port)
+            seen.append(joints(match)[0])
+            if match["state"] == "Idle":
+                break
+            assert match["state"] == "Run", match[0]
+            assert len(seen) < 2000
+        assert seen[-1] == pytest.approx(10.0, abs=0.01)
+        assert seen == sorted(seen)  # monotonic toward the target
+
+
+@pytest.mark.parametrize("profile", PROFILES)
+def test_time_scale_zero_is_instant(emulator: Callable[..., Emulator], profile: str) -> None:
+    emu = emulator("--firmware", profile, "--time-scale", "0")
+    with emu.port() as port:
+        unlock(port, profile)
+        port.write(b"M21 G90 G1 X10 Y-5 F100\n?")  # 10 s of motion at F100
+        lines = read_until(port, is_status)
+        assert "ok" in lines, lines
+        match = STATUS_RE.fullmatch(lines[-1])
+        assert match, lines
+        assert match["state"] == "Idle"
+        assert joints(match)[:2] == pytest.approx([10.0, -5.0], abs=0.001)
+
+
+@pytest.mark.parametrize("profile", PROFILES)
+def test_homing(emulator: Callable[..., Emulator], profile: str) -> None:
+    emu = emulator("--firmware", profile, "--time-scale", "100", "--homing-seconds", "10")
+    with emu.port() as port:
+        unlock(port, profile)
+        command(port, "M21 G90 G0 X20 Y10")
+        wait_idle(port)  # $H while moving: "Not idle"
+        started = time.monotonic()
+        replies = command(port, "$H", timeout=5)
+        assert replies[-1].endswith("moving...ok"), replies
+        assert (time.monotonic() - started) > 0.05  # 10 s homing at x100 takes 0.1 s
+        match = wait_idle(port)
+        assert joints(match) == pytest.approx([0.0] * 6, abs=0.001)
+
+
+@pytest.mark.parametrize("profile", PROFILES)
+def test_percent_resets(emulator: Callable[..., Emulator], profile: str) -> None:
+    emu = emulator("--firmware", profile, "--time-scale", "0")
+    with emu.port() as port:
+        port.write(b"%")
+        lines = read_until(port, lambda text: BANNER_LAST in text)
+        assert any("Qinnew Robot" in text for text in lines), lines
+        assert status(port)  # still answering
+
+
+# ----------------------------------------------------------------------------- process life
+def test_link_created_and_removed_on_sigterm(
+    emulator: Callable[..., Emulator], tmp_path: Path
+) -> None:
+    link = tmp_path / "mirobot"
+    link.symlink_to(tmp_path / "stale")  # left by a killed run: replaced
+    emu = emulator("--link", str(link))
+    assert link.is_symlink()
+    assert os.readlink(link) == emu.path
+    with serial.Serial(str(link), 115200, timeout=0.05) as port:
+        assert status(port)
+    code, err = emu.stop(signal.SIGTERM)
+    assert code == 0, err
+    assert not link.exists()
+    assert not link.is_symlink()
+    assert "Traceback" not in err
+
+
+def test_link_never_replaces_a_file(tmp_path: Path) -> None:
+    link = tmp_path / "precious"
+    link.write_text("keep me")
+    proc = subprocess.run(
+        [*MODULE, "--link", str(link)], capture_output=True, timeout=10, check=False
+    )
+    assert proc.returncode == 1
+    assert b"not a symlink" in proc.stderr
+    assert proc.stdout == b""
+    assert link.read_text() == "keep me"
+
+
+@pytest.mark.skipif(not SCRIPT.exists(), reason="console script not installed")
+def test_console_script(emulator: Callable[..., Emulator]) -> None:
+    emu = emulator("--firmware", "classic", program=[str(SCRIPT)])
+    with emu.port() as port:
+        assert status(port)["state"] == "Idle"
+    code, err = emu.stop()
+    assert code == 0, err
+
+
+def test_sigint_exits_zero_without_traceback(emulator: Callable[..., Emulator]) -> None:
+    emu = emulator()
+    with emu.port() as port:
+        assert status(port)
+    code, err = emu.stop(signal.SIGINT)
+    assert code == 0, err
+    assert "Traceback" not in err
+    assert "KeyboardInterrupt" not in err
+
+
+def test_stdin_eof_does_not_stop_the_emulator(emulator: Callable[..., Emulator]) -> None:
+    emu = emulator()
+    assert emu.proc.stdin is not None
+    emu.proc.stdin.close()
+    with emu.port() as port:
+        assert status(port)
+        assert emu.proc.poll() is None
+        assert status(port)
+    code, err = emu.stop()
+    assert code == 0, err
+
+
+def test_bad_arguments_exit_2() -> None:
+    proc = subprocess.run(
+        [*MODULE, "--fault", "explode:1"],
+        capture_output=True,
+        timeout=10,
+        check=False,
+    )
+    assert proc.returncode == 2
+    assert b"explode" in proc.stderr
+    assert proc.stdout == b""
+
+
+# ----------------------------------------------------------------------------- wire timing
+def _received_rate(port: serial.Serial, expected: int, timeout: float) -> tuple[float, bytes]:
+    """Read ``expected`` bytes; return (bytes per second after the first chunk, data)."""
+    data = b""
+    first = last = 0.0
+    first_len = 0
+    deadline = time.monotonic() + timeout
+    while len(data) < expected and time.monotonic() < deadline:
+        chunk = port.read(max(1, min(port.in_waiting, expected - len(data))))
+        if chunk:
+            last = time.monotonic()
+            if not data:
+                first, first_len = last, len(chunk)
+            data += chunk
+    assert len(data) == expected, (len(data), expected)
+    return (len(data) - first_len) / (last - first), data
+
+
+def test_baud_paces_output(emulator: Callable[..., Emulator]) -> None:
+    emu = emulator("--baud", "9600", "--time-scale", "0")
+    with emu.port(timeout=0.5) as port:
+        port.write(b"\n" * 400)  # 400 bytes in (0.42 s), 400 x "ok\r\n" = 1600 bytes out (1.67 s)
+        rate, data = _received_rate(port, 1600, timeout=6)
+    assert data == b"ok\r\n" * 400
+    print(f"output rate at 9600 baud: {rate:.0f} B/s")
+    assert rate == pytest.approx(960, rel=0.15)
+
+
+def test_baud_paces_input(emulator: Callable[..., Emulator]) -> None:
+    emu = emulator("--baud", "9600", "--time-scale", "0")
+    line = b"(" + b"x" * 62 + b")\n"  # 64 bytes in, "ok\r\n" out: input-bound
+    with emu.port(timeout=0.5) as port:
+        port.write(b"\n")
+        assert read_until(port, lambda text: text == "ok")
+        started = time.monotonic()
+        port.write(line * 10)  # 640 bytes: the pacing keeps the 128-byte ring from overflowing
+        oks: list[str] = []
+        for _ in range(10):
+            oks += read_until(port, lambda text: text == "ok", timeout=3)
+        elapsed = time.monotonic() - started
+    assert oks.count("ok") == 10, oks
+    print(f"640 bytes in at 9600 baud: {elapsed:.3f} s")
+    assert elapsed == pytest.approx(640 / 960, rel=0.15)
+
+
+def test_usb_latency_holds_short_output(emulator: Callable[..., Emulator]) -> None:
+    emu = emulator("--usb-latency-ms", "80", "--time-scale", "0")
+    with emu.port(timeout=0.5) as port:
+        delays = []
+        for _ in range(3):
+            started = time.monotonic()
+            port.write(b"\n")
+            assert read_until(port, lambda text: text == "ok")
+            delays.append(time.monotonic() - started)
+    print(f"ok delays with an 80 ms latency timer: {delays}")
+    assert min(delays) >= 0.075
+    assert max(delays) < 0.5
+
+
+# ----------------------------------------------------------------------------- faults (flags)
+def test_fault_drop_ok(emulator: Callable[..., Emulator]) -> None:
+    emu = emulator("--fault", "drop-ok:2", "--fault", "drop-ok:3")
+    with emu.port() as port:
+        port.write(b"\n\n\n\n?")
+        lines = read_until(port, is_status)
+        assert [text for text in lines if text] == ["ok", "ok", lines[-1]]
+        port.write(b"\n")
+        assert read_until(port, lambda text: text != "")[-1] == "ok"
+
+
+def test_fault_corrupt_status(emulator: Callable[..., Emulator]) -> None:
+    emu = emulator("--fault", "corrupt-status:2")
+    with emu.port() as port:
+        port.write(b"?")
+        first = read_until(port, lambda text: text.startswith("<"))[-1]
+        port.write(b"?")
+        second = read_until(port, lambda text: text.startswith("<"))[-1]
+        port.write(b"?")
+        third = read_until(port, lambda text: text.startswith("<"))[-1]
+    assert STATUS_RE.fullmatch(first)
+    assert STATUS_RE.fullmatch(third)
+    assert not STATUS_RE.fullmatch(second)
+    assert re.search(r"\d[A-Za-z]", second), second  # e.g. "13.226esian coordinate"
+    assert len(second) > len(first)  # a fragment printed twice
+
+
+def test_fault_corrupt_status_rate_is_deterministic_by_seed(
+    emulator: Callable[..., Emulator],
+) -> None:
+    runs = []
+    for _ in range(2):
+        emu = emulator("--fault", "corrupt-status-rate:0.5", "--seed", "42")
+        with emu.port() as port:
+            port.write(b"?" * 12)
+            lines = []
+            for _ in range(12):
+                lines.append(read_until(port, lambda text: text.startswith("<"))[-1])
+        runs.append(lines)
+        emu.stop()
+    assert runs[0] == runs[1]
+    corrupted = [not STATUS_RE.fullmatch(text) for text in runs[0]]
+    assert any(corrupted)
+    assert not all(corrupted)
+
+
+def test_fault_ignore_status(emulator: Callable[..., Emulator]) -> None:
+    emu = emulator("--fault", "ignore-status:1")
+    with emu.port() as port:
+        port.write(b"?\n")
+        lines = read_until(port, lambda text: text == "ok")
+        assert not any(is_status(text) for text in lines), lines
+        assert status(port)
+
+
+def test_fault_stall(emulator: Callable[..., Emulator]) -> None:
+    emu = emulator("--fault", "stall:0:0.8")
+    with emu.port() as port:
+        port.write(b"\n")
+        read_until(port, lambda text: text == "ok", timeout=5)
+        arrived = time.monotonic()
+    assert arrived - emu.spawned >= 0.8
+    assert arrived - emu.path_seen < 2.0
+
+
+def test_fault_hard_limit(emulator: Callable[..., Emulator]) -> None:
+    emu = emulator("--firmware", "classic", "--fault", "hard-limit:0.3")
+    with emu.port() as port:
+        lines = read_until(port, lambda text: "Hard limit" in text, timeout=5)
+        assert lines[-1] == "ALARM: Hard limit", lines
+        assert read_until(port, lambda text: text != "") == ["[Reset to continue]"]
+        # Nothing but "%" is processed now ("?" is not answered either).
+        port.write(b"%")
+        assert read_until(port, lambda text: BANNER_LAST in text)
+        assert status(port)["state"] == "Alarm"
+
+
+def test_fault_reset(emulator: Callable[..., Emulator]) -> None:
+    emu = emulator("--fault", "reset:0.3")
+    with emu.port() as port:
+        lines = read_until(port, lambda text: BANNER_LAST in text, timeout=5)
+        assert any("Qinnew Robot" in text for text in lines), lines
+
+
+def test_fault_close(emulator: Callable[..., Emulator]) -> None:
+    emu = emulator("--fault", "close:0.3")
+    with emu.port(timeout=0.1) as port:
+        deadline = time.monotonic() + 5
+        with pytest.raises(serial.SerialException):
+            while time.monotonic() < deadline:
+                port.read(1)
+    assert emu.proc.wait(timeout=5) == 0  # exits by itself
+    code, err = emu.stop()
+    assert code == 0, err
+    assert "Traceback" not in err
+
+
+# ----------------------------------------------------------------------------- control channel
+def test_control_drop_ok(emulator: Callable[..., Emulator]) -> None:
+    emu = emulator()
+    with emu.port() as port:
+        port.write(b"\n")
+        assert read_until(port, lambda text: text == "ok")
+        assert emu.command("drop-ok 2") == "ack drop-ok 2"
+        port.write(b"\n\n\n?")
+        lines = read_until(port, is_status)
+        assert [text for text in lines if text] == ["ok", lines[-1]]
+
+
+def test_control_corrupt_and_ignore_status(emulator: Callable[..., Emulator]) -> None:
+    emu = emulator()
+    with emu.port() as port:
+        assert STATUS_RE.fullmatch(status(port)[0])
+        assert emu.command("corrupt-status") == "ack corrupt-status"
+        port.write(b"?")
+        corrupted = read_until(port, lambda text: text.startswith("<"))[-1]
+        assert not STATUS_RE.fullmatch(corrupted)
+        assert emu.command("ignore-status") == "ack ignore-status"
+        port.write(b"?\n")
+        lines = read_until(port, lambda text: text == "ok")
+        assert not any(text.startswith("<") for text in lines), lines
+        assert status(port)
+
+
+def test_control_stall(emulator: Callable[..., Emulator]) -> None:
+    emu = emulator()
+    with emu.port(timeout=0.05) as port:
+        assert emu.command("stall 0.5") == "ack stall 0.5"
+        started = time.monotonic()
+        port.write(b"\n?")
+        lines = read_until(port, is_status, timeout=3)
+        elapsed = time.monotonic() - started
+        assert lines[0] == "ok", lines
+    assert 0.45 <= elapsed < 1.5
+
+
+@pytest.mark.parametrize("profile", PROFILES)
+def test_control_hard_limit_reset_and_close(
+    emulator: Callable[..., Emulator], profile: str
+) -> None:
+    emu = emulator("--firmware", profile)
+    with emu.port() as port:
+        assert emu.command("hard-limit 2") == "ack hard-limit 2"
+        lines = read_until(port, lambda text: "Hard limit" in text)
+        assert lines == ["ALARM: Hard limit"], lines
+        assert emu.command("reset") == "ack reset"
+        lines = read_until(port, lambda text: BANNER_LAST in text)
+        assert any("Qinnew Robot" in text for text in lines), lines
+        assert emu.command("close") == "ack close"
+        with pytest.raises(serial.SerialException):
+            port.read(1)
+    assert emu.proc.wait(timeout=5) == 0  # exits by itself
+    code, err = emu.stop()
+    assert code == 0, err
+
+
+def test_control_time_scale(emulator: Callable[..., Emulator]) -> None:
+    emu = emulator("--firmware", "classic", "--time-scale", "1")
+    with emu.port() as port:
+        unlock(port, "classic")
+        command(port, "M21 G90 G1 X60 F300")  # 60 degrees at 300 deg/min: 12 s of real time
+        assert status(port)["state"] == "Run"
+        assert emu.command("time-scale 0") == "ack time-scale 0"
+        match = status(port)
+        assert match["state"] == "Idle"
+        assert joints(match)[0] == pytest.approx(60.0, abs=0.01)
+
+
+def test_control_errors(emulator: Callable[..., Emulator]) -> None:
+    emu = emulator()
+    assert emu.command("explode").startswith("error explode:")
+    assert emu.command("drop-ok zero").startswith("error drop-ok zero:")
+    assert emu.command("time-scale 2") == "ack time-scale 2"
+    with emu.port() as port:
+        assert status(port)
