@@ -1,0 +1,571 @@
+"""Run the virtual Mirobot in tests: :func:`start_emulator` and a pytest plugin.
+
+::
+
+    from mirobot_async import Mirobot
+    from mirobot_async.testing import start_emulator
+
+    async with start_emulator(firmware="classic", time_scale=100) as url:
+        async with Mirobot.connect(url) as arm:
+            await arm.home()
+
+:func:`start_emulator` starts ``python -m mirobot_emulator`` (the ``mirobot-emulator`` command) as
+a subprocess on a fresh pseudo-terminal, yields its port path and stops the process when the block
+ends (SIGTERM, then SIGKILL if it does not exit within a few seconds). :class:`EmulatorProcess` is
+the same with a handle: ``.url``, ``await .control("drop-ok")`` for the emulator's fault-injection
+channel (it returns the emulator's ``ack`` line), ``.kill()`` to pull the cable abruptly.
+
+**pytest plugin** (registered through the ``pytest11`` entry point, so installing mirobot-async is
+enough)::
+
+    @pytest.mark.mirobot_emulator(firmware="classic", time_scale=100)
+    async def test_my_app(mirobot_emulator):          # the port path, e.g. "/dev/pts/7"
+        async with Mirobot.connect(mirobot_emulator) as arm:
+            ...
+
+The ``mirobot_emulator`` fixture yields the port URL of an emulator started for the test;
+``mirobot_emulator_process`` yields its :class:`SyncEmulatorProcess` handle (``.url``,
+``.control(cmd)``, ``.kill()``). The profile and time scale come from the
+``mirobot_emulator(firmware=..., time_scale=..., extra_args=...)`` marker, else from the command
+line options ``--mirobot-firmware`` (default ``2021``) and ``--mirobot-time-scale`` (default ``0``:
+every motion completes at once). The fixtures are synchronous (the emulator is a separate process),
+so they work in any test style: plain, pytest-asyncio (any mode), anyio or trio.
+
+This module imports only the standard library at import time, so loading the plugin is cheap.
+"""
+
+# Awaiting calls take timeout= by design (issue 4).
+# ruff: noqa: ASYNC109
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import os
+import queue
+import selectors
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import AsyncIterator, Iterator, Sequence
+from typing import TYPE_CHECKING, Any
+
+from mirobot_async.errors import MirobotError, MirobotTimeoutError, MirobotUsageError
+
+if TYPE_CHECKING:
+    import pytest
+
+__all__ = [
+    "EmulatorError",
+    "EmulatorProcess",
+    "SyncEmulatorProcess",
+    "emulator_command",
+    "run_emulator",
+    "start_emulator",
+]
+
+_log = logging.getLogger("mirobot_async.testing")
+
+DEFAULT_FIRMWARE = "2021"
+DEFAULT_TIME_SCALE = 0.0
+STARTUP_TIMEOUT = 30.0
+"""Seconds to wait for the emulator's first line (its port path)."""
+STOP_TIMEOUT = 5.0
+"""Seconds to wait for the emulator to exit after SIGTERM before it is killed."""
+CONTROL_TIMEOUT = 5.0
+"""Seconds to wait for the ``ack`` of a control command."""
+
+
+class EmulatorError(MirobotError):
+    """The emulator process could not be started, died, or refused a control command."""
+
+
+def emulator_command(
+    firmware: str = DEFAULT_FIRMWARE,
+    time_scale: float = DEFAULT_TIME_SCALE,
+    extra_args: Sequence[str] = (),
+) -> list[str]:
+    """The argument vector that starts the emulator with this Python interpreter."""
+    if firmware not in ("2021", "classic"):
+        raise MirobotUsageError(f"firmware={firmware!r} must be '2021' or 'classic'")
+    scale = float(time_scale)
+    if not scale >= 0 or scale == float("inf"):
+        raise MirobotUsageError(f"time_scale={time_scale!r} must be a finite number >= 0")
+    if isinstance(extra_args, str):
+        raise MirobotUsageError("extra_args must be a sequence of strings, not one string")
+    return [
+        sys.executable,
+        "-m",
+        "mirobot_emulator",
+        "--firmware",
+        firmware,
+        "--time-scale",
+        repr(scale),
+        *extra_args,
+    ]
+
+
+# --------------------------------------------------------------------------------------------
+# asyncio
+
+
+class EmulatorProcess:
+    """A running emulator subprocess, driven from asyncio. Create with :meth:`start`.
+
+    Use it as an async context manager (``async with await EmulatorProcess.start() as emu``) or
+    call :meth:`stop` yourself; either way no process is left behind.
+    """
+
+    def __init__(
+        self, process: asyncio.subprocess.Process, url: str, command: Sequence[str]
+    ) -> None:
+        self._process = process
+        self.url = url
+        """The emulator's port (a pty path), for :meth:`Mirobot.connect`."""
+        self.command = tuple(command)
+        self._replies: asyncio.Queue[str | None] = asyncio.Queue()
+        self._control_lock = asyncio.Lock()
+        self._reader = asyncio.get_running_loop().create_task(
+            self._read_stdout(), name=f"mirobot-emulator-stdout-{process.pid}"
+        )
+
+    @classmethod
+    async def start(
+        cls,
+        firmware: str = DEFAULT_FIRMWARE,
+        time_scale: float = DEFAULT_TIME_SCALE,
+        *,
+        extra_args: Sequence[str] = (),
+        startup_timeout: float = STARTUP_TIMEOUT,
+    ) -> EmulatorProcess:
+        """Start an emulator and wait for its port path (at most ``startup_timeout`` seconds).
+
+        Raises :class:`EmulatorError` if it exits or prints nothing in time (the process is then
+        killed). Cancellation kills the process too.
+        """
+        command = emulator_command(firmware, time_scale, extra_args)
+        process = await asyncio.create_subprocess_exec(
+            *command,
+            stdin=asyncio.subprocess.PIPE,
+            stdout=asyncio.subprocess.PIPE,
+        )
+        try:
+            assert process.stdout is not None
+            try:
+                async with asyncio.timeout(startup_timeout):
+                    first = await process.stdout.readline()
+            except TimeoutError as err:
+                raise EmulatorError(
+                    f"the emulator printed no port path within {startup_timeout:g} s"
+                ) from err
+            url = first.decode("utf-8", "replace").strip()
+            if not url:
+                raise EmulatorError(
+                    f"the emulator exited before printing its port path: {' '.join(command)}"
+                )
+        except BaseException:
+            await _reap(process, kill_first=True)
+            raise
+        _log.debug("emulator %d serving %s", process.pid, url)
+        return cls(process, url, command)
+
+    @property
+    def pid(self) -> int:
+        """The emulator's process id."""
+        return self._process.pid
+
+    @property
+    def returncode(self) -> int | None:
+        """The exit status once the process has exited, else ``None``."""
+        return self._process.returncode
+
+    async def _read_stdout(self) -> None:
+        stdout = self._process.stdout
+        assert stdout is not None
+        try:
+            while line := await stdout.readline():
+                text = line.decode("utf-8", "replace").strip()
+                if text.startswith(("ack ", "error ")) or text in ("ack", "error"):
+                    self._replies.put_nowait(text)
+                elif text:
+                    _log.debug("emulator: %s", text)
+        except (OSError, ValueError):  # pragma: no cover - pipe torn down
+            pass
+        finally:
+            self._replies.put_nowait(None)
+
+    async def control(self, command: str, *, timeout: float = CONTROL_TIMEOUT) -> str:
+        """Send one control command (``drop-ok``, ``corrupt-status``, ``ignore-status``,
+        ``stall S``, ``hard-limit``, ``reset``, ``close``, ``time-scale X``) and return the
+        emulator's ``ack ...`` line, which means the fault is armed or done.
+
+        Raises :class:`EmulatorError` if the emulator refuses the command or has exited, and
+        :class:`MirobotTimeoutError` after ``timeout`` seconds without an answer. Commands are
+        answered in order; concurrent calls are serialised. Cancellation is safe (a late answer
+        is skipped by the next call only if it has no reply waiting: prefer not to cancel).
+        """
+        text = command.strip()
+        if not text or "\n" in text:
+            raise MirobotUsageError(f"command={command!r} must be one non-empty line")
+        async with self._control_lock:
+            stdin = self._process.stdin
+            if stdin is None or self._process.returncode is not None or stdin.is_closing():
+                raise EmulatorError(f"cannot send {text!r}: the emulator is not running")
+            stdin.write(text.encode("utf-8") + b"\n")
+            try:
+                async with asyncio.timeout(timeout):
+                    await stdin.drain()
+                    reply = await self._replies.get()
+            except TimeoutError as err:
+                raise MirobotTimeoutError(f"the emulator's answer to {text!r}", timeout) from err
+            except (ConnectionError, OSError) as err:
+                raise EmulatorError(f"cannot send {text!r}: {err}") from err
+            if reply is None:
+                self._replies.put_nowait(None)  # keep reporting the end to later calls
+                raise EmulatorError(f"the emulator exited before answering {text!r}")
+            if reply.startswith("error"):
+                raise EmulatorError(f"the emulator refused {text!r}: {reply}")
+            return reply
+
+    def kill(self) -> None:
+        """SIGKILL the emulator now (its port disappears, like a pulled cable); does not wait."""
+        if self._process.returncode is None:
+            with contextlib.suppress(ProcessLookupError):
+                self._process.kill()
+
+    async def stop(self, timeout: float = STOP_TIMEOUT) -> int:
+        """Stop the emulator: SIGTERM, wait up to ``timeout`` s, then SIGKILL. Idempotent.
+
+        Returns the exit status. Waits for the process and its pipes to be fully released, so no
+        process or file descriptor is left behind (also when cancelled: the clean-up finishes).
+        """
+        task = asyncio.ensure_future(self._stop(timeout))
+        try:
+            return await asyncio.shield(task)
+        except asyncio.CancelledError:
+            await asyncio.wait({task})
+            raise
+
+    async def _stop(self, timeout: float) -> int:
+        process = self._process
+        if process.stdin is not None and not process.stdin.is_closing():
+            process.stdin.close()
+        if process.returncode is None:
+            with contextlib.suppress(ProcessLookupError):
+                process.send_signal(signal.SIGTERM)
+        returncode = await _reap(process, timeout=timeout)
+        with contextlib.suppress(TimeoutError):
+            async with asyncio.timeout(timeout):
+                await self._reader
+        if not self._reader.done():  # pragma: no cover - stdout held open by a grandchild
+            self._reader.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._reader
+        if process.stdin is not None:
+            with contextlib.suppress(Exception):
+                await process.stdin.wait_closed()
+        return returncode
+
+    async def __aenter__(self) -> EmulatorProcess:
+        return self
+
+    async def __aexit__(self, *exc_info: object) -> None:
+        await self.stop()
+
+
+async def _reap(
+    process: asyncio.subprocess.Process, *, timeout: float = STOP_TIMEOUT, kill_first: bool = False
+) -> int:
+    """Wait for ``process`` to exit (killing it after ``timeout``); return its status."""
+    if kill_first and process.returncode is None:
+        with contextlib.suppress(ProcessLookupError):
+            process.kill()
+    if process.stdin is not None and not process.stdin.is_closing():
+        process.stdin.close()
+    try:
+        async with asyncio.timeout(timeout):
+            return await process.wait()
+    except TimeoutError:
+        _log.warning("emulator %d did not exit after SIGTERM; killing it", process.pid)
+        with contextlib.suppress(ProcessLookupError):
+            process.kill()
+        return await process.wait()
+
+
+@contextlib.asynccontextmanager
+async def start_emulator(
+    firmware: str = DEFAULT_FIRMWARE,
+    time_scale: float = DEFAULT_TIME_SCALE,
+    *,
+    extra_args: Sequence[str] = (),
+    startup_timeout: float = STARTUP_TIMEOUT,
+) -> AsyncIterator[str]:
+    """Run a virtual Mirobot for the duration of the block; yields its port URL.
+
+    ``firmware`` is ``"2021"`` or ``"classic"``; ``time_scale`` is simulated seconds per wall
+    second (0: motion completes at once, 1: real time, 100: a 10 s homing takes 0.1 s);
+    ``extra_args`` go to the ``mirobot-emulator`` command line (``--baud``, ``--fault``...).
+    Startup waits at most ``startup_timeout`` s (:class:`EmulatorError`); on exit the process is
+    stopped and reaped even if the block was cancelled. Use :class:`EmulatorProcess` for a
+    handle with the fault-injection channel.
+    """
+    emulator = await EmulatorProcess.start(
+        firmware, time_scale, extra_args=extra_args, startup_timeout=startup_timeout
+    )
+    try:
+        yield emulator.url
+    finally:
+        await emulator.stop()
+
+
+# --------------------------------------------------------------------------------------------
+# Synchronous (pytest fixtures, scripts without an event loop)
+
+
+class SyncEmulatorProcess:
+    """A running emulator subprocess driven without asyncio (used by the pytest fixtures).
+
+    ``url``, :meth:`control`, :meth:`kill` and :meth:`stop` as in :class:`EmulatorProcess`, but
+    blocking (with timeouts). A daemon thread drains the emulator's stdout.
+    """
+
+    def __init__(
+        self,
+        firmware: str = DEFAULT_FIRMWARE,
+        time_scale: float = DEFAULT_TIME_SCALE,
+        *,
+        extra_args: Sequence[str] = (),
+        startup_timeout: float = STARTUP_TIMEOUT,
+    ) -> None:
+        self.command = tuple(emulator_command(firmware, time_scale, extra_args))
+        self._replies: queue.Queue[str | None] = queue.Queue()
+        self._control_lock = threading.Lock()
+        self._process = subprocess.Popen(
+            self.command,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+        )
+        try:
+            self.url = self._first_line(startup_timeout)
+        except BaseException:
+            self._process.kill()
+            self._finish(STOP_TIMEOUT)
+            raise
+        self._thread = threading.Thread(
+            target=self._drain, name=f"mirobot-emulator-stdout-{self.pid}", daemon=True
+        )
+        self._thread.start()
+
+    def _first_line(self, timeout: float) -> str:
+        stdout = self._process.stdout
+        assert stdout is not None
+        deadline = time.monotonic() + timeout
+        data = b""
+        with selectors.DefaultSelector() as selector:
+            selector.register(stdout, selectors.EVENT_READ)
+            while b"\n" not in data:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    raise EmulatorError(f"the emulator printed no port path within {timeout:g} s")
+                if not selector.select(remaining):
+                    continue
+                chunk = os.read(stdout.fileno(), 1)  # byte by byte: leave the rest to the thread
+                if not chunk:
+                    raise EmulatorError(
+                        f"the emulator exited before printing its port path: "
+                        f"{' '.join(self.command)}"
+                    )
+                data += chunk
+        return data.decode("utf-8", "replace").strip()
+
+    def _drain(self) -> None:
+        stdout = self._process.stdout
+        assert stdout is not None
+        buffer = b""
+        try:
+            while chunk := os.read(stdout.fileno(), 4096):
+                buffer += chunk
+                while b"\n" in buffer:
+                    raw, buffer = buffer.split(b"\n", 1)
+                    text = raw.decode("utf-8", "replace").strip()
+                    if text.startswith(("ack", "error")):
+                        self._replies.put(text)
+                    elif text:
+                        _log.debug("emulator: %s", text)
+        except (OSError, ValueError):  # pragma: no cover - pipe closed under us
+            pass
+        finally:
+            self._replies.put(None)
+
+    @property
+    def pid(self) -> int:
+        """The emulator's process id."""
+        return self._process.pid
+
+    @property
+    def returncode(self) -> int | None:
+        """The exit status once the process has exited, else ``None``."""
+        return self._process.poll()
+
+    def control(self, command: str, *, timeout: float = CONTROL_TIMEOUT) -> str:
+        """Send a control command; return its ``ack`` line (as :meth:`EmulatorProcess.control`)."""
+        text = command.strip()
+        if not text or "\n" in text:
+            raise MirobotUsageError(f"command={command!r} must be one non-empty line")
+        with self._control_lock:
+            stdin = self._process.stdin
+            if stdin is None or stdin.closed or self._process.poll() is not None:
+                raise EmulatorError(f"cannot send {text!r}: the emulator is not running")
+            try:
+                stdin.write(text.encode("utf-8") + b"\n")
+                stdin.flush()
+            except OSError as err:
+                raise EmulatorError(f"cannot send {text!r}: {err}") from err
+            try:
+                reply = self._replies.get(timeout=timeout)
+            except queue.Empty as err:
+                raise MirobotTimeoutError(f"the emulator's answer to {text!r}", timeout) from err
+            if reply is None:
+                self._replies.put(None)
+                raise EmulatorError(f"the emulator exited before answering {text!r}")
+            if reply.startswith("error"):
+                raise EmulatorError(f"the emulator refused {text!r}: {reply}")
+            return reply
+
+    def kill(self) -> None:
+        """SIGKILL the emulator now (like a pulled cable); does not wait."""
+        if self._process.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                self._process.kill()
+
+    def stop(self, timeout: float = STOP_TIMEOUT) -> int:
+        """SIGTERM, wait up to ``timeout`` s, SIGKILL; close the pipes. Idempotent."""
+        if self._process.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                self._process.send_signal(signal.SIGTERM)
+        returncode = self._finish(timeout)
+        self._thread.join(timeout)
+        if self._process.stdout is not None:
+            self._process.stdout.close()
+        return returncode
+
+    def _finish(self, timeout: float) -> int:
+        process = self._process
+        if process.stdin is not None and not process.stdin.closed:
+            with contextlib.suppress(OSError):
+                process.stdin.close()
+        try:
+            return process.wait(timeout)
+        except subprocess.TimeoutExpired:
+            _log.warning("emulator %d did not exit after SIGTERM; killing it", process.pid)
+            process.kill()
+            return process.wait()
+        finally:
+            if not hasattr(self, "_thread") and process.stdout is not None:
+                process.stdout.close()
+
+    def __enter__(self) -> SyncEmulatorProcess:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.stop()
+
+
+@contextlib.contextmanager
+def run_emulator(
+    firmware: str = DEFAULT_FIRMWARE,
+    time_scale: float = DEFAULT_TIME_SCALE,
+    *,
+    extra_args: Sequence[str] = (),
+    startup_timeout: float = STARTUP_TIMEOUT,
+) -> Iterator[SyncEmulatorProcess]:
+    """Synchronous twin of :func:`start_emulator`, yielding the :class:`SyncEmulatorProcess`."""
+    emulator = SyncEmulatorProcess(
+        firmware, time_scale, extra_args=extra_args, startup_timeout=startup_timeout
+    )
+    try:
+        yield emulator
+    finally:
+        emulator.stop()
+
+
+# --------------------------------------------------------------------------------------------
+# pytest plugin (entry point pytest11 -> mirobot_async.testing)
+
+_MARKER_HELP = (
+    "mirobot_emulator(firmware='2021', time_scale=0.0, extra_args=()): settings of the virtual "
+    "Mirobot behind the mirobot_emulator fixture"
+)
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    """Register ``--mirobot-firmware`` and ``--mirobot-time-scale``."""
+    group = parser.getgroup("mirobot", "virtual Mirobot (mirobot-async)")
+    group.addoption(
+        "--mirobot-firmware",
+        choices=("2021", "classic"),
+        default=DEFAULT_FIRMWARE,
+        help="firmware profile of the mirobot_emulator fixture (default: 2021)",
+    )
+    group.addoption(
+        "--mirobot-time-scale",
+        type=float,
+        default=DEFAULT_TIME_SCALE,
+        help="time scale of the mirobot_emulator fixture; 0 = instant motion (default: 0)",
+    )
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Register the ``mirobot_emulator`` marker (works with ``--strict-markers``)."""
+    config.addinivalue_line("markers", _MARKER_HELP)
+
+
+def _fixture_settings(request: Any) -> tuple[str, float, tuple[str, ...]]:
+    firmware: str = request.config.getoption("--mirobot-firmware")
+    time_scale: float = request.config.getoption("--mirobot-time-scale")
+    extra: tuple[str, ...] = ()
+    marker = request.node.get_closest_marker("mirobot_emulator")
+    if marker is not None:
+        if marker.args:
+            raise MirobotUsageError(
+                "@pytest.mark.mirobot_emulator takes keyword arguments only "
+                "(firmware=, time_scale=, extra_args=)"
+            )
+        unknown = set(marker.kwargs) - {"firmware", "time_scale", "extra_args"}
+        if unknown:
+            raise MirobotUsageError(
+                f"@pytest.mark.mirobot_emulator: unknown argument(s) {', '.join(sorted(unknown))}"
+            )
+        firmware = marker.kwargs.get("firmware", firmware)
+        time_scale = marker.kwargs.get("time_scale", time_scale)
+        extra = tuple(marker.kwargs.get("extra_args", ()))
+    return firmware, time_scale, extra
+
+
+def _define_fixtures() -> None:
+    try:
+        import pytest
+    except ImportError:  # pragma: no cover - the plugin is only loaded by pytest
+        return
+
+    @pytest.fixture
+    def mirobot_emulator_process(request: Any) -> Iterator[SyncEmulatorProcess]:
+        """A virtual Mirobot process for this test (see :mod:`mirobot_async.testing`)."""
+        firmware, time_scale, extra = _fixture_settings(request)
+        with run_emulator(firmware, time_scale, extra_args=extra) as emulator:
+            yield emulator
+
+    @pytest.fixture
+    def mirobot_emulator(mirobot_emulator_process: SyncEmulatorProcess) -> str:
+        """The port URL of a virtual Mirobot started for this test."""
+        return mirobot_emulator_process.url
+
+    globals()["mirobot_emulator_process"] = mirobot_emulator_process
+    globals()["mirobot_emulator"] = mirobot_emulator
+
+
+if "pytest" in sys.modules:
+    _define_fixtures()

@@ -1,0 +1,312 @@
+"""The serial link: a pyserial URL opened as an asyncio transport (the client's only I/O).
+
+:class:`SerialLink` opens any pyserial URL (a device such as ``/dev/ttyUSB0``, a pty path,
+``socket://host:port``, ``loop://``) at 115200 baud 8N1 without flow control, hands every received
+chunk of bytes to a callback and reports the end of the link exactly once to another. It knows
+nothing about lines or replies: the client feeds the bytes to the sans-IO state machine.
+
+Implementation: ``serial_asyncio_fast`` (pyserial-asyncio-fast), the maintained, API-compatible
+fork of pyserial-asyncio. The original ``serial_asyncio`` can be chosen with
+``implementation="original"`` (for the benchmark that compares them); its close path calls
+``tcdrain`` on the event loop, which can block for as long as the peer does not read, so this
+module discards unsent output before closing it. URLs whose pyserial object has no file
+descriptor (``loop://``) are served by a small polling transport.
+
+Guarantees:
+
+* Opening fails at once with :class:`~mirobot_async.errors.MirobotConnectionError` quoting the
+  operating system's words (missing path, busy port, refused socket).
+* :meth:`SerialLink.write` never blocks: bytes the OS cannot take now are buffered by the
+  transport (the client never has more than a few hundred bytes outstanding).
+* End of file, an I/O error or the peer going away calls ``on_lost`` exactly once, promptly
+  (a pty whose other side is closed reports it within a millisecond).
+* :meth:`SerialLink.close` is idempotent and bounded: unsent output is discarded, and waiting for
+  the transport to finish is limited by a timeout.
+"""
+
+# Awaiting calls take timeout= by design (issue 4).
+# ruff: noqa: ASYNC109
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import functools
+import logging
+import urllib.parse
+from collections.abc import Callable
+from typing import Any, Literal
+
+import serial  # type: ignore[import-untyped]
+
+from mirobot_async.errors import MirobotConnectionError, MirobotUsageError
+
+__all__ = ["DEFAULT_BAUDRATE", "Implementation", "SerialLink"]
+
+_log = logging.getLogger("mirobot_async.transport")
+
+DEFAULT_BAUDRATE = 115200
+"""The Mirobot's fixed line speed (8 data bits, no parity, 1 stop bit, no flow control)."""
+
+Implementation = Literal["fast", "original"]
+"""``"fast"``: pyserial-asyncio-fast (default); ``"original"``: pyserial-asyncio 0.6."""
+
+DataCallback = Callable[[bytes], None]
+LostCallback = Callable[[BaseException | None], None]
+
+
+class _LinkProtocol(asyncio.Protocol):
+    """Forwards bytes and the end of the link to the owner's callbacks (end reported once)."""
+
+    def __init__(self, on_data: DataCallback, on_lost: LostCallback) -> None:
+        self._on_data = on_data
+        self._on_lost = on_lost
+        self._ended = False
+        self.lost: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+
+    def data_received(self, data: bytes) -> None:
+        if not self._ended and data:
+            self._on_data(data)
+
+    def eof_received(self) -> bool:
+        # Sockets: the peer closed its side. Returning False lets the transport close itself,
+        # which then calls connection_lost(None).
+        self._end(None)
+        return False
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        self._end(exc)
+        if not self.lost.done():
+            self.lost.set_result(None)
+
+    def _end(self, exc: BaseException | None) -> None:
+        if not self._ended:
+            self._ended = True
+            self._on_lost(exc)
+
+
+class _PolledSerialTransport(asyncio.Transport):
+    """A minimal transport for pyserial objects without a file descriptor (``loop://``).
+
+    Reads are polled every millisecond; writes go straight to the object (these URL handlers
+    buffer in memory and never block).
+    """
+
+    POLL_INTERVAL = 0.001
+
+    def __init__(
+        self, loop: asyncio.AbstractEventLoop, protocol: asyncio.Protocol, port: Any
+    ) -> None:
+        super().__init__()
+        self._loop = loop
+        self._protocol = protocol
+        self._serial: Any = port
+        self._closing = False
+        self._timer: asyncio.TimerHandle | None = None
+        port.timeout = 0
+        loop.call_soon(protocol.connection_made, self)
+        loop.call_soon(self._poll)
+
+    def _poll(self) -> None:
+        if self._closing:
+            return
+        try:
+            waiting = self._serial.in_waiting
+            data = self._serial.read(waiting) if waiting else b""
+        except (serial.SerialException, OSError) as exc:
+            self._shutdown(exc)
+            return
+        if data:
+            self._protocol.data_received(data)
+        if not self._closing:
+            self._timer = self._loop.call_later(self.POLL_INTERVAL, self._poll)
+
+    def write(self, data: bytes | bytearray | memoryview) -> None:
+        if self._closing:
+            return
+        try:
+            self._serial.write(bytes(data))
+        except (serial.SerialException, OSError) as exc:
+            self._shutdown(exc)
+
+    def is_closing(self) -> bool:
+        return self._closing
+
+    def close(self) -> None:
+        self._shutdown(None)
+
+    def abort(self) -> None:
+        self._shutdown(None)
+
+    def get_write_buffer_size(self) -> int:
+        return 0
+
+    def get_extra_info(self, name: str, default: Any = None) -> Any:
+        return self._serial if name == "serial" else default
+
+    def _shutdown(self, exc: BaseException | None) -> None:
+        if self._closing:
+            return
+        self._closing = True
+        if self._timer is not None:
+            self._timer.cancel()
+        with contextlib.suppress(Exception):
+            self._serial.close()
+        self._loop.call_soon(self._protocol.connection_lost, _as_exception(exc))
+
+
+def _as_exception(exc: BaseException | None) -> Exception | None:
+    if exc is None or isinstance(exc, Exception):
+        return exc
+    return RuntimeError(str(exc))
+
+
+def _describe(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return text or type(exc).__name__
+
+
+class SerialLink:
+    """One open serial link. Create it with :meth:`open`; never blocks the event loop."""
+
+    def __init__(
+        self,
+        url: str,
+        transport: asyncio.BaseTransport,
+        protocol: _LinkProtocol,
+        implementation: Implementation,
+    ) -> None:
+        self.url = url
+        self.implementation: Implementation = implementation
+        self._transport = transport
+        self._protocol = protocol
+        self._closed = False
+        self.bytes_written = 0
+
+    @classmethod
+    async def open(
+        cls,
+        url: str,
+        *,
+        on_data: DataCallback,
+        on_lost: LostCallback,
+        implementation: Implementation = "fast",
+        baudrate: int = DEFAULT_BAUDRATE,
+        exclusive: bool = True,
+        timeout: float = 5.0,
+    ) -> SerialLink:
+        """Open ``url`` and start delivering received bytes to ``on_data``.
+
+        ``on_lost(exc)`` is called exactly once when the link ends by itself (end of file, I/O
+        error: ``exc`` is the error or ``None``) or is closed by :meth:`close`.
+
+        ``exclusive`` (default) locks a device against a second opener (POSIX ``flock``, as
+        pyserial's ``exclusive=True``): two programs writing to one arm would corrupt each
+        other's replies, so a second client fails at once instead.
+
+        Raises :class:`MirobotConnectionError` with the OS's words when the port cannot be opened
+        (at once for a missing path or a busy port; after ``timeout`` seconds if opening hangs),
+        :class:`MirobotUsageError` for an unknown ``implementation``. Cancellation while opening
+        closes whatever was opened.
+        """
+        if implementation == "fast":
+            import serial_asyncio_fast as impl
+        elif implementation == "original":
+            import serial_asyncio as impl  # type: ignore[import-untyped,no-redef]
+        else:
+            raise MirobotUsageError(
+                f"implementation={implementation!r} must be 'fast' or 'original'"
+            )
+        if not isinstance(url, str) or not url:
+            raise MirobotUsageError(f"url={url!r} must be a non-empty string")
+        loop = asyncio.get_running_loop()
+        serial_kwargs: dict[str, Any] = {
+            "baudrate": baudrate,
+            "bytesize": serial.EIGHTBITS,
+            "parity": serial.PARITY_NONE,
+            "stopbits": serial.STOPBITS_ONE,
+            "xonxoff": False,
+            "rtscts": False,
+            "dsrdtr": False,
+        }
+        if exclusive and "://" not in url:
+            serial_kwargs["exclusive"] = True
+        protocol = _LinkProtocol(on_data, on_lost)
+        transport: asyncio.BaseTransport
+        try:
+            async with asyncio.timeout(timeout):
+                if urllib.parse.urlparse(url).scheme == "socket":
+                    transport, _ = await impl.create_serial_connection(
+                        loop, lambda: protocol, url, **serial_kwargs
+                    )
+                else:
+                    port = await loop.run_in_executor(
+                        None, functools.partial(serial.serial_for_url, url, **serial_kwargs)
+                    )
+                    try:
+                        port.fileno()
+                    except (AttributeError, serial.SerialException, OSError):
+                        transport = _PolledSerialTransport(loop, protocol, port)
+                    else:
+                        transport, _ = await impl.connection_for_serial(
+                            loop, lambda: protocol, port
+                        )
+        except TimeoutError as err:
+            raise MirobotConnectionError(
+                f"could not open {url!r}: no answer from the OS within {timeout:g} s"
+            ) from err
+        except (serial.SerialException, OSError, ValueError) as err:
+            raise MirobotConnectionError(f"could not open {url!r}: {_describe(err)}") from err
+        _log.debug("opened %s with %s", url, implementation)
+        return cls(url, transport, protocol, implementation)
+
+    @property
+    def is_closing(self) -> bool:
+        """True once the link is closing or closed (writes are then ignored)."""
+        return self._closed or self._transport.is_closing()
+
+    @property
+    def write_buffer_size(self) -> int:
+        """Bytes accepted by :meth:`write` that the OS has not taken yet."""
+        transport = self._transport
+        if isinstance(transport, asyncio.WriteTransport):
+            return transport.get_write_buffer_size()
+        return 0
+
+    def write(self, data: bytes) -> None:
+        """Queue ``data`` for writing; never blocks. Ignored once the link is closing."""
+        if self.is_closing:
+            return
+        transport = self._transport
+        assert isinstance(transport, asyncio.WriteTransport)
+        self.bytes_written += len(data)
+        transport.write(data)
+
+    def abort(self) -> None:
+        """Close at once, discarding unsent output (synchronous; see :meth:`close`)."""
+        if self._closed:
+            return
+        self._closed = True
+        transport = self._transport
+        port = transport.get_extra_info("serial")
+        if port is not None and self.implementation == "original":
+            # pyserial-asyncio 0.6 runs tcdrain() on the event loop while closing: make sure
+            # there is nothing left to drain, or it blocks until the peer reads.
+            with contextlib.suppress(Exception):
+                port.reset_output_buffer()
+        if isinstance(transport, asyncio.Transport):
+            transport.abort()
+        else:  # pragma: no cover - every transport here is an asyncio.Transport
+            transport.close()
+
+    async def close(self, timeout: float = 1.0) -> None:
+        """Close the link; idempotent, never hangs.
+
+        Unsent output is discarded (a closing client has already failed its pending calls).
+        Waits at most ``timeout`` seconds for the transport to release the port, then returns
+        anyway. Cancellation is honoured (the port is still released in the background).
+        """
+        self.abort()
+        with contextlib.suppress(TimeoutError):
+            async with asyncio.timeout(timeout):
+                await asyncio.shield(self._protocol.lost)

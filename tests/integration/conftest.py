@@ -1,0 +1,82 @@
+"""Fixtures for the client's integration tests: a real emulator process on a real pty.
+
+* ``profile``: both firmware profiles (``2021``, ``classic``), so every test using the emulator
+  runs against each.
+* ``emu``: a fresh :class:`~mirobot_async.testing.EmulatorProcess` for the test (its fault
+  channel is ``await emu.control("drop-ok")``). Its options come from the
+  ``@pytest.mark.mirobot_emulator(firmware=..., time_scale=..., extra_args=...)`` marker (the
+  plugin's marker); ``firmware`` there overrides the ``profile`` parameter. Default time scale 0:
+  every motion completes at once.
+* ``arm``: a connected :class:`~mirobot_async.Mirobot` on ``emu`` (closed afterwards).
+* ``ready_arm``: ``arm`` unlocked (``$X`` + ``M50``), so motion works on both profiles.
+
+Every test module of the client also checks that no task is left behind (``no_leftover_tasks``).
+"""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import AsyncIterator
+from typing import Any
+
+import pytest
+
+from mirobot_async import Mirobot
+from mirobot_async.testing import EmulatorProcess
+
+PROFILES = ("2021", "classic")
+
+
+def emulator_options(request: pytest.FixtureRequest, profile: str) -> dict[str, Any]:
+    """The emulator settings of a test: its marker's keywords over the defaults."""
+    options: dict[str, Any] = {"firmware": profile, "time_scale": 0.0, "extra_args": ()}
+    marker = request.node.get_closest_marker("mirobot_emulator")
+    if marker is not None:
+        options.update(marker.kwargs)
+    return options
+
+
+@pytest.fixture(params=PROFILES)
+def profile(request: pytest.FixtureRequest) -> str:
+    """The firmware profile under test."""
+    return str(request.param)
+
+
+@pytest.fixture
+async def emu(request: pytest.FixtureRequest, profile: str) -> AsyncIterator[EmulatorProcess]:
+    """A fresh emulator process for this test, stopped (and reaped) afterwards."""
+    options = emulator_options(request, profile)
+    emulator = await EmulatorProcess.start(
+        options["firmware"], options["time_scale"], extra_args=tuple(options["extra_args"])
+    )
+    async with emulator:
+        yield emulator
+
+
+@pytest.fixture
+async def arm(emu: EmulatorProcess) -> AsyncIterator[Mirobot]:
+    """A client connected to ``emu``."""
+    async with Mirobot.connect(emu.url) as connected:
+        yield connected
+
+
+@pytest.fixture
+async def ready_arm(arm: Mirobot) -> Mirobot:
+    """``arm`` with its axes unlocked (both profiles power on locked; 2021 also in Alarm)."""
+    await arm.unlock()
+    return arm
+
+
+@pytest.fixture
+async def no_leftover_tasks() -> AsyncIterator[None]:
+    """Fail the test if it leaves a task running (after every other fixture is torn down)."""
+    before = asyncio.all_tasks()
+    yield
+    current = asyncio.current_task()
+    others = {t for t in asyncio.all_tasks() if t is not current and t not in before}
+    if others:
+        # Give tasks that are finishing (transport clean-up) a moment, then insist.
+        _, pending = await asyncio.wait(others, timeout=1.0)
+        for task in pending:
+            task.cancel()
+        assert not pending, f"tasks left behind: {pending}"

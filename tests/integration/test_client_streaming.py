@@ -1,0 +1,207 @@
+"""Pipelined streaming and concurrency against the real emulator process."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+from collections.abc import AsyncIterator
+from typing import Any
+
+import pytest
+
+from mirobot_async import (
+    LineResult,
+    Mirobot,
+    MirobotCommandError,
+    MirobotUsageError,
+    MotionRefusedError,
+    State,
+)
+
+pytestmark = [pytest.mark.timeout(60), pytest.mark.usefixtures("no_leftover_tasks")]
+
+
+async def test_ten_thousand_lines_each_acknowledged_once_in_order(ready_arm: Mirobot) -> None:
+    arm = ready_arm
+    lines = [f"M3 S{i % 1001}" if i % 3 else "G4 P0" for i in range(10_000)]
+    acked_before = arm.stats.lines_acknowledged
+    numbers: list[int] = []
+    stream = arm.stream(lines)
+    async with contextlib.aclosing(aiter(stream)) as results:
+        async for result in results:
+            assert result.ok, result
+            assert result.line == lines[result.number - 1]
+            numbers.append(result.number)
+    assert numbers == list(range(1, 10_001))
+    assert stream.result.acknowledged == stream.result.sent == 10_000
+    assert stream.result.ok
+    assert arm.stats.lines_acknowledged - acked_before == 10_000
+    assert arm.stats.replies_lost == 0 and arm.stats.protocol_violations == 0
+    last_pump = max(i for i in range(10_000) if i % 3)
+    assert (await arm.status()).pump_pwm == last_pump % 1001
+    assert arm.pending_count == 0
+
+
+async def test_streaming_keeps_the_receive_buffer_full_but_never_overfull(
+    ready_arm: Mirobot,
+) -> None:
+    arm = ready_arm
+    peak = 0
+    original = arm._write_line
+
+    def spy(data: bytes, command: str, exclusive: bool) -> Any:
+        nonlocal peak
+        slot = original(data, command, exclusive)
+        peak = max(peak, arm._conn.bytes_in_flight)
+        return slot
+
+    arm._write_line = spy  # type: ignore[method-assign]
+    result = await arm.stream(f"M4 E{i % 1001}" for i in range(2_000))
+    assert result.acknowledged == 2_000
+    assert 100 < peak <= 128
+
+
+async def test_stream_with_status_polling_alongside(ready_arm: Mirobot) -> None:
+    arm = ready_arm
+    seen: list[State] = []
+
+    async def monitor() -> None:
+        async with contextlib.aclosing(arm.statuses(interval=0.001)) as reports:
+            async for report in reports:
+                seen.append(report.state)
+
+    watcher = asyncio.create_task(monitor())
+    try:
+        result = await arm.stream(f"M3 S{i % 1001}" for i in range(3_000))
+    finally:
+        watcher.cancel()
+        with contextlib.suppress(asyncio.CancelledError):
+            await watcher
+    assert result.ok and result.acknowledged == 3_000
+    assert len(seen) > 5
+    assert arm.stats.replies_lost == 0
+
+
+async def test_stream_stops_at_the_first_error_unless_asked_to_continue(
+    ready_arm: Mirobot,
+) -> None:
+    arm = ready_arm
+    # The firmware answers as fast as lines arrive, so stop early with a long tail.
+    result = await arm.stream(["M3 S1", "M99", *(f"M3 S{i}" for i in range(300))])
+    assert not result.ok and result.stopped
+    assert result.errors[0].number == 2
+    assert isinstance(result.errors[0].error, MirobotCommandError)
+    assert result.sent < 302  # stopped sending; lines already in flight were still reported
+    assert result.acknowledged == result.sent - 1
+    lines = ["M3 S1", "M3 S2", "M99", "M3 S3", "M21 G90 G0 X170", "M3 S4"]
+    result = await arm.stream(lines, continue_on_error=True)
+    assert result.sent == 6 and result.acknowledged == 4
+    assert [r.number for r in result.errors] == [3, 5]
+    assert isinstance(result.errors[1].error, MotionRefusedError)
+    assert not result.stopped
+    assert (await arm.status()).pump_pwm == 4
+    with pytest.raises(MirobotCommandError):
+        result.raise_for_errors()
+
+
+async def test_stream_accepts_async_iterables_and_async_callbacks(ready_arm: Mirobot) -> None:
+    arm = ready_arm
+
+    async def lines() -> AsyncIterator[str]:
+        for i in range(50):
+            yield f"M4 E{i}\n"
+            if i % 10 == 0:
+                yield "   "  # blank lines are skipped
+                await asyncio.sleep(0)
+
+    progress: list[LineResult] = []
+
+    async def on_progress(result: LineResult) -> None:
+        await asyncio.sleep(0)
+        progress.append(result)
+
+    result = await arm.stream(lines(), on_progress=on_progress)
+    assert result.ok and result.acknowledged == 50 and len(progress) == 50
+    assert [p.line for p in progress] == [f"M4 E{i}" for i in range(50)]
+
+
+async def test_stream_reports_bad_lines_without_sending_them(ready_arm: Mirobot) -> None:
+    arm = ready_arm
+    result = await arm.stream(["M3 S1", "M3 S2 ?", "M3 S3"], continue_on_error=True)
+    assert result.sent == 2 and result.acknowledged == 2
+    assert isinstance(result.errors[0].error, MirobotUsageError)
+    assert result.errors[0].number == 2
+    assert (await arm.status()).pump_pwm == 3
+
+
+async def test_settings_lines_in_a_stream_are_sent_response(ready_arm: Mirobot) -> None:
+    arm = ready_arm
+    in_flight_at_write: list[tuple[str, int]] = []
+    original = arm._write_line
+
+    def spy(data: bytes, command: str, exclusive: bool) -> Any:
+        in_flight_at_write.append((command, arm.pending_count))
+        return original(data, command, exclusive)
+
+    arm._write_line = spy  # type: ignore[method-assign]
+    lines = [f"M3 S{i}" for i in range(20)] + ["$24=1400"] + [f"M4 E{i}" for i in range(20)]
+    result = await arm.stream(lines)
+    assert result.ok
+    index = [c for c, _ in in_flight_at_write].index("$24=1400")
+    assert in_flight_at_write[index][1] == 0  # nothing in flight when it was written
+    assert in_flight_at_write[index + 1][1] == 0  # and nothing written until its reply
+    assert (await arm.settings())[24] == 1400
+
+
+async def test_twenty_tasks_at_once_each_get_their_own_replies_in_call_order(
+    ready_arm: Mirobot, profile: str, caplog: pytest.LogCaptureFixture
+) -> None:
+    arm = ready_arm
+    issued: list[str] = []
+    info = "Info, " if profile == "2021" else ""
+
+    async def worker(n: int) -> None:
+        for k in range(6):
+            kind = (n + k) % 4
+            line = [f"M3 S{n * 10 + k}", "M50", "M99", "$X"][kind]
+            issued.append(line)
+            if kind == 2:
+                with pytest.raises(MirobotCommandError) as err:
+                    await arm.send(line)
+                assert err.value.command == "M99"
+            else:
+                output = await arm.send(line)
+                expected = [(), (f"{info}M50: Unlock each axis.",), None, ()][kind]
+                assert output == expected, (line, output)
+
+    with caplog.at_level(logging.DEBUG, logger="mirobot_async.wire"):
+        await asyncio.gather(*(worker(n) for n in range(20)))
+    sent_lines = [r.getMessage() for r in caplog.records if r.name == "mirobot_async.wire"]
+    written = [m[3:] for m in sent_lines if m.startswith("-> ") and m != "-> ?"]
+    assert written == issued
+    assert arm.pending_count == 0
+    assert arm.stats.lines_sent >= 120
+
+
+@pytest.mark.mirobot_emulator(time_scale=1)
+async def test_cancelling_a_stream_stops_sending_and_keeps_the_link_in_step(
+    ready_arm: Mirobot,
+) -> None:
+    arm = ready_arm
+    acknowledged: list[LineResult] = []
+    stream = asyncio.ensure_future(arm.stream(["G4 P0.02"] * 200, on_progress=acknowledged.append))
+    async with asyncio.timeout(10):
+        while len(acknowledged) < 5 or arm.pending_count < 5:  # noqa: ASYNC110 - bounded
+            await asyncio.sleep(0.002)
+    stream.cancel()
+    with pytest.raises(asyncio.CancelledError):
+        await stream
+    in_flight = arm.pending_count
+    sent = arm.stats.lines_sent
+    assert in_flight > 0 and sent < 200
+    # the abandoned lines' replies are consumed and discarded; a new call gets its own
+    assert await arm.send("M50") != ()
+    assert arm.stats.replies_discarded == in_flight
+    assert arm.stats.lines_sent == sent + 1
+    assert arm.pending_count == 0
