@@ -1,0 +1,675 @@
+"""The ``mirobot`` command line as a user runs it: ``python -m mirobot_async ...`` subprocesses.
+
+Every subcommand runs twice: against the embedded virtual Mirobot (no ``--port``: the command
+starts and stops its own emulator) and against an emulator started separately (``--port``): one
+started by ``python -m mirobot_async emulator`` (the ``emulator`` subcommand) for the whole module,
+and one classic-profile emulator from :class:`mirobot_async.testing.SyncEmulatorProcess`.
+Error paths check the exit status and that the error is one line without a traceback.
+Waits are conditions with deadlines; every process is stopped and reaped.
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+import selectors
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import psutil
+import pytest
+import serial
+
+from mirobot_async.testing import SyncEmulatorProcess
+
+pytestmark = pytest.mark.timeout(60)
+
+ROOT = Path(__file__).resolve().parents[2]
+EXAMPLES = ROOT / "examples"
+TRACE_HEADER = ["timestamp", "state", "j1", "j2", "j3", "j4", "j5", "j6", "rail"]
+TRACE_HEADER += ["x", "y", "z", "rx", "ry", "rz", "pump", "valve"]
+FAST = ("--time-scale", "0")  # every move of the embedded emulator completes at once
+
+
+def mirobot(
+    *args: str, cwd: Path | None = None, timeout: float = 45, env: dict[str, str] | None = None
+) -> subprocess.CompletedProcess[str]:
+    """Run ``python -m mirobot_async ARGS`` to completion."""
+    return subprocess.run(
+        [sys.executable, "-m", "mirobot_async", *args],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        cwd=cwd,
+        env=env,
+        stdin=subprocess.DEVNULL,
+    )
+
+
+def spawn(*args: str, cwd: Path | None = None) -> subprocess.Popen[str]:
+    return subprocess.Popen(
+        [sys.executable, "-m", "mirobot_async", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        stdin=subprocess.DEVNULL,
+        text=True,
+        cwd=cwd,
+    )
+
+
+def wait_for(condition: Callable[[], bool], timeout: float, what: str) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+        time.sleep(0.02)
+
+
+def assert_clean(proc: subprocess.CompletedProcess[str]) -> None:
+    assert "Traceback" not in proc.stderr, proc.stderr
+    assert "Traceback" not in proc.stdout, proc.stdout
+
+
+def error_line(proc: subprocess.CompletedProcess[str]) -> str:
+    """The one ``mirobot: error:`` line of a failed command (and nothing after it)."""
+    assert_clean(proc)
+    errors = [line for line in proc.stderr.splitlines() if "error" in line.lower()]
+    assert len(errors) == 1, proc.stderr
+    assert errors[0].startswith("mirobot: error: "), proc.stderr
+    assert proc.stderr.rstrip("\n").endswith(errors[0])
+    return errors[0]
+
+
+@dataclass
+class Status:
+    state: str
+    joints: list[float]
+    pose: list[float]
+    pump: int
+    valve: int
+
+
+def parse_table(stdout: str) -> Status:
+    """The status table printed by status/home/move/run...: the last one in ``stdout``."""
+    lines = stdout.splitlines()
+    start = max(i for i, line in enumerate(lines) if line.startswith("state "))
+    table = lines[start : start + 7]
+    pwm = table[5].replace(",", "").split()
+    return Status(
+        state=table[0].split()[1],
+        joints=[float(v) for v in table[2].split()[1:7]],
+        pose=[float(v) for v in table[4].split()[1:]],
+        pump=int(pwm[2]),
+        valve=int(pwm[4]),
+    )
+
+
+def read_csv(path: Path) -> list[list[str]]:
+    with path.open(newline="") as file:
+        return list(csv.reader(file))
+
+
+def close_to(actual: list[float], expected: list[float], tol: float = 0.01) -> bool:
+    return all(abs(a - e) <= tol for a, e in zip(actual, expected, strict=True))
+
+
+# --------------------------------------------------------------------------------------------
+# Emulators started separately
+
+
+class CliEmulator:
+    """``python -m mirobot_async emulator ...``: the port path is its first stdout line."""
+
+    def __init__(self, *args: str) -> None:
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "mirobot_async", "emulator", *args],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+        )
+        assert self.proc.stdout is not None
+        data = b""
+        deadline = time.monotonic() + 20
+        with selectors.DefaultSelector() as selector:
+            selector.register(self.proc.stdout, selectors.EVENT_READ)
+            while b"\n" not in data:
+                left = deadline - time.monotonic()
+                assert left > 0, "the emulator printed no port path"
+                if selector.select(left):
+                    chunk = os.read(self.proc.stdout.fileno(), 1)
+                    assert chunk, "the emulator exited before printing its port path"
+                    data += chunk
+        self.url = data.decode().strip()
+
+    def stop(self) -> int:
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+        try:
+            status = self.proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            status = self.proc.wait()
+        for pipe in (self.proc.stdin, self.proc.stdout, self.proc.stderr):
+            if pipe is not None:
+                pipe.close()
+        return status
+
+
+@pytest.fixture(scope="module")
+def port() -> Iterator[str]:
+    """A 2021 emulator started with ``mirobot emulator`` for the whole module (time scale 0)."""
+    emulator = CliEmulator("--time-scale", "0")
+    try:
+        assert emulator.url.startswith("/dev/")
+        yield emulator.url
+    finally:
+        assert emulator.stop() == 0  # SIGTERM: a clean exit
+
+
+@pytest.fixture(scope="module")
+def classic_port() -> Iterator[str]:
+    """A classic-profile emulator started with the testing helper (time scale 0)."""
+    emulator = SyncEmulatorProcess(firmware="classic", time_scale=0)
+    try:
+        yield emulator.url
+    finally:
+        emulator.stop()
+
+
+# --------------------------------------------------------------------------------------------
+# status, home, unlock, reset
+
+
+def test_status_embedded_says_so_on_stderr() -> None:
+    proc = mirobot("status", *FAST)
+    assert proc.returncode == 0, proc.stderr
+    assert_clean(proc)
+    assert "no --port given; using an embedded virtual Mirobot (firmware 2021, time-scale 0)" in (
+        proc.stderr
+    )
+    status = parse_table(proc.stdout)
+    assert status.state == "Alarm"  # the 2021 firmware powers on in Alarm
+    assert close_to(status.pose, [198.67, 0, 230.72, 0, 0, 0])
+    assert "J1" in proc.stdout and "rail" in proc.stdout and "mode" in proc.stdout
+
+
+def test_status_embedded_classic() -> None:
+    proc = mirobot("status", "--firmware", "classic")
+    assert proc.returncode == 0, proc.stderr
+    assert "firmware classic, time-scale 10" in proc.stderr
+    status = parse_table(proc.stdout)
+    assert status.state == "Idle"
+    assert close_to(status.pose, [202, 0, 181, 0, 0, 0])
+
+
+def test_status_on_a_port(port: str) -> None:
+    proc = mirobot("status", "--port", port)
+    assert proc.returncode == 0, proc.stderr
+    assert_clean(proc)
+    assert "embedded" not in proc.stderr
+    assert parse_table(proc.stdout).state in ("Alarm", "Idle")
+
+
+def test_verbose_shows_the_wire_traffic(port: str) -> None:
+    proc = mirobot("status", "--port", port, "-v")
+    assert proc.returncode == 0, proc.stderr
+    assert "-> ?" in proc.stderr
+    assert "<- <" in proc.stderr  # the status line as received
+    quiet = mirobot("status", "--port", port)
+    assert "->" not in quiet.stderr
+
+
+@pytest.mark.parametrize("sequential", [False, True])
+def test_home_embedded(sequential: bool) -> None:
+    proc = mirobot("home", *FAST, *(["--sequential"] if sequential else []))
+    assert proc.returncode == 0, proc.stderr
+    status = parse_table(proc.stdout)
+    assert status.state == "Idle"
+    assert close_to(status.joints, [0] * 6)
+
+
+def test_home_unlock_reset_on_a_port(port: str) -> None:
+    proc = mirobot("reset", "--port", port)
+    assert proc.returncode == 0, proc.stderr
+    assert parse_table(proc.stdout).state == "Alarm"  # 2021: locked again after a reset
+    proc = mirobot("unlock", "--port", port)
+    assert proc.returncode == 0, proc.stderr
+    assert parse_table(proc.stdout).state == "Idle"
+    proc = mirobot("home", "--port", port)
+    assert proc.returncode == 0, proc.stderr
+    status = parse_table(proc.stdout)
+    assert status.state == "Idle" and close_to(status.joints, [0] * 6)
+
+
+def test_unlock_and_reset_embedded() -> None:
+    proc = mirobot("unlock", *FAST)
+    assert proc.returncode == 0, proc.stderr
+    assert parse_table(proc.stdout).state == "Idle"
+    proc = mirobot("reset", *FAST)
+    assert proc.returncode == 0, proc.stderr
+    assert parse_table(proc.stdout).state == "Alarm"
+
+
+# --------------------------------------------------------------------------------------------
+# move, pump, gripper
+
+
+def test_move_joints_embedded_homes_first() -> None:
+    proc = mirobot("move", "joints", "j1=30", "j2=10", "J6=-45", *FAST)
+    assert proc.returncode == 0, proc.stderr
+    assert "homing the virtual Mirobot first" in proc.stderr
+    status = parse_table(proc.stdout)
+    assert status.state == "Idle"
+    assert close_to(status.joints, [30, 10, 0, 0, 0, -45])
+
+
+def test_move_joints_relative_with_speed_on_a_port(port: str) -> None:
+    proc = mirobot("move", "joints", "j1=0", "j3=5", "--port", port, "--home")
+    assert proc.returncode == 0, proc.stderr
+    proc = mirobot(
+        "move", "joints", "j1=10", "j3=-5", "--relative", "--speed", "2000", "--port", port
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert "homing" not in proc.stderr  # never implicitly on a real port
+    assert close_to(parse_table(proc.stdout).joints, [10, 0, 0, 0, 0, 0])
+
+
+def test_move_pose_linear_embedded() -> None:
+    proc = mirobot("move", "pose", "x=200", "y=50", "z=150", "--linear", *FAST)
+    assert proc.returncode == 0, proc.stderr
+    status = parse_table(proc.stdout)
+    assert close_to(status.pose[:3], [200, 50, 150], tol=0.1)
+
+
+def test_move_pose_on_a_port(port: str) -> None:
+    proc = mirobot("move", "pose", "x=220", "y=-40", "z=120", "--port", port, "--home")
+    assert proc.returncode == 0, proc.stderr
+    assert close_to(parse_table(proc.stdout).pose[:3], [220, -40, 120], tol=0.1)
+    proc = mirobot(
+        "move", "pose", "z=20", "--relative", "--linear", "--speed", "1000", "--port", port
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert close_to(parse_table(proc.stdout).pose[:3], [220, -40, 140], tol=0.1)
+
+
+def test_move_refused_while_locked_exits_1() -> None:
+    proc = mirobot("move", "joints", "j1=30", "--no-home", *FAST)
+    assert proc.returncode == 1
+    assert "Alarm" in error_line(proc)
+
+
+def test_move_to_an_unreachable_pose_exits_1_with_the_firmware_words() -> None:
+    proc = mirobot("move", "pose", "x=900", *FAST)
+    assert proc.returncode == 1
+    line = error_line(proc)
+    assert "not executed (unreachable)" in line
+    assert "OUT OF WORKSPACE" in line  # the firmware's own words
+
+
+@pytest.mark.parametrize(
+    ("argv", "pump", "valve"),
+    [
+        (["pump", "on"], 1000, 0),
+        (["pump", "blow"], 500, 0),
+        (["pump", "off"], 0, 0),
+        (["gripper", "open"], 40, 0),
+        (["gripper", "close"], 60, 0),
+        (["gripper", "close", "--legacy"], 0, 40),
+    ],
+)
+def test_pump_and_gripper_embedded(argv: list[str], pump: int, valve: int) -> None:
+    proc = mirobot(*argv, *FAST)
+    assert proc.returncode == 0, proc.stderr
+    assert "unlocking the virtual Mirobot first" in proc.stderr
+    status = parse_table(proc.stdout)
+    assert (status.pump, status.valve) == (pump, valve)
+
+
+def test_pump_and_gripper_on_a_port(port: str) -> None:
+    proc = mirobot("pump", "blow", "--port", port, "--unlock")
+    assert proc.returncode == 0, proc.stderr
+    assert parse_table(proc.stdout).pump == 500
+    proc = mirobot("gripper", "open", "--legacy", "--port", port)
+    assert proc.returncode == 0, proc.stderr
+    status = parse_table(proc.stdout)
+    assert (status.pump, status.valve) == (500, 65)
+    proc = mirobot("pump", "off", "--port", port)
+    assert parse_table(proc.stdout).pump == 0
+
+
+# --------------------------------------------------------------------------------------------
+# run
+
+
+def test_readme_command_runs_pick_and_place_in_seconds() -> None:
+    """``mirobot run examples/pick_and_place.gcode`` as README's first command: default speed."""
+    started = time.monotonic()
+    proc = mirobot("run", "examples/pick_and_place.gcode", cwd=ROOT)
+    elapsed = time.monotonic() - started
+    assert proc.returncode == 0, proc.stderr
+    assert_clean(proc)
+    assert elapsed < 15
+    assert "using an embedded virtual Mirobot" in proc.stderr
+    assert "homing the virtual Mirobot first" in proc.stderr
+    progress = [line for line in proc.stderr.splitlines() if line.startswith("[")]
+    assert progress, proc.stderr
+    assert "\r" not in proc.stderr  # not a terminal: plain lines
+    assert progress[-1].startswith("[##############################] 14/14 lines 100%")
+    assert "elapsed" in progress[-1] and progress[-1].endswith("done")
+    assert any("ETA" in line for line in progress)
+    status = parse_table(proc.stdout)
+    assert status.state == "Idle"
+    assert close_to(status.pose, [200, 0, 230, 0, 0, 0], tol=0.1)
+    assert status.pump == 0
+
+
+@pytest.mark.parametrize("example", ["square.gcode", "dance.gcode"])
+def test_run_the_other_examples_on_a_port(port: str, example: str) -> None:
+    proc = mirobot("run", str(EXAMPLES / example), "--port", port, "--home")
+    assert proc.returncode == 0, proc.stderr
+    assert parse_table(proc.stdout).state == "Idle"
+
+
+def test_run_on_a_classic_port(classic_port: str) -> None:
+    proc = mirobot("run", str(EXAMPLES / "pick_and_place.gcode"), "--port", classic_port, "--home")
+    assert proc.returncode == 0, proc.stderr
+    assert close_to(parse_table(proc.stdout).pose[:3], [200, 0, 230], tol=0.1)
+
+
+def test_run_stops_at_a_refused_line(tmp_path: Path) -> None:
+    program = tmp_path / "bad.gcode"
+    program.write_text("; a program with a typo\nM21 G90\nG0 X10\n\nG7 X1 ; no such G code\n")
+    proc = mirobot("run", "bad.gcode", *FAST, cwd=tmp_path)
+    assert proc.returncode == 1
+    assert_clean(proc)
+    assert "bad.gcode:5: G7 X1: Unsupported command" in proc.stderr.splitlines()
+    assert "1 line was refused" in proc.stderr
+    assert parse_table(proc.stdout).state == "Idle"  # the final status is still shown
+
+
+def test_run_refused_on_a_port_while_locked(port: str, tmp_path: Path) -> None:
+    program = tmp_path / "p.gcode"
+    program.write_text("M21 G90 G0 X10\n")
+    assert mirobot("reset", "--port", port).returncode == 0
+    proc = mirobot("run", str(program), "--port", port)  # a real port: no implicit homing
+    assert proc.returncode == 1
+    assert f"{program}:1: M21 G90 G0 X10: Alarm lock" in proc.stderr
+    assert parse_table(proc.stdout).state == "Alarm"
+
+
+def test_run_continue_on_error_reports_every_refused_line(tmp_path: Path) -> None:
+    program = tmp_path / "bad.gcode"
+    program.write_text("M21 G90\nG7\nG0 X20\nG0 X500\nG0 X25\n")
+    proc = mirobot("run", str(program), "--continue-on-error", *FAST)
+    assert proc.returncode == 1
+    assert f"{program}:2: G7: Unsupported command" in proc.stderr
+    assert f"{program}:4: G0 X500: " in proc.stderr  # refused by the firmware (out of limit)
+    assert "2 lines were refused; 3 of 5 acknowledged" in proc.stderr
+    assert close_to(parse_table(proc.stdout).joints[:1], [25])
+
+
+def test_run_trace_then_plot(tmp_path: Path) -> None:
+    trace = tmp_path / "square.csv"
+    image = tmp_path / "square.png"
+    proc = mirobot("run", str(EXAMPLES / "square.gcode"), "--trace", str(trace))
+    assert proc.returncode == 0, proc.stderr
+    rows = read_csv(trace)
+    assert rows[0] == TRACE_HEADER
+    samples = rows[1:]
+    assert len(samples) >= 10  # ~20 Hz while the square is drawn
+    xs = [float(row[9]) for row in samples]
+    ys = [float(row[10]) for row in samples]
+    assert min(xs) < 172 and max(xs) > 228 and min(ys) < -28 and max(ys) > 28  # the square
+    assert samples[-1][1] == "Idle"  # the final status closes the trace
+
+    proc = mirobot("plot", str(trace), "-o", str(image))
+    assert proc.returncode == 0, proc.stderr
+    assert f"wrote {image} (1200x800 px" in proc.stdout
+    import matplotlib.image
+
+    pixels = matplotlib.image.imread(str(image))
+    assert pixels.shape[:2] == (800, 1200)
+    colours = {tuple(int(c * 255) // 16 for c in px[:3]) for px in pixels.reshape(-1, 4)[::97]}
+    assert len(colours) >= 8  # a drawing, not a blank page: path, markers, 6 joint curves
+    white = (pixels[..., :3] > 0.98).all(axis=-1).mean()
+    assert 0.3 < white < 0.99
+
+
+def test_plot_without_matplotlib_says_how_to_install_it(tmp_path: Path) -> None:
+    trace = tmp_path / "t.csv"
+    trace.write_text(",".join(TRACE_HEADER) + "\n2025-01-01T00:00:00+00:00,Idle" + ",0" * 15 + "\n")
+    blocker = tmp_path / "block"
+    (blocker / "matplotlib").mkdir(parents=True)
+    (blocker / "matplotlib" / "__init__.py").write_text("raise ImportError('no matplotlib')\n")
+    env = dict(os.environ, PYTHONPATH=str(blocker))
+    proc = mirobot("plot", str(trace), env=env)
+    assert proc.returncode == 2
+    assert "pip install 'mirobot-async[plot]'" in error_line(proc)
+
+
+# --------------------------------------------------------------------------------------------
+# monitor
+
+
+def test_monitor_samples_to_csv_on_a_port(port: str, tmp_path: Path) -> None:
+    trace = tmp_path / "m.csv"
+    proc = mirobot(
+        "monitor", "--port", port, "--interval", "0.05", "--samples", "3", "--csv", str(trace)
+    )
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.splitlines()
+    assert len(lines) == 3  # not a terminal: one line per sample
+    assert all("joints" in line and "pose" in line for line in lines)
+    proc = mirobot("monitor", "--port", port, "--samples", "2", "--csv", str(trace))
+    assert proc.returncode == 0, proc.stderr
+    rows = read_csv(trace)
+    assert rows[0] == TRACE_HEADER
+    assert len(rows) == 1 + 3 + 2  # appended, one header
+
+
+def test_monitor_stops_cleanly_on_sigint(tmp_path: Path) -> None:
+    trace = tmp_path / "m.csv"
+    proc = spawn("monitor", "--interval", "0.05", "--csv", str(trace), *FAST)
+    try:
+        wait_for(
+            lambda: trace.exists() and len(trace.read_text().splitlines()) >= 4,
+            20,
+            "three samples in the CSV",
+        )
+        children = psutil.Process(proc.pid).children(recursive=True)
+        assert children  # the embedded emulator
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=20)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 0, err
+    assert "Traceback" not in err and "Traceback" not in out, err
+    assert "samples written to" in err
+    _, alive = psutil.wait_procs(children, timeout=5)
+    assert not alive  # the embedded emulator was stopped too
+    rows = read_csv(trace)
+    assert rows[0] == TRACE_HEADER
+    assert len(rows) >= 4 and all(len(row) == len(TRACE_HEADER) for row in rows)
+    assert len(out.splitlines()) >= 3
+
+
+def test_run_interrupted_exits_130_quietly(tmp_path: Path) -> None:
+    trace = tmp_path / "t.csv"
+    proc = spawn(
+        "run",
+        str(EXAMPLES / "dance.gcode"),
+        "--trace",
+        str(trace),
+        "--unlock",
+        "--time-scale",
+        "0.5",
+    )
+    try:
+        wait_for(
+            lambda: trace.exists() and len(trace.read_text().splitlines()) >= 3,
+            30,
+            "the run to be under way",
+        )
+        children = psutil.Process(proc.pid).children(recursive=True)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=20)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and "error" not in err, err
+    _, alive = psutil.wait_procs(children, timeout=5)
+    assert not alive
+
+
+# --------------------------------------------------------------------------------------------
+# check
+
+
+def test_check_examples() -> None:
+    for example in ("pick_and_place.gcode", "square.gcode", "dance.gcode"):
+        proc = mirobot("check", f"examples/{example}", cwd=ROOT)
+        assert proc.returncode == 0, proc.stdout
+        assert proc.stdout.startswith("OK: ")
+        assert " lines" in proc.stdout
+
+
+def test_check_lists_problems_by_line(tmp_path: Path) -> None:
+    program = tmp_path / "bad.gcode"
+    program.write_text("M21 G90\nG0 X500 ; too far\nG0 X10\nM3 S5000\n")
+    proc = mirobot("check", "bad.gcode", cwd=tmp_path)
+    assert proc.returncode == 1
+    assert proc.stdout.splitlines() == [
+        "bad.gcode:2: J1=500 is outside -100..160",
+        "bad.gcode:4: S5000: PWM must be an integer 0..1000",
+    ]
+    assert "2 problems in bad.gcode" in proc.stderr
+
+
+# --------------------------------------------------------------------------------------------
+# errors: one line, exit status 2
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["move", "joints", "j7=1"], "unknown joint 'j7' in 'j7=1'"),
+        (["move", "pose", "x=abc"], "x=abc: 'abc' is not a number"),
+        (["move", "joints", "j1=500"], "j1=500 is outside the joint range -100..160 deg"),
+        (["run", "missing.gcode"], "missing.gcode: no such file"),
+        (["check", "missing.gcode"], "missing.gcode: no such file"),
+        (["plot", "missing.csv"], "cannot read missing.csv"),
+        (["pump", "sideways"], "invalid choice: 'sideways'"),
+        (["status", "--time-scale", "fast"], "'fast' is not a number"),
+        (["teleport"], "invalid choice: 'teleport'"),
+    ],
+)
+def test_bad_arguments_exit_2_with_one_line(argv: list[str], message: str, tmp_path: Path) -> None:
+    proc = mirobot(*argv, cwd=tmp_path)
+    assert proc.returncode == 2
+    assert proc.stderr.count("\n") == 1, proc.stderr  # no emulator started, nothing else said
+    assert message in error_line(proc)
+    assert proc.stdout == ""
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["move", "joints", "j7=1"],
+        ["move", "pose", "x=abc"],
+        ["move", "joints", "j1=500"],
+        ["run", "missing.gcode"],
+    ],
+)
+def test_bad_arguments_with_a_port_exit_2(port: str, argv: list[str], tmp_path: Path) -> None:
+    proc = mirobot(*argv, "--port", port, cwd=tmp_path)
+    assert proc.returncode == 2
+    error_line(proc)
+
+
+def test_missing_port_exits_2(tmp_path: Path) -> None:
+    proc = mirobot("status", "--port", str(tmp_path / "ttyUSB9"))
+    assert proc.returncode == 2
+    assert "ttyUSB9: no such port" in error_line(proc)
+    proc = mirobot("status", "--port", "socket://127.0.0.1:9")
+    assert proc.returncode == 2
+    assert "could not open 'socket://127.0.0.1:9'" in error_line(proc)
+
+
+def test_busy_port_exits_2(port: str) -> None:
+    with serial.Serial(port, exclusive=True):  # another program holds the port
+        proc = mirobot("status", "--port", port)
+    assert proc.returncode == 2
+    assert f"{port} is busy" in error_line(proc)
+
+
+def test_emulator_subcommand_help_and_errors() -> None:
+    proc = mirobot("emulator", "--help")
+    assert proc.returncode == 0
+    assert "--firmware" in proc.stdout and "--time-scale" in proc.stdout
+    proc = mirobot("emulator", "--firmware", "1999")
+    assert proc.returncode == 2
+    assert_clean(proc)
+
+
+# --------------------------------------------------------------------------------------------
+# examples/*.py run as written (each starts its own embedded virtual Mirobot)
+
+
+def test_example_scripts_run_as_written() -> None:
+    scripts = {
+        "hello.py": "Idle: tool at x=200.0 y=0.0 z=150.0 mm",
+        "status_monitor.py": "  15 Idle ",
+        "monitor_while_streaming.py": "[monitor] Run",
+    }
+    procs = {
+        name: subprocess.Popen(
+            [sys.executable, str(EXAMPLES / name)],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            stdin=subprocess.DEVNULL,
+            text=True,
+        )
+        for name in scripts
+    }
+    try:
+        results = {name: proc.communicate(timeout=40) for name, proc in procs.items()}
+    finally:
+        for proc in procs.values():
+            if proc.poll() is None:
+                proc.kill()
+                proc.communicate()
+    for name, (out, err) in results.items():
+        assert procs[name].returncode == 0, f"{name}: {err}"
+        assert "using an embedded virtual Mirobot" in out
+        assert scripts[name] in out, f"{name}: {out}"
+
+
+def test_link_lost_while_monitoring_exits_1_with_one_line(tmp_path: Path) -> None:
+    trace = tmp_path / "m.csv"
+    emulator = SyncEmulatorProcess(time_scale=0)
+    try:
+        proc = spawn("monitor", "--port", emulator.url, "--interval", "0.05", "--csv", str(trace))
+        try:
+            wait_for(lambda: trace.exists() and len(read_csv(trace)) >= 3, 20, "two samples")
+            emulator.kill()  # the cable is pulled
+            out, err = proc.communicate(timeout=20)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.communicate()
+    finally:
+        emulator.stop()
+    assert proc.returncode == 1
+    assert "Traceback" not in err and "never retrieved" not in err, err
+    errors = [line for line in err.splitlines() if line.startswith("mirobot: error: ")]
+    assert len(errors) == 1 and "lost the link" in errors[0], err
+    assert len(out.splitlines()) >= 2

@@ -1,0 +1,489 @@
+"""The ``mirobot`` command line without a robot: arguments, KEY=VALUE targets, offline commands,
+output formatting, exit statuses (no subprocess, no emulator)."""
+
+from __future__ import annotations
+
+import argparse
+import io
+from pathlib import Path
+
+import pytest
+
+from mirobot_async import cli
+from mirobot_async.cli import (
+    EXIT_FAILED,
+    EXIT_OK,
+    EXIT_USAGE,
+    JOINT_KEYS,
+    POSE_KEYS,
+    CliError,
+    ProgressBar,
+    build_parser,
+    format_status_line,
+    format_status_table,
+    main,
+    parse_assignments,
+    read_program,
+)
+from mirobot_async.errors import (
+    MirobotAlarmError,
+    MirobotCommandError,
+    MirobotConnectionError,
+    MirobotLinkLostError,
+    MirobotTimeoutError,
+    MirobotUsageError,
+)
+from mirobot_async.replies import State, StatusReport
+
+REPORT = StatusReport(
+    State.IDLE,
+    (1.5, -2.25, 3.0, 0.0, -0.0, 90.0),
+    12.0,
+    (198.67, 0.0, 230.72, 0.0, 0.0, 0.0),
+    1000,
+    40,
+    1,
+)
+
+
+# --------------------------------------------------------------------------------------------
+# KEY=VALUE targets
+
+
+def test_assignments_parse_numbers_case_insensitively() -> None:
+    assert parse_assignments(["j1=10", "J3=-5.5", "rail=100"], JOINT_KEYS, "joint") == {
+        "j1": 10.0,
+        "j3": -5.5,
+        "rail": 100.0,
+    }
+    assert parse_assignments(["x=200", "Y=0", "z=1e2", "rz=-90"], POSE_KEYS, "axis") == {
+        "x": 200.0,
+        "y": 0.0,
+        "z": 100.0,
+        "rz": -90.0,
+    }
+
+
+def test_assignment_aliases() -> None:
+    assert parse_assignments(["d=5"], JOINT_KEYS, "joint") == {"rail": 5.0}
+    assert parse_assignments(["a=1", "b=2", "c=3"], POSE_KEYS, "axis") == {
+        "rx": 1.0,
+        "ry": 2.0,
+        "rz": 3.0,
+    }
+
+
+@pytest.mark.parametrize(
+    ("items", "keys", "message"),
+    [
+        (["j7=1"], JOINT_KEYS, "unknown joint 'j7' in 'j7=1'"),
+        (["x=1"], JOINT_KEYS, "unknown joint 'x'"),
+        (["j1=1"], POSE_KEYS, "unknown axis 'j1'"),
+        (["x=abc"], POSE_KEYS, "x=abc: 'abc' is not a number"),
+        (["x="], POSE_KEYS, "is not a number"),
+        (["x=nan"], POSE_KEYS, "finite"),
+        (["j2=inf"], JOINT_KEYS, "finite"),
+        (["j1"], JOINT_KEYS, "'j1' is not KEY=VALUE"),
+        (["=5"], JOINT_KEYS, "is not KEY=VALUE"),
+        (["j1=1", "J1=2"], JOINT_KEYS, "j1 is given twice"),
+        ([], JOINT_KEYS, "at least one joint target"),
+    ],
+)
+def test_bad_assignments(items: list[str], keys: tuple[str, ...], message: str) -> None:
+    with pytest.raises(CliError) as info:
+        parse_assignments(items, keys, "joint" if keys is JOINT_KEYS else "axis")
+    assert message in str(info.value)
+    assert "\n" not in str(info.value)
+
+
+# --------------------------------------------------------------------------------------------
+# The parser
+
+
+def parse(*argv: str) -> argparse.Namespace:
+    return build_parser().parse_args(list(argv))
+
+
+def test_robot_commands_default_to_the_embedded_emulator() -> None:
+    args = parse("status")
+    assert args.handler is cli.cmd_status
+    assert args.port is None
+    assert args.firmware is None  # 2021 for the embedded emulator; detected with --port
+    assert args.time_scale is None
+    assert args.verbose == 0
+
+
+def test_common_options_after_the_subcommand() -> None:
+    args = parse("status", "--port", "/dev/ttyUSB0", "--firmware", "classic", "-v")
+    assert (args.port, args.firmware, args.verbose) == ("/dev/ttyUSB0", "classic", 1)
+    assert parse("-v", "status").verbose == 1
+    assert parse("status", "--time-scale", "0").time_scale == 0.0
+
+
+def test_monitor_options() -> None:
+    args = parse("monitor", "--interval", "0.2", "--csv", "out.csv", "--samples", "3")
+    assert (args.interval, args.csv, args.samples) == (0.2, "out.csv", 3)
+    assert parse("monitor").interval == cli.DEFAULT_MONITOR_INTERVAL
+
+
+def test_move_subcommands() -> None:
+    args = parse("move", "joints", "j1=10", "j2=-5", "--relative", "--speed", "1000")
+    assert args.handler is cli.cmd_move_joints
+    assert args.targets == ["j1=10", "j2=-5"]
+    assert args.relative and args.speed == 1000.0
+    assert args.prepare is None
+    args = parse("move", "pose", "x=200", "--linear", "--home")
+    assert args.handler is cli.cmd_move_pose
+    assert args.linear and args.prepare == "home"
+    assert parse("move", "pose", "x=1", "--no-home").prepare == "none"
+    assert parse("move", "joints", "j1=1", "--unlock").prepare == "unlock"
+
+
+def test_negative_values_are_targets_not_options() -> None:
+    assert parse("move", "joints", "j1=-10").targets == ["j1=-10"]
+
+
+def test_run_check_plot_pump_gripper_home() -> None:
+    args = parse("run", "prog.gcode", "--trace", "t.csv", "--continue-on-error", "--unlock")
+    assert (args.file, args.trace, args.continue_on_error, args.prepare) == (
+        "prog.gcode",
+        "t.csv",
+        True,
+        "unlock",
+    )
+    assert parse("check", "p.gcode", "--firmware", "classic").firmware == "classic"
+    args = parse("plot", "t.csv", "-o", "t.png")
+    assert (args.trace, args.output) == ("t.csv", "t.png")
+    assert parse("pump", "blow").action == "blow"
+    assert parse("gripper", "close", "--legacy").legacy
+    assert parse("home", "--sequential").sequential
+    assert not parse("home").sequential
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        ([], "required: COMMAND"),
+        (["fly"], "invalid choice: 'fly'"),
+        (["pump", "maybe"], "invalid choice: 'maybe'"),
+        (["gripper"], "required: action"),
+        (["move"], "required: KIND"),
+        (["status", "--firmware", "2030"], "invalid choice: '2030'"),
+        (["status", "--time-scale", "-1"], "must be a number >= 0"),
+        (["status", "--time-scale", "fast"], "'fast' is not a number"),
+        (["monitor", "--interval", "0"], "must be a number > 0"),
+        (["monitor", "--samples", "x"], "is not a whole number"),
+        (["move", "joints", "j1=1", "--speed", "-3"], "must be a number > 0"),
+        (["move", "joints", "j1=1", "--home", "--unlock"], "not allowed with argument"),
+        (["run"], "required: FILE"),
+        (["status", "--bogus"], "unrecognized arguments: --bogus"),
+    ],
+)
+def test_usage_errors_are_one_line_and_exit_2(
+    argv: list[str], message: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    with pytest.raises(SystemExit) as info:
+        main(argv)
+    assert info.value.code == EXIT_USAGE
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    lines = captured.err.splitlines()
+    assert len(lines) == 1, captured.err
+    assert lines[0].startswith("mirobot: error: ")
+    assert message in lines[0]
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["move", "joints", "j7=1"], "unknown joint 'j7'"),
+        (["move", "joints", "j1=500"], "j1=500 is outside the joint range -100..160 deg"),
+        (["move", "joints", "j1=abc"], "'abc' is not a number"),
+        (["move", "joints"], "at least one joint target"),
+        (["move", "joints", "rail=600"], "rail=600 is outside the rail range"),
+        (["move", "pose", "x=abc"], "x=abc: 'abc' is not a number"),
+        (["move", "pose", "q=1"], "unknown axis 'q'"),
+        (["move", "pose", "j1=3"], "unknown axis 'j1'"),
+    ],
+)
+def test_bad_targets_exit_2_before_any_robot_is_started(
+    argv: list[str],
+    message: str,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    def no_robot(args: argparse.Namespace) -> None:
+        raise AssertionError("a robot was opened for a bad argument")
+
+    monkeypatch.setattr(cli, "_robot", no_robot)
+    assert main(argv) == EXIT_USAGE
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    lines = captured.err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("mirobot: error: ")
+    assert message in lines[0]
+
+
+def test_relative_joint_moves_are_not_range_checked() -> None:
+    args = parse("move", "joints", "j1=300", "--relative")
+    assert cli._joint_targets(args) == {"j1": 300.0}
+
+
+def test_linear_pose_moves_get_a_default_speed() -> None:
+    args = parse("move", "pose", "x=200", "--linear")
+    cli._pose_targets(args)
+    assert args.speed == 2000.0
+
+
+def test_emulator_is_delegated(monkeypatch: pytest.MonkeyPatch) -> None:
+    seen: list[list[str]] = []
+
+    def fake_main(argv: list[str]) -> int:
+        seen.append(argv)
+        return 7
+
+    import mirobot_emulator.__main__ as emulator_main
+
+    monkeypatch.setattr(emulator_main, "main", fake_main)
+    assert main(["emulator", "--firmware", "classic", "--help"]) == 7
+    assert main(["-v", "emulator"]) == 7
+    assert seen == [["--firmware", "classic", "--help"], []]
+
+
+def test_help_lists_every_subcommand(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as info:
+        main(["--help"])
+    assert info.value.code == 0
+    out = capsys.readouterr().out
+    for name in (
+        "status",
+        "monitor",
+        "home",
+        "unlock",
+        "reset",
+        "move",
+        "pump",
+        "gripper",
+        "run",
+        "check",
+        "plot",
+        "emulator",
+    ):
+        assert name in out
+
+
+# --------------------------------------------------------------------------------------------
+# Exit statuses
+
+
+@pytest.mark.parametrize(
+    ("exc", "status"),
+    [
+        (CliError("x"), EXIT_USAGE),
+        (MirobotUsageError("x"), EXIT_USAGE),
+        (MirobotConnectionError("could not open"), EXIT_USAGE),
+        (MirobotLinkLostError("gone"), EXIT_FAILED),
+        (MirobotCommandError("G0 X1", "Alarm lock"), EXIT_FAILED),
+        (MirobotAlarmError("G0 X1", "Hard limit"), EXIT_FAILED),
+        (MirobotTimeoutError("status"), EXIT_FAILED),
+        (RuntimeError("boom"), EXIT_FAILED),
+    ],
+)
+def test_exception_to_exit_status(exc: Exception, status: int) -> None:
+    code, message = cli._failure(exc, 0)
+    assert code == status
+    assert message is not None and "\n" not in message
+
+
+# --------------------------------------------------------------------------------------------
+# Offline commands through main()
+
+
+def test_check_ok(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    program = tmp_path / "ok.gcode"
+    program.write_text("; comment\nM21 G90\nG0 X10 Y10\n\nM3 S1000\n")
+    assert main(["check", str(program)]) == EXIT_OK
+    out = capsys.readouterr().out
+    assert out.startswith("OK: 5 lines")
+
+
+def test_check_problems(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    program = tmp_path / "bad.gcode"
+    program.write_text("M21 G90\nG0 X500\nG7\nM3 S2000\n")
+    assert main(["check", str(program)]) == EXIT_FAILED
+    out = capsys.readouterr().out.splitlines()
+    assert out[0] == f"{program}:2: J1=500 is outside -100..160"
+    assert out[1].startswith(f"{program}:3: G7")
+    assert out[2].startswith(f"{program}:4: S2000")
+
+
+def test_check_missing_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["check", str(tmp_path / "nope.gcode")]) == EXIT_USAGE
+    assert capsys.readouterr().err == f"mirobot: error: {tmp_path / 'nope.gcode'}: no such file\n"
+    assert main(["check", str(tmp_path)]) == EXIT_USAGE
+    assert "is a directory" in capsys.readouterr().err
+
+
+def test_check_examples_are_valid(capsys: pytest.CaptureFixture[str]) -> None:
+    examples = Path(__file__).resolve().parents[2] / "examples"
+    programs = sorted(examples.glob("*.gcode"))
+    assert len(programs) >= 3
+    for program in programs:
+        for firmware in ("2021", "classic"):
+            assert main(["check", str(program), "--firmware", firmware]) == EXIT_OK, program
+
+
+def test_run_missing_file_exits_2(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    assert main(["run", str(tmp_path / "nope.gcode")]) == EXIT_USAGE
+    assert capsys.readouterr().err.endswith("nope.gcode: no such file\n")
+
+
+def test_run_empty_program_exits_2(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    program = tmp_path / "empty.gcode"
+    program.write_text("; nothing\n\n(nothing either)\n")
+    assert main(["run", str(program)]) == EXIT_USAGE
+    assert "no commands" in capsys.readouterr().err
+
+
+def test_plot_bad_traces(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["plot", str(tmp_path / "nope.csv")]) == EXIT_USAGE
+    assert "cannot read" in capsys.readouterr().err
+    bad = tmp_path / "bad.csv"
+    bad.write_text("a,b\n1,2\n")
+    assert main(["plot", str(bad)]) == EXIT_USAGE
+    assert "missing column(s)" in capsys.readouterr().err
+    garbled = tmp_path / "garbled.csv"
+    garbled.write_text("timestamp,j1,j2,j3,j4,j5,j6,x,y,z\n2025-01-01T00:00:00,1,2,3,4,5,x,7,8,9\n")
+    assert main(["plot", str(garbled)]) == EXIT_USAGE
+    assert f"{garbled}:2: bad sample" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------------------------
+# Programs and output
+
+
+def test_read_program_drops_comments_and_keeps_line_numbers(tmp_path: Path) -> None:
+    program = tmp_path / "p.gcode"
+    program.write_text("; header\nM20  G90 ; mode\n\n(only a comment)\nG0 (inline) X1   Y2\n")
+    assert [(line.number, line.text) for line in read_program(str(program))] == [
+        (2, "M20 G90"),
+        (5, "G0 X1 Y2"),
+    ]
+
+
+def test_status_table() -> None:
+    table = format_status_table(REPORT).splitlines()
+    assert table[0] == "state   Idle"
+    assert table[1].split() == ["J1", "J2", "J3", "J4", "J5", "J6", "rail"]
+    assert table[2].split() == [
+        "joints",
+        "1.500",
+        "-2.250",
+        "3.000",
+        "0.000",
+        "0.000",
+        "90.000",
+        "12.000",
+    ]
+    assert table[4].split()[1:4] == ["198.670", "0.000", "230.720"]
+    assert "pump 1000, valve 40" in table[5]
+    assert "Cartesian (M20)" in table[6]
+
+
+def test_status_line() -> None:
+    line = format_status_line(REPORT)
+    assert "Idle" in line and "rail 12.000" in line and "pump 1000 valve 40" in line
+    assert "\n" not in line
+
+
+class FakeClock:
+    def __init__(self) -> None:
+        self.now = 100.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def test_progress_bar_on_a_terminal_redraws_in_place() -> None:
+    clock = FakeClock()
+    out = io.StringIO()
+    bar = ProgressBar(40, out, tty=True, clock=clock, width=10)
+    clock.now += 1.0
+    bar.update(10)
+    assert out.getvalue() == "\r[##--------] 10/40 lines  25%  elapsed 1.0s  ETA 3.0s"
+    clock.now += 0.01
+    bar.update(11)  # too soon to redraw
+    assert out.getvalue().count("\r") == 1
+    clock.now += 1.0
+    bar.update()  # only the time passed: the elapsed time moves on
+    assert out.getvalue().endswith("11/40 lines  28%  elapsed 2.0s  ETA 5.3s")
+    bar.update(40)
+    assert out.getvalue().endswith("all sent, the arm is finishing its moves")
+    clock.now += 3.0
+    bar.finish()
+    bar.finish()
+    text = out.getvalue()
+    # the shorter final text overwrites the longer one: padded with spaces
+    assert text.endswith("40/40 lines 100%  elapsed 5.0s  done" + " " * 36 + "\n")
+    assert text.count("\n") == 1
+
+
+def test_progress_bar_without_a_terminal_prints_occasional_lines() -> None:
+    clock = FakeClock()
+    out = io.StringIO()
+    bar = ProgressBar(100, out, tty=False, clock=clock, width=10)
+    for done in range(1, 101):
+        clock.now += 0.5
+        bar.update(done)
+    bar.finish("stopped")
+    text = out.getvalue()
+    lines = text.splitlines()
+    assert "\r" not in text
+    assert 10 <= len(lines) <= 12  # about one per tenth, plus the first and the last
+    assert lines[0].startswith("[----------]   1/100 lines   1%")
+    assert lines[-1] == "[##########] 100/100 lines 100%  elapsed 50.0s  stopped"
+    assert all("elapsed" in line for line in lines)
+
+
+def test_progress_bar_without_a_terminal_stays_quiet_when_fast() -> None:
+    clock = FakeClock()
+    out = io.StringIO()
+    bar = ProgressBar(1000, out, tty=False, clock=clock)
+    for done in range(1, 1001):
+        clock.now += 0.001
+        bar.update(done)
+    bar.finish()
+    assert 2 <= len(out.getvalue().splitlines()) <= 3  # first, maybe 1 s later, final
+
+
+def test_progress_bar_eta_unknown_before_the_first_line() -> None:
+    bar = ProgressBar(5, io.StringIO(), tty=False, clock=FakeClock())
+    assert "ETA ?" in bar.render()
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["run", "examples/square.gcode", "--trace", "{missing}/t.csv"],
+        ["monitor", "--csv", "{missing}/m.csv"],
+        ["status", "--port", "{missing}/ttyUSB0"],
+    ],
+)
+def test_unusable_files_and_ports_exit_2_before_any_robot_is_started(
+    argv: list[str],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    def no_emulator(*args: object, **kwargs: object) -> None:
+        raise AssertionError("an emulator was started")
+
+    import mirobot_async.testing
+
+    monkeypatch.setattr(mirobot_async.testing, "start_emulator", no_emulator)
+    monkeypatch.chdir(Path(__file__).resolve().parents[2])
+    missing = tmp_path / "no-such-dir"
+    assert main([arg.format(missing=missing) for arg in argv]) == EXIT_USAGE
+    lines = capsys.readouterr().err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("mirobot: error: ")
+    assert str(missing) in lines[0]
