@@ -1,0 +1,766 @@
+"""Benchmarks of mirobot-async against the virtual Mirobot: ``python benchmarks/run.py [--quick]``.
+
+Prints one markdown table (machine in its header). See issue 6 for what is measured and why.
+Sans-IO figures run in this process; everything else drives the emulator *process* over a real
+pseudo-terminal (:func:`mirobot_async.testing.start_emulator`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import contextlib
+import gc
+import os
+import platform
+import random
+import statistics
+import sys
+import time
+from collections.abc import AsyncIterator, Callable, Iterator, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import psutil
+from mirobot_emulator.motion import AxisLimits, joint_block
+from mirobot_emulator.settings import default_settings
+
+from mirobot_async import gcode
+from mirobot_async.client import LineResult, Mirobot, StreamResult
+from mirobot_async.protocol import MirobotConnection
+from mirobot_async.replies import State, StatusReport, format_status, parse_status
+from mirobot_async.testing import start_emulator
+from mirobot_async.transport import Implementation
+
+WIRE_BYTES_PER_S = 115200 / 10  # 8N1: 10 bits per byte
+
+
+# ---- configuration --------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Config:
+    """Counts and repetitions: the full run, or a few-second smoke run (``--quick``)."""
+
+    quick: bool
+    reps: int = 5
+    sansio_seconds: float = 0.3  # time spent per sans-IO figure and repetition
+    round_trips: int = 1000  # item 2 / 5: samples per repetition
+    stream_lines: int = 10_000  # item 3
+    wait_lines: int = 2_000  # item 3: stop-and-wait lines (a rate: fewer lines suffice)
+    wire_seconds: float = 1.5  # item 4: wire time per paced stream
+    poll_seconds: float = 1.0  # item 5: sustained polling
+    moves: int = 50  # item 6
+    arms: int = 16  # item 7
+    scale_seconds: float = 4.0  # item 7
+    memory_lines: int = 100_000  # item 8
+
+    @classmethod
+    def make(cls, quick: bool) -> Config:
+        if not quick:
+            return cls(quick=False)
+        return cls(
+            quick=True,
+            reps=1,
+            sansio_seconds=0.02,
+            round_trips=50,
+            stream_lines=300,
+            wait_lines=100,
+            wire_seconds=0.3,
+            poll_seconds=0.2,
+            moves=3,
+            arms=2,
+            scale_seconds=0.5,
+            memory_lines=2_000,
+        )
+
+
+# ---- statistics -----------------------------------------------------------------------------
+
+
+@dataclass
+class Stat:
+    """One figure: its value in every repetition; reported as the median and min..max."""
+
+    values: list[float] = field(default_factory=list)
+
+    def add(self, value: float) -> None:
+        self.values.append(value)
+
+    @property
+    def median(self) -> float:
+        return statistics.median(self.values)
+
+    @property
+    def lo(self) -> float:
+        return min(self.values)
+
+    @property
+    def hi(self) -> float:
+        return max(self.values)
+
+
+def percentile(samples: Sequence[float], q: float) -> float:
+    return float(np.percentile(np.asarray(samples, dtype=float), q))
+
+
+def repeat(reps: int, measure: Callable[[], float]) -> Stat:
+    stat = Stat()
+    for _ in range(reps):
+        stat.add(measure())
+    return stat
+
+
+def rate(count: int, seconds: float) -> float:
+    return count / seconds if seconds > 0 else float("inf")
+
+
+# ---- formatting -----------------------------------------------------------------------------
+
+
+def fmt_rate(value: float, unit: str = "/s") -> str:
+    """A rate with a k/M prefix: ``12 k lines/s``, ``3.4 k/s``, ``16.21 MB/s``.
+
+    ``unit`` is ``"/s"``, ``"B/s"`` or a word with a leading space (``" lines/s"``).
+    """
+    if value >= 1e6:
+        number, prefix = f"{value / 1e6:.2f}", "M"
+    elif value >= 1e4:
+        number, prefix = f"{value / 1e3:.0f}", "k"
+    elif value >= 1e3:
+        number, prefix = f"{value / 1e3:.1f}", "k"
+    else:
+        number, prefix = f"{value:.0f}", ""
+    if unit.startswith(" "):  # a word: "12 k lines/s", "408 polls/s"
+        return f"{number} {prefix}{' ' if prefix else ''}{unit.strip()}"
+    return f"{number} {prefix}{unit}" if prefix or unit[0] != "/" else f"{number}{unit}"
+
+
+def fmt_ms(seconds: float) -> str:
+    ms = seconds * 1e3
+    return f"{ms:.3f} ms" if ms < 1 else f"{ms:.2f} ms" if ms < 10 else f"{ms:.1f} ms"
+
+
+def fmt_ratio(value: float) -> str:
+    return f"{value:.3f}" if value < 10 else f"{value:.1f}"
+
+
+def fmt_mb(value: float) -> str:
+    return f"{value:+.2f} MB"
+
+
+@dataclass
+class Row:
+    item: str
+    what: str
+    median: str
+    spread: str
+    note: str = ""
+
+
+class Table:
+    """Rows of the one result table, plus notes printed under it."""
+
+    def __init__(self) -> None:
+        self.rows: list[Row] = []
+        self.notes: list[str] = []
+
+    def add(
+        self, item: str, what: str, stat: Stat, fmt: Callable[[float], str], note: str = ""
+    ) -> None:
+        spread = "-" if len(stat.values) < 2 else f"{fmt(stat.lo)} .. {fmt(stat.hi)}"
+        self.rows.append(Row(item, what, fmt(stat.median), spread, note))
+
+    def add_text(self, item: str, what: str, value: str, spread: str = "-", note: str = "") -> None:
+        self.rows.append(Row(item, what, value, spread, note))
+
+    def render(self, header: str) -> str:
+        cols = ("#", "Measurement", "Median", "Spread (min .. max)", "Target / ratio / note")
+        cells = [cols] + [(r.item, r.what, r.median, r.spread, r.note) for r in self.rows]
+        widths = [max(len(c[i]) for c in cells) for i in range(len(cols))]
+
+        def line(c: Sequence[str]) -> str:
+            return "| " + " | ".join(s.ljust(w) for s, w in zip(c, widths, strict=True)) + " |"
+
+        out = [header, "", line(cols), "|" + "|".join("-" * (w + 2) for w in widths) + "|"]
+        out += [line(c) for c in cells[1:]]
+        if self.notes:
+            out.append("")
+            out += [f"- {n}" for n in self.notes]
+        return "\n".join(out)
+
+
+def machine_header(config: Config) -> str:
+    cpu = "unknown CPU"
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as f:
+            for text in f:
+                if text.startswith("model name"):
+                    cpu = text.split(":", 1)[1].strip()
+                    break
+    except OSError:
+        cpu = platform.processor() or cpu
+    cores = os.cpu_count() or 1
+    python = f"{platform.python_implementation()} {platform.python_version()}"
+    system = f"{platform.system()} {platform.release()} {platform.machine()}"
+    mode = (
+        "quick smoke run (1 repetition, tiny counts: do not quote)"
+        if config.quick
+        else (f"{config.reps} repetitions per figure unless noted")
+    )
+    load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
+    return (
+        f"**mirobot-async benchmarks** - {cpu}, {cores} cores; {python}; {system}\n\n"
+        f"{time.strftime('%Y-%m-%d')}, {mode}; "
+        "emulator process on a pty, time scale 0 unless noted; "
+        f"load average at the start {load}."
+    )
+
+
+# ---- item 1: sans-IO core -------------------------------------------------------------------
+
+
+def _sample_reports(n: int) -> list[StatusReport]:
+    rng = random.Random(1)
+    states = [State.IDLE, State.RUN, State.RUN, State.HOLD]
+    reports = []
+    for _ in range(n):
+        reports.append(
+            StatusReport(
+                rng.choice(states),
+                tuple(round(rng.uniform(-90, 90), 3) for _ in range(6)),  # type: ignore[arg-type]
+                round(rng.uniform(0, 500), 3),
+                tuple(round(rng.uniform(-250, 250), 3) for _ in range(6)),  # type: ignore[arg-type]
+                rng.choice([0, 500, 1000]),
+                rng.choice([0, 40, 65]),
+                rng.choice([0, 1]),
+            )
+        )
+    return reports
+
+
+def _timed_loop(seconds: float, batch: Callable[[], int]) -> float:
+    """Run ``batch`` (returns items done) until ``seconds`` have passed; return items per second."""
+    done = 0
+    start = time.perf_counter()
+    while (elapsed := time.perf_counter() - start) < seconds:
+        done += batch()
+    return rate(done, elapsed)
+
+
+def bench_parse_status(config: Config) -> Stat:
+    lines = [format_status(r) for r in _sample_reports(1000)]
+
+    def batch() -> int:
+        for text in lines:
+            parse_status(text)
+        return len(lines)
+
+    return repeat(config.reps, lambda: _timed_loop(config.sansio_seconds, batch))
+
+
+def bench_encode(config: Config) -> Stat:
+    rng = random.Random(2)
+    joints = [tuple(round(rng.uniform(-25, 25), 2) for _ in range(6)) for _ in range(100)]
+    poses = [
+        (
+            round(rng.uniform(150, 250), 2),
+            round(rng.uniform(-50, 50), 2),
+            round(rng.uniform(50, 200), 2),
+        )
+        for _ in range(100)
+    ]
+
+    def batch() -> int:
+        for (j1, j2, j3, j4, j5, j6), (x, y, z) in zip(joints, poses, strict=True):
+            gcode.move_joints(j1, j2, j3, j4, j5, j6)
+            gcode.move_joints(j1, j2, speed=2000)
+            gcode.move_pose(x, y, z, 0, 0, 0)
+            gcode.move_pose(x, y, z, linear=True, speed=1500)
+            gcode.set_pump(gcode.PUMP_SUCK)
+        return 5 * len(joints)
+
+    return repeat(config.reps, lambda: _timed_loop(config.sansio_seconds, batch))
+
+
+def recorded_stream(lines: int, statuses_every: int = 10) -> bytes:
+    """What the robot prints while a program streams and a poller asks ``?``: oks and statuses."""
+    reports = _sample_reports(max(1, lines // statuses_every))
+    out = bytearray()
+    for i in range(lines):
+        out += b"ok\r\n"
+        if i % statuses_every == statuses_every - 1:
+            out += format_status(reports[i // statuses_every]).encode("ascii") + b"\r\n"
+    return bytes(out)
+
+
+def bench_connection_bytes(config: Config) -> Stat:
+    """Bytes/s through MirobotConnection.receive_data in pty-sized chunks, every event drained."""
+    lines = 2000
+    stream = recorded_stream(lines)
+    rng = random.Random(3)
+    cuts, pos = [], 0
+    while pos < len(stream):
+        size = rng.randint(16, 256)
+        cuts.append(stream[pos : pos + size])
+        pos += size
+
+    def one() -> float:
+        total, elapsed = 0, 0.0
+        while elapsed < config.sansio_seconds:
+            conn = MirobotConnection(rx_buffer_size=1 << 30)
+            for _ in range(lines):
+                conn.send_line(b"M3 S0")
+            events = 0
+            start = time.perf_counter()
+            for chunk in cuts:
+                conn.receive_data(chunk)
+                for _event in conn.events():
+                    events += 1
+            elapsed += time.perf_counter() - start
+            total += len(stream)
+            assert conn.pending_count == 0 and events == lines + lines // 10, events
+        return rate(total, elapsed)
+
+    return repeat(config.reps, one)
+
+
+def item_sansio(config: Config, table: Table) -> None:
+    table.add("1", "Sans-IO: status lines parsed", bench_parse_status(config), fmt_rate)
+    table.add("1", "Sans-IO: commands encoded", bench_encode(config), fmt_rate)
+    table.add(
+        "1",
+        "Sans-IO: bytes through MirobotConnection",
+        bench_connection_bytes(config),
+        lambda v: fmt_rate(v, "B/s"),
+        "oks + 1 status per 10, 16-256 B chunks",
+    )
+
+
+# ---- the emulator process and the client ----------------------------------------------------
+
+LAYERS: dict[Implementation, str] = {
+    "fast": "pyserial-asyncio-fast",
+    "original": "pyserial-asyncio",
+}
+DEFAULT_LAYER: Implementation = "fast"
+
+
+def bench_line(index: int) -> str:
+    """A cheap line the firmware acknowledges at once (no motion): ``M3 S<pwm>``, ~9 bytes."""
+    return f"M3 S{index % 1001}"
+
+
+def bench_lines(count: int) -> list[str]:
+    return [bench_line(i) for i in range(count)]
+
+
+def wire_bytes(lines: Sequence[str]) -> int:
+    return sum(len(line) + 1 for line in lines)
+
+
+@contextlib.asynccontextmanager
+async def connected(url: str, layer: Implementation = DEFAULT_LAYER) -> AsyncIterator[Mirobot]:
+    """A client on ``url`` (already unlocked: the emulator keeps its state across connections)."""
+    async with Mirobot.connect(url, implementation=layer) as arm:
+        await warm_up(arm)
+        yield arm
+
+
+async def unlock(url: str) -> None:
+    """Both profiles power on locked (2021 also in Alarm): unlock once per emulator."""
+    async with Mirobot.connect(url) as arm:
+        await arm.unlock()
+
+
+async def warm_up(arm: Mirobot, lines: int = 300) -> None:
+    await arm.stream(bench_lines(lines))
+    for _ in range(20):
+        await arm.send("M3 S0")
+
+
+async def ack_round_trips(arm: Mirobot, count: int) -> list[float]:
+    samples = []
+    for _ in range(count):
+        start = time.perf_counter()
+        await arm.send("M3 S0")
+        samples.append(time.perf_counter() - start)
+    return samples
+
+
+async def pipelined_seconds(arm: Mirobot, lines: Sequence[str]) -> float:
+    start = time.perf_counter()
+    result = await arm.stream(lines)
+    elapsed = time.perf_counter() - start
+    assert result.ok and result.acknowledged == len(lines), result
+    return elapsed
+
+
+async def stop_and_wait_seconds(arm: Mirobot, lines: Sequence[str]) -> float:
+    start = time.perf_counter()
+    for line in lines:
+        await arm.send(line)
+    return time.perf_counter() - start
+
+
+async def status_round_trips(arm: Mirobot, count: int) -> list[float]:
+    """Status round trips, spaced by the client's minimum gap between two ``?``."""
+    samples = []
+    for _ in range(count):
+        start = time.perf_counter()
+        await arm.status()
+        samples.append(time.perf_counter() - start)
+        await asyncio.sleep(arm.status_min_gap)
+    return samples
+
+
+@contextlib.asynccontextmanager
+async def background_stream(arm: Mirobot) -> AsyncIterator[Callable[[], int]]:
+    """Stream lines until the block ends; yields a function returning the lines acknowledged."""
+    stop = False
+    acked = 0
+
+    def lines() -> Iterator[str]:
+        index = 0
+        while not stop:
+            yield bench_line(index)
+            index += 1
+
+    def count(_line: LineResult) -> None:
+        nonlocal acked
+        acked += 1
+
+    async def run() -> StreamResult:
+        return await arm.stream(lines(), on_progress=count)
+
+    task = asyncio.create_task(run())
+    await asyncio.sleep(0.05)  # let the pipeline fill
+    try:
+        yield lambda: acked
+    finally:
+        stop = True
+        result = await task
+        assert result.ok, result
+
+
+# ---- items 2, 3, 4 (and 9): acknowledgements, streaming, the wire ---------------------------
+
+
+@dataclass
+class LinkFigures:
+    """Items 2-4 for one serial layer: one value per repetition each."""
+
+    ack_p50: Stat = field(default_factory=Stat)
+    ack_p99: Stat = field(default_factory=Stat)
+    pipelined: Stat = field(default_factory=Stat)  # lines/s
+    stop_and_wait: Stat = field(default_factory=Stat)  # lines/s
+    speedup: Stat = field(default_factory=Stat)  # pipelined / stop-and-wait
+    wire: Stat = field(default_factory=Stat)  # utilisation of 115200 baud, pipelined
+    wire_stop_and_wait: Stat = field(default_factory=Stat)
+
+
+async def measure_link(config: Config) -> dict[Implementation, LinkFigures]:
+    """Items 2-4 with both serial layers, interleaved repetition by repetition."""
+    figures: dict[Implementation, LinkFigures] = {layer: LinkFigures() for layer in LAYERS}
+    stream = bench_lines(config.stream_lines)
+    waited = stream[: config.wait_lines]
+    line_bytes = wire_bytes(stream) / len(stream)
+    wire_count = max(20, int(config.wire_seconds * WIRE_BYTES_PER_S / line_bytes))
+    wire_stream = bench_lines(wire_count)
+    wire_waited = wire_stream[: max(10, wire_count // 8)]
+    async with (
+        start_emulator(time_scale=0) as fast_url,
+        start_emulator(time_scale=0, extra_args=["--baud", "115200"]) as paced_url,
+    ):
+        await unlock(fast_url)
+        await unlock(paced_url)
+        layers = list(LAYERS)
+        for rep in range(config.reps):
+            for layer in layers if rep % 2 == 0 else layers[::-1]:
+                fig = figures[layer]
+                async with connected(fast_url, layer) as arm:
+                    samples = await ack_round_trips(arm, config.round_trips)
+                    fig.ack_p50.add(percentile(samples, 50))
+                    fig.ack_p99.add(percentile(samples, 99))
+                    pipelined = rate(len(stream), await pipelined_seconds(arm, stream))
+                    waiting = rate(len(waited), await stop_and_wait_seconds(arm, waited))
+                    fig.pipelined.add(pipelined)
+                    fig.stop_and_wait.add(waiting)
+                    fig.speedup.add(pipelined / waiting)
+                async with connected(paced_url, layer) as arm:
+                    seconds = await pipelined_seconds(arm, wire_stream)
+                    fig.wire.add(wire_bytes(wire_stream) / seconds / WIRE_BYTES_PER_S)
+                    seconds = await stop_and_wait_seconds(arm, wire_waited)
+                    fig.wire_stop_and_wait.add(wire_bytes(wire_waited) / seconds / WIRE_BYTES_PER_S)
+    return figures
+
+
+def report_link(config: Config, table: Table, figures: dict[Implementation, LinkFigures]) -> None:
+    fig = figures[DEFAULT_LAYER]
+    table.add("2", "Ack round trip (`M3 S0` -> ok), p50", fig.ack_p50, fmt_ms)
+    table.add("2", "Ack round trip, p99", fig.ack_p99, fmt_ms)
+    table.add(
+        "3",
+        f"Pipelined stream of {config.stream_lines:,} lines",
+        fig.pipelined,
+        lambda v: fmt_rate(v, " lines/s"),
+        f"x{fig.speedup.median:.2f} stop-and-wait (ratio spread "
+        f"{fmt_ratio(fig.speedup.lo)} .. {fmt_ratio(fig.speedup.hi)})",
+    )
+    table.add(
+        "3",
+        f"Stop-and-wait, {config.wait_lines:,} lines (send, await ok, send...)",
+        fig.stop_and_wait,
+        lambda v: fmt_rate(v, " lines/s"),
+    )
+    met = "met" if fig.wire.median >= 0.95 else "NOT met"
+    table.add(
+        "4",
+        "Wire utilisation at 115200 baud, pipelined",
+        fig.wire,
+        fmt_ratio,
+        f"target >= 0.95: {met} (bytes sent / s / 11,520)",
+    )
+    table.add("4", "Wire utilisation, stop-and-wait", fig.wire_stop_and_wait, fmt_ratio)
+
+
+def report_serial_layers(table: Table, figures: dict[Implementation, LinkFigures]) -> None:
+    """Item 9: pyserial-asyncio vs pyserial-asyncio-fast, side by side, 'fast' advantage > 1."""
+    orig, fast = figures["original"], figures["fast"]
+    rows: list[tuple[str, Stat, Stat, Callable[[float], str], bool]] = [
+        ("ack round trip p50", orig.ack_p50, fast.ack_p50, fmt_ms, True),
+        ("ack round trip p99", orig.ack_p99, fast.ack_p99, fmt_ms, True),
+        ("pipelined lines/s", orig.pipelined, fast.pipelined, fmt_rate, False),
+        ("stop-and-wait lines/s", orig.stop_and_wait, fast.stop_and_wait, fmt_rate, False),
+        ("wire utilisation", orig.wire, fast.wire, fmt_ratio, False),
+        ("wire utilisation, stop-and-wait", orig.wire_stop_and_wait, fast.wire_stop_and_wait,
+         fmt_ratio, False),
+    ]  # fmt: skip
+    advantages = []
+    for what, a, b, fmt, lower_is_better in rows:
+        advantage = a.median / b.median if lower_is_better else b.median / a.median
+        if "wire utilisation" not in what:  # capped by the wire: says nothing about the layer
+            advantages.append(advantage)
+        spread = "-"
+        if len(a.values) > 1:
+            spread = f"{fmt(a.lo)} .. {fmt(a.hi)} vs {fmt(b.lo)} .. {fmt(b.hi)}"
+        table.add_text(
+            "9",
+            f"{what}: pyserial-asyncio vs -fast",
+            f"{fmt(a.median)} vs {fmt(b.median)}",
+            spread,
+            f"fast/original advantage x{advantage:.2f}",
+        )
+    overall = float(np.exp(np.mean(np.log(advantages))))
+    if overall >= 1.10:
+        verdict = f"pyserial-asyncio-fast wins clearly (x{overall:.2f} geometric mean)"
+    elif overall <= 1 / 1.10:
+        verdict = f"pyserial-asyncio wins clearly (x{1 / overall:.2f} geometric mean)"
+    else:
+        verdict = f"no clear winner (fast/original x{overall:.2f} geometric mean)"
+    table.add_text("9", "Serial layer verdict (items 2-3)", verdict)
+
+
+# ---- item 5: status round trips -------------------------------------------------------------
+
+
+async def item_status(config: Config, table: Table) -> None:
+    idle_p50, idle_p99, busy_p50, busy_p99, polls = Stat(), Stat(), Stat(), Stat(), Stat()
+    samples_per_rep = max(10, config.round_trips // 2)
+    async with start_emulator(time_scale=0) as url:
+        await unlock(url)
+        async with connected(url) as arm:
+            for _ in range(config.reps):
+                samples = await status_round_trips(arm, samples_per_rep)
+                idle_p50.add(percentile(samples, 50))
+                idle_p99.add(percentile(samples, 99))
+                async with background_stream(arm):
+                    samples = await status_round_trips(arm, samples_per_rep)
+                busy_p50.add(percentile(samples, 50))
+                busy_p99.add(percentile(samples, 99))
+                count, start = 0, time.perf_counter()
+                while time.perf_counter() - start < config.poll_seconds:
+                    await arm.status()
+                    count += 1
+                polls.add(rate(count, time.perf_counter() - start))
+            gap = arm.status_min_gap
+    table.add("5", "Status `?` round trip, idle, p50", idle_p50, fmt_ms)
+    table.add("5", "Status round trip, idle, p99", idle_p99, fmt_ms)
+    table.add("5", "Status round trip while streaming, p50", busy_p50, fmt_ms)
+    table.add("5", "Status round trip while streaming, p99", busy_p99, fmt_ms)
+    table.add(
+        "5",
+        "Sustained status polls (back-to-back)",
+        polls,
+        lambda v: fmt_rate(v, " polls/s"),
+        f"capped by the client's {gap * 1e3:g} ms minimum gap between two `?`",
+    )
+
+
+# ---- item 6: motion completion latency ------------------------------------------------------
+
+
+def move_duration(start: float, end: float) -> float:
+    """Duration of a rapid (G0) J1 move from ``start`` to ``end`` degrees, per the timing model
+    of the emulator with its default 2021 settings (the same function the firmware calls)."""
+    limits = AxisLimits.from_settings(default_settings("2021"))
+    q0 = (start, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    q1 = (end, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    return joint_block(q0, q1, None, limits).duration
+
+
+async def item_motion(config: Config, table: Table) -> None:
+    """50 short joint moves at real speed: client return time minus the model's end of motion.
+
+    The emulator does not report when a motion ends, so the end is computed: the move starts when
+    the emulator parses its line (it is queued at once: the planner is empty), which is after
+    ``move_joints`` was called; its duration is the emulator's own timing model. Taking the call
+    time as the start makes the figure an upper bound (it includes the line's trip to the
+    emulator).
+    """
+    step = 0.75  # degrees: a ~0.25 s triangular move at the default 50 deg/s^2
+    latencies, durations = [], []
+    async with start_emulator(time_scale=1) as url:
+        await unlock(url)
+        async with Mirobot.connect(url) as arm:
+            await arm.move_joints(j1=0.0)
+            position = 0.0
+            for i in range(config.moves):
+                target = step if i % 2 == 0 else 0.0
+                duration = move_duration(position, target)
+                start = time.perf_counter()
+                report = await arm.move_joints(j1=target)
+                latencies.append(time.perf_counter() - start - duration)
+                durations.append(duration)
+                assert report is not None and abs(report.joints[0] - target) < 0.01, report
+                position = target
+    p50, p99 = percentile(latencies, 50), percentile(latencies, 99)
+    met = "met" if p99 <= 0.010 else "NOT met"
+    spread = f"{fmt_ms(min(latencies))} .. {fmt_ms(max(latencies))}"
+    table.add_text(
+        "6",
+        f"Motion completion latency, {config.moves} x {step:g} deg J1 moves, p50",
+        fmt_ms(p50),
+        spread,
+        f"real speed; moves of {fmt_ms(statistics.median(durations))} (model); 1 run",
+    )
+    table.add_text(
+        "6", "Motion completion latency, p99", fmt_ms(p99), spread, f"target <= 10 ms: {met}"
+    )
+    table.notes.append(
+        "Item 6: the emulator does not report its end of motion; it is computed as the call "
+        "time + the move's duration from the emulator's timing model (mirobot_emulator.motion, "
+        "default 2021 settings), so the latency is an upper bound (it includes the line's trip "
+        "to the emulator). `move_joints(wait=True)` polls the status back-to-back."
+    )
+
+
+# ---- item 7: many arms from one event loop --------------------------------------------------
+
+
+async def drive_arm(arm: Mirobot, seconds: float, status_samples: list[float]) -> int:
+    """Stream for ``seconds`` while polling the status at 10 Hz; return the lines acknowledged."""
+    async with background_stream(arm) as acknowledged:
+        deadline = time.perf_counter() + seconds
+        tick = time.perf_counter()
+        while (now := time.perf_counter()) < deadline:
+            await arm.status()
+            status_samples.append(time.perf_counter() - now)
+            tick += 0.1
+            await asyncio.sleep(max(0.0, min(tick, deadline) - time.perf_counter()))
+    return acknowledged()
+
+
+async def item_scale(config: Config, table: Table) -> None:
+    throughput, status_p99 = Stat(), Stat()
+    async with contextlib.AsyncExitStack() as stack:
+        urls = await asyncio.gather(
+            *(stack.enter_async_context(start_emulator(time_scale=0)) for _ in range(config.arms))
+        )
+        await asyncio.gather(*(unlock(url) for url in urls))
+        arms = await asyncio.gather(*(stack.enter_async_context(connected(url)) for url in urls))
+        for _ in range(config.reps):
+            samples: list[float] = []
+            start = time.perf_counter()
+            counts = await asyncio.gather(
+                *(drive_arm(arm, config.scale_seconds, samples) for arm in arms)
+            )
+            throughput.add(rate(sum(counts), time.perf_counter() - start))
+            status_p99.add(percentile(samples, 99))
+    table.add(
+        "7",
+        f"{config.arms} emulators, one event loop: aggregate stream",
+        throughput,
+        lambda v: fmt_rate(v, " lines/s"),
+        f"each arm also polled at 10 Hz; {config.arms} emulator processes share the CPU",
+    )
+    table.add("7", f"{config.arms} emulators: status round trip p99", status_p99, fmt_ms)
+
+
+# ---- item 8: memory -------------------------------------------------------------------------
+
+
+def rss() -> float:
+    gc.collect()
+    return float(psutil.Process().memory_info().rss)
+
+
+async def item_memory(config: Config, table: Table) -> None:
+    growth = Stat()
+    reps = min(config.reps, 3)
+    async with start_emulator(time_scale=0) as url:
+        await unlock(url)
+        async with connected(url) as arm:
+            await arm.stream(bench_line(i) for i in range(config.memory_lines // 10))
+            for _ in range(reps):
+                before = rss()
+                result = await arm.stream(bench_line(i) for i in range(config.memory_lines))
+                assert result.ok and result.acknowledged == config.memory_lines, result
+                growth.add((rss() - before) / 1024 / 1024)
+    met = "met" if growth.hi < 5 else "NOT met"
+    table.add(
+        "8",
+        f"RSS growth over {config.memory_lines:,} streamed lines",
+        growth,
+        fmt_mb,
+        f"target < 5 MB: {met} (worst of {reps} runs, after a warm-up)",
+    )
+
+
+# ---- main -----------------------------------------------------------------------------------
+
+
+async def run_all(config: Config) -> Table:
+    table = Table()
+    item_sansio(config, table)
+    link = await measure_link(config)
+    report_link(config, table, link)
+    await item_status(config, table)
+    await item_motion(config, table)
+    await item_scale(config, table)
+    await item_memory(config, table)
+    report_serial_layers(table, link)
+    table.notes.append(
+        "Items 2-8 use pyserial-asyncio-fast (the default serial layer); item 9 repeats items 2-4 "
+        "with each layer, interleaved. Lines are `M3 S<n>` (about 9 bytes with the newline; the "
+        "firmware answers `ok` at once). Latencies: p50/p99 per repetition, then the median "
+        "over repetitions."
+    )
+    return table
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="smoke run of a few seconds")
+    args = parser.parse_args(argv)
+    config = Config.make(args.quick)
+    header = machine_header(config)
+    started = time.perf_counter()
+    table = asyncio.run(run_all(config))
+    table.notes.append(f"Total run time {time.perf_counter() - started:.0f} s.")
+    print(table.render(header))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
