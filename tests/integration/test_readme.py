@@ -1,0 +1,34 @@
+"""README.md's code runs as written: the 15-line example, and the commands it shows."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+README = Path(__file__).resolve().parents[2] / "README.md"
+
+
+def _python_blocks() -> list[str]:
+    return re.findall(r"```python\n(.*?)```", README.read_text(), flags=re.S)
+
+
+def test_readme_example_is_short_and_runs_as_written() -> None:
+    example = _python_blocks()[0]
+    code_lines = [line for line in example.splitlines() if line.strip()]
+    assert len(code_lines) <= 15
+    done = subprocess.run(
+        [sys.executable, "-c", example], capture_output=True, text=True, timeout=60, check=False
+    )
+    assert done.returncode == 0, done.stderr
+    assert "2 lines acknowledged" in done.stdout
+    assert "StatusReport(state=<State.IDLE" in done.stdout
+    assert done.stderr == ""
+
+
+def test_readme_test_command_is_the_one_ci_runs() -> None:
+    ci = (README.parent / ".ci" / "run").read_text()
+    shown = re.search(r"pip install -e '\.\[test\]' && (python -m pytest[^\n`]*)", README.read_text())
+    assert shown is not None
+    assert shown.group(1).strip() in ci
