@@ -38,13 +38,13 @@ from mirobot_async.errors import (
 
 if TYPE_CHECKING:
     from mirobot_async.client import ClientStats, LineResult, Mirobot, Stream, StreamResult
-    from mirobot_async.envelope import Envelope  # ENVELOPE (issue 7)
+    from mirobot_async.envelope import Envelope
     from mirobot_async.replies import State, StatusReport, parse_status
     from mirobot_async.testing import start_emulator
 
 __all__ = [
     "ClientStats",
-    "Envelope",  # ENVELOPE (issue 7)
+    "Envelope",
     "LineResult",
     "Mirobot",
     "MirobotAlarmError",
@@ -78,7 +78,7 @@ _LAZY: dict[str, str] = {
     "StatusReport": "mirobot_async.replies",
     "parse_status": "mirobot_async.replies",
     "start_emulator": "mirobot_async.testing",
-    "Envelope": "mirobot_async.envelope",  # ENVELOPE (issue 7)
+    "Envelope": "mirobot_async.envelope",
 }
 
 

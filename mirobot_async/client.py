@@ -59,13 +59,49 @@ file or an I/O error fails every pending call with
 :class:`~mirobot_async.errors.MirobotLinkLostError`, and
 every later call raises it too. Input is never drained or discarded to "resynchronise".
 
+Safety envelope
+---------------
+``Mirobot.connect(url, envelope=Envelope(...))`` (:mod:`mirobot_async.envelope`) checks **every
+line** before it is written, at the moment it would be written (under the send lock, so the
+checks follow the order of the lines on the wire): structured moves (``move_joints``,
+``move_pose``), raw :meth:`Mirobot.send` lines and every :meth:`Mirobot.stream` line are parsed
+with :meth:`Envelope.check_line <mirobot_async.envelope.Envelope.check_line>` against the modal
+state (:class:`~mirobot_async.envelope.MotionModes`, tracked over every line written) and the
+predicted position. A violating line raises :class:`~mirobot_async.errors.MirobotUsageError`
+naming the bound, and nothing of it is written (no line; at most a ``?`` to learn the position).
+
+*Position policy.* The client predicts where the arm will be once every line written so far has
+run: each checked line's target is the start of the next one, so pipelined lines (``wait=False``
+moves, streams) chain, and relative moves are checked from there. It starts from the connect
+probe's status (if the arm was at rest). The prediction is dropped when the arm may be elsewhere:
+after a reset banner, an alarm, homing, a refused or rejected motion line (unless it was the last
+line written: then the position before it is restored), a lost reply, and after a line sent with
+``check_envelope=False`` that the envelope could not follow. A line that needs the position
+while none is predicted waits until every line in flight is answered and a fresh status shows
+the robot at rest (``Idle``/``Alarm``), and starts from that status (only ``?`` is written
+meanwhile). If the prediction is dropped while a checked line waits for room in the buffer, the
+line is checked again before it is written.
+
+*Modes.* Unknown at connect (``MotionModes.unknown()``; ``M20``/``M21`` is taken from the first
+status that shows ``Motion_MODE``), power-on defaults after a reset banner or homing, updated by
+every line written (checked or not). Structured moves state all their modes; a raw line that
+relies on an unknown mode is refused until a line states it.
+
+*Firmware.* The envelope's kinematic model must be the arm's: when the firmware is (or, with an
+envelope, is detected at connect with ``$$`` to be) ``classic`` and the envelope has the default
+``dh=DH_2021``, the client uses it with ``dh=DH_CLASSIC`` (:attr:`Mirobot.envelope` shows the
+one in use). Any other ``dh`` is used as given.
+
+*Opt-out.* ``send(line, check_envelope=False)`` logs a WARNING naming the line (and, if the
+envelope would have refused it, why); ``stream(lines, check_envelope=False)`` logs a WARNING when
+it starts and one for each line the envelope would have refused. Limitation: lines written
+after a line that the robot then refuses were checked assuming it ran (pipelining); a stream
+stops at such a refusal. The stream's per-line WARNINGs need the position: after a line the
+envelope could not follow, the following unchecked lines are only logged at DEBUG.
+
 Wire log: the ``mirobot_async.wire`` logger (a child of ``mirobot_async``) logs every line sent
 (``-> ...``) and received (``<- ...``) at DEBUG.
 """
-
-# Every awaiting call takes timeout= (issue 4), the library's documented contract: ASYNC109 is
-# a style rule for libraries that leave timeouts to the caller.
-# ruff: noqa: ASYNC109
 
 from __future__ import annotations
 
@@ -83,8 +119,8 @@ from collections.abc import (
     Generator,
     Iterable,
 )
-from dataclasses import dataclass, field
-from typing import Any, Final, Literal
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any, Final, Literal
 
 from mirobot_async import gcode
 from mirobot_async.errors import (
@@ -115,6 +151,9 @@ from mirobot_async.protocol import (
 )
 from mirobot_async.replies import ReplyKind, State, StatusReport
 from mirobot_async.transport import Implementation, SerialLink
+
+if TYPE_CHECKING:  # imported when an envelope is used (it needs numpy)
+    from mirobot_async.envelope import Envelope, LineCheck, MotionModes
 
 __all__ = [
     "CONNECT_TIMEOUT",
@@ -163,6 +202,7 @@ _RESET_ONLY_ALARMS: Final = ("hard limit", "soft limit")
 _RESET_ALARMS: Final = ("abort during cycle", "homing fail")
 # Raw lines whose success clears a remembered alarm: $X, $H, $HH, $H0..$H7, $HE, M50.
 _UNLOCKING_RE: Final = re.compile(rb"^(?:\$X|\$H[H0-7E]?|M0*50)$")
+_HOMING_RE: Final = re.compile(rb"^\$H[H0-7E]?$")
 _DWELL_RE: Final = re.compile(rb"G0*4(?![0-9.])")
 _P_WORD_RE: Final = re.compile(rb"P([+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+))")
 _FORBIDDEN_RE: Final = re.compile(r"[\r\n?!~%]")
@@ -192,8 +232,9 @@ class ClientStats:
     alarms: int = 0
     resets: int = 0  # banners seen (power-on, reset(), spontaneous)
     protocol_violations: int = 0  # stray "ok", overlong lines...
-    bytes_sent: int = 0
+    bytes_sent: int = 0  # every byte written (lines and realtime bytes such as "?")
     bytes_received: int = 0
+    envelope_refusals: int = 0  # lines refused by the safety envelope (nothing written)
 
 
 @dataclass(frozen=True, slots=True)
@@ -242,6 +283,25 @@ class StreamResult:
 _Outcome = LineAcknowledged | LineRejected | BaseException
 
 
+@dataclass(frozen=True, slots=True)
+class _Position:
+    """Where the arm is (or will be once every line written has run), for the envelope."""
+
+    joints: tuple[float, ...]
+    pose: tuple[float, ...]
+    rail: float | None
+
+
+@dataclass(frozen=True, slots=True)
+class _Tracked:
+    """What the envelope's bookkeeping assumed when a line was written (to undo a failed line)."""
+
+    modes_before: MotionModes
+    position_before: _Position | None
+    moved: bool
+    modes_changed: bool
+
+
 @dataclass(slots=True, eq=False)
 class _Slot:
     """A line written to the robot and owed a reply; ``fut`` is cancelled if the caller leaves."""
@@ -250,6 +310,8 @@ class _Slot:
     command: str
     fut: asyncio.Future[_Outcome]
     sent_at: float
+    check: LineCheck | None = None  # the envelope's verdict on the line (its target)
+    tracked: _Tracked | None = None
 
 
 @dataclass(slots=True, eq=False)
@@ -361,12 +423,14 @@ class Stream:
         on_progress: Callable[[LineResult], object] | None,
         continue_on_error: bool,
         timeout: float | None,
+        check_envelope: bool = True,
     ) -> None:
         self._arm = arm
         self._lines = lines
         self._on_progress = on_progress
         self._continue = continue_on_error
         self._timeout = timeout
+        self._check_envelope = check_envelope
         self._used = False
         self.result = StreamResult()
         """Filled in as the stream runs (also in the iterator form)."""
@@ -375,7 +439,9 @@ class Stream:
         if self._used:
             raise MirobotUsageError("a Stream can be awaited or iterated only once")
         self._used = True
-        return self._arm._stream_lines(self._lines, self._continue, self._timeout, self.result)
+        return self._arm._stream_lines(
+            self._lines, self._continue, self._timeout, self.result, self._check_envelope
+        )
 
     def __aiter__(self) -> AsyncIterator[LineResult]:
         return self._take()
@@ -422,7 +488,7 @@ class Mirobot:
         self,
         *,
         firmware: Firmware | None = None,
-        envelope: Any = None,
+        envelope: Envelope | None = None,
         implementation: Implementation = "fast",
         status_timeout: float = STATUS_TIMEOUT,
     ) -> None:
@@ -434,10 +500,23 @@ class Mirobot:
             )
         if not status_timeout > 0:
             raise MirobotUsageError(f"status_timeout={status_timeout!r} must be > 0")
+        if envelope is not None:
+            from mirobot_async.envelope import Envelope, MotionModes
+
+            if not isinstance(envelope, Envelope):
+                raise MirobotUsageError(
+                    f"envelope={envelope!r} must be a mirobot_async.Envelope or None"
+                )
         self._firmware: Firmware | None = firmware
         self.firmware_version: str | None = None
         """The version printed in the last banner seen (``20191228_2``...), if any."""
-        self._envelope = envelope
+        # safety envelope (see "Safety envelope" above); all None / unused without one
+        self._envelope: Envelope | None = envelope
+        self._envelope_classic: Envelope | None = None  # the envelope with dh=DH_CLASSIC
+        self._modes: MotionModes | None = None if envelope is None else MotionModes.unknown()
+        self._position: _Position | None = None  # predicted after every line written
+        self._position_epoch = 0  # bumped when the prediction or the modes are invalidated
+        self._last_line_id: int | None = None
         self._implementation: Implementation = implementation
         self._exclusive = True
         self.status_timeout = status_timeout
@@ -483,7 +562,7 @@ class Mirobot:
         *,
         firmware: Firmware | None = None,
         timeout: float | None = CONNECT_TIMEOUT,
-        envelope: Any = None,
+        envelope: Envelope | None = None,
         implementation: Implementation = "fast",
         status_timeout: float = STATUS_TIMEOUT,
         probe: bool = True,
@@ -496,10 +575,12 @@ class Mirobot:
 
         ``firmware`` (``"2021"`` / ``"classic"``) is detected from a reset banner or, when a call
         needs it (rail limits, settings checks), from ``$$``; pass it to skip detection.
-        ``envelope`` is a workspace safety envelope (:mod:`mirobot_async.envelope`) that every
-        move is checked against before anything is written. ``implementation`` picks
-        pyserial-asyncio-fast (``"fast"``, default) or the original pyserial-asyncio.
-        ``status_timeout`` bounds the status requests of liveness checks.
+        ``envelope`` is a workspace safety envelope (:class:`mirobot_async.Envelope`): every line
+        that moves the arm is checked against it before anything is written (see the module
+        docstring, "Safety envelope"); with an envelope and an unknown ``firmware`` the profile
+        is detected at connect (``$$``), so that a classic arm gets ``DH_CLASSIC``.
+        ``implementation`` picks pyserial-asyncio-fast (``"fast"``, default) or the original
+        pyserial-asyncio. ``status_timeout`` bounds the status requests of liveness checks.
 
         ``exclusive`` (default) locks the device so that a second program (or client) opening
         it fails at once with :class:`MirobotConnectionError` instead of stealing replies.
@@ -536,6 +617,8 @@ class Mirobot:
         try:
             if probe:
                 await self._probe(timeout)
+                if self._envelope is not None:
+                    await self._prepare_envelope(timeout)
         except BaseException:
             await self.close()
             raise
@@ -555,6 +638,24 @@ class Mirobot:
                 f"{_url_text(self.url)} opened, but no Mirobot answered a status request within "
                 f"{timeout:g} s"
             ) from err
+
+    async def _prepare_envelope(self, timeout: float | None) -> None:
+        """At connect: the firmware (the envelope's kinematic model) and the arm's position."""
+        loop = self._running_loop()
+        deadline = _deadline(loop, timeout)
+        if self._firmware is None:
+            await self._require_firmware(deadline, timeout)
+        report = self._last_status
+        if (
+            report is not None
+            and report.state in _QUIET
+            and not self._conn.pending_count
+            and self._position is None
+        ):
+            # The probe's status, asked with nothing in flight: where the arm is at rest.
+            self._position = _Position(report.joints, report.pose, report.rail)
+            if self._modes is not None and report.motion_mode is not None:
+                self._modes = replace(self._modes, cartesian=report.motion_mode == 1)
 
     async def close(self) -> None:
         """Close the link; idempotent, never hangs.
@@ -611,9 +712,33 @@ class Mirobot:
         return self._conn.pending_count
 
     @property
-    def envelope(self) -> Any:
-        """The workspace safety envelope every move is checked against, or ``None``."""
-        return self._envelope
+    def envelope(self) -> Envelope | None:
+        """The workspace safety envelope every move is checked against, or ``None``.
+
+        This is the envelope in use: the one given, with ``dh=DH_CLASSIC`` on a classic arm if
+        it had the default ``DH_2021`` (see the module docstring).
+        """
+        return self._active_envelope()
+
+    @property
+    def bytes_in_flight(self) -> int:
+        """Bytes of lines written and not answered yet (GRBL character counting, <= 128)."""
+        return self._conn.bytes_in_flight
+
+    @property
+    def status_requests_outstanding(self) -> int:
+        """``?`` written and not answered yet (0 or 1, as the client never asks twice at once)."""
+        return self._conn.status_requests_outstanding
+
+    @property
+    def status_waiter_count(self) -> int:
+        """Calls currently waiting for a status report (they share the outstanding ``?``)."""
+        return sum(not waiter.fut.done() for waiter in self._status_waiters)
+
+    @property
+    def reply_slot_count(self) -> int:
+        """Lines the client awaits a reply for (equals :attr:`pending_count` between events)."""
+        return len(self._slots)
 
     # ---- received data ----
 
@@ -685,6 +810,11 @@ class Mirobot:
         slot = self._slots.pop(event.line.id, None)
         if self._barrier == event.line.id:
             self._barrier = None
+        if slot is not None and slot.tracked is not None:
+            if isinstance(event, LineRejected):
+                self._untrack_failed_line(slot, slot.tracked, rejected=True)
+            elif event.refusal is not None:
+                self._untrack_failed_line(slot, slot.tracked, rejected=False)
         if slot is not None:
             if slot.fut.done():
                 stats.replies_discarded += 1
@@ -697,6 +827,7 @@ class Mirobot:
         self.stats.alarms += 1
         self._alarm = text
         self._alarm_epoch += 1
+        self._forget_position()  # an alarm may stop the arm anywhere
         _log.warning("robot alarm: %s", text)
         if text.strip().lower() not in _RESET_ONLY_ALARMS:
             # The firmware still answers lines (Alarm lock) or a banner follows (abort during
@@ -724,8 +855,19 @@ class Mirobot:
         self._banner_started = loop.time()
         self._barrier = None
         self._dwell_until = -math.inf
+        if self._envelope is not None:  # power-on modes; the arm stopped wherever it was
+            from mirobot_async.envelope import MotionModes
+
+            self._forget_position(MotionModes())
         if event.failed:
-            _log.warning("the robot reset: %d pending line(s) were not run", len(event.failed))
+            # Every caller still waiting gets MirobotResetError: say it loudly only if some
+            # line has nobody left to tell.
+            unseen = any(
+                (slot := self._slots.get(p.id)) is None or slot.fut.done() for p in event.failed
+            )
+            (_log.warning if unseen else _log.info)(
+                "the robot reset: %d pending line(s) were not run", len(event.failed)
+            )
         for pending in event.failed:
             slot = self._slots.pop(pending.id, None)
             if slot is not None and not slot.fut.done():
@@ -768,7 +910,14 @@ class Mirobot:
         if self._fatal is not None:
             return
         self._fatal = message
-        (_log.debug if self._closing else _log.warning)("%s", message)
+        # The waiting calls raise MirobotLinkLostError with this message (and so does every later
+        # call): log it loudly only when no call is waiting to show it.
+        told = (
+            any(not slot.fut.done() for slot in self._slots.values())
+            or any(not waiter.fut.done() for waiter in self._status_waiters)
+            or any(not fut.done() for _, fut in self._banner_waiters)
+        )
+        (_log.debug if self._closing else _log.info if told else _log.warning)("%s", message)
         for slot in self._slots.values():
             if not slot.fut.done():
                 slot.fut.set_result(
@@ -920,13 +1069,14 @@ class Mirobot:
 
     async def statuses(
         self, interval: float = 0.1, *, timeout: float | None = STATUS_TIMEOUT
-    ) -> AsyncIterator[StatusReport]:
+    ) -> AsyncGenerator[StatusReport, None]:
         """Yield a status report about every ``interval`` seconds, forever.
 
         Several consumers may iterate at once: their requests share the outstanding ``?``, and
         polling never disturbs lines in flight. Each report waits at most ``timeout`` seconds
         (:class:`MirobotTimeoutError`). Stop by breaking out of the loop (or cancelling the task);
-        prefer ``contextlib.aclosing(arm.statuses())`` to release it at once.
+        prefer ``async with contextlib.aclosing(arm.statuses()) as reports:`` to release it at
+        once (it is an async generator, so ``aclosing`` type-checks).
         """
         if not interval >= 0:
             raise MirobotUsageError(f"interval={interval!r} must be >= 0")
@@ -1035,6 +1185,10 @@ class Mirobot:
                 self._barrier = None
             self.stats.replies_lost += 1
             expired = True
+            if self._envelope is not None:  # did it run? Unknown: forget position and modes
+                from mirobot_async.envelope import MotionModes
+
+                self._forget_position(MotionModes.unknown())
             command = oldest.line.decode("ascii", "replace")
             _log.warning(
                 "no reply to %r although the robot is %s and answered a later status request: "
@@ -1063,12 +1217,27 @@ class Mirobot:
         deadline: float | None,
         timeout: float | None,
         motion: bool,
+        check_envelope: bool = True,
+        what: str | None = None,
+        warn_unchecked: bool = True,
     ) -> _Slot:
-        """Wait for this line's turn and for room in the receive buffer, then write it."""
+        """Wait for this line's turn and for room in the receive buffer, then write it.
+
+        With an envelope the line is checked (``check_envelope``) under the send lock, against
+        the position and modes predicted from every line written before it, and checked again
+        if they were invalidated while it waited; a violation raises MirobotUsageError and
+        nothing of the line is written. ``what`` names the call in messages.
+        """
         self._check_sendable(command, motion=motion)
+        envelope_on = self._envelope is not None
+        if envelope_on and self._firmware is None and not data.startswith(b"$"):
+            await self._require_firmware(deadline, timeout)  # the envelope's kinematic model
         exclusive = data.startswith(b"$")
         nbytes = len(data) + 1
         epoch = self._reset_epoch
+        verdict: LineCheck | None = None
+        checked_epoch: int | None = None
+        waiting_for = f"room in the robot's receive buffer to send {command!r}"
         try:
             async with asyncio.timeout_at(deadline), self._send_lock:
                 while True:
@@ -1077,15 +1246,196 @@ class Mirobot:
                         raise MirobotResetError(
                             command, "the robot reset while it waited to be sent; not sent"
                         )
+                    if envelope_on and check_envelope and checked_epoch != self._position_epoch:
+                        position_epoch = self._position_epoch
+                        waiting_for = (
+                            f"the arm to come to rest (its position, for the safety envelope) "
+                            f"before sending {command!r}"
+                        )
+                        verdict = await self._envelope_check(data, command, what, deadline)
+                        checked_epoch = position_epoch
+                        waiting_for = f"room in the robot's receive buffer to send {command!r}"
+                        continue  # re-check everything after the awaits
                     if self._ready_to_send(exclusive, nbytes):
-                        return self._write_line(data, command, exclusive)
+                        slot = self._write_line(data, command, exclusive)
+                        if envelope_on:
+                            self._track_written(
+                                slot,
+                                data,
+                                verdict if check_envelope else None,
+                                what,
+                                warn_unchecked,
+                            )
+                        return slot
                     await self._wait_progress(deadline)
         except TimeoutError as err:
             if isinstance(err, MirobotError):
                 raise
-            raise MirobotTimeoutError(
-                f"room in the robot's receive buffer to send {command!r}", timeout, command=command
-            ) from err
+            raise MirobotTimeoutError(waiting_for, timeout, command=command) from err
+
+    # ---- the safety envelope ----
+
+    def _active_envelope(self) -> Envelope | None:
+        """The envelope in use: on a classic arm, the default ``DH_2021`` becomes ``DH_CLASSIC``."""
+        envelope = self._envelope
+        if envelope is None or self._firmware != "classic":
+            return envelope
+        from mirobot_async.kinematics import DH_2021, DH_CLASSIC
+
+        if envelope.dh != DH_2021:
+            return envelope
+        if self._envelope_classic is None:
+            self._envelope_classic = replace(envelope, dh=DH_CLASSIC)
+        return self._envelope_classic
+
+    def _forget_position(self, modes: MotionModes | None = None) -> None:
+        """The arm may be elsewhere than predicted (and the modes may be ``modes``)."""
+        if self._envelope is None:
+            return
+        self._position = None
+        if modes is not None:
+            self._modes = modes
+        self._position_epoch += 1
+
+    def _check_line(
+        self,
+        envelope: Envelope,
+        data: bytes,
+        position: _Position | None,
+        what: str | None,
+    ) -> LineCheck:
+        from mirobot_async.envelope import MotionModes
+
+        return envelope.check_line(
+            data,
+            None if position is None else position.joints,
+            None if position is None else position.pose,
+            self._modes or MotionModes.unknown(),
+            current_rail=None if position is None else position.rail,
+            what=what,
+        )
+
+    async def _envelope_check(
+        self, data: bytes, command: str, what: str | None, deadline: float | None
+    ) -> LineCheck:
+        """Check ``data`` (called under the send lock); learn the position first if needed."""
+        envelope = self._active_envelope()
+        assert envelope is not None
+        position = self._position
+        try:
+            if position is None and not _HOMING_RE.match(data):
+                # Lines that do not move need no position; the others wait for one.
+                try:
+                    verdict = self._check_line(envelope, data, None, what)
+                except MirobotUsageError:
+                    pass
+                else:
+                    if not verdict.moves:
+                        return verdict
+                position = await self._learn_position(command, deadline)
+            return self._check_line(envelope, data, position, what)
+        except MirobotUsageError as err:
+            self.stats.envelope_refusals += 1
+            raise MirobotUsageError(
+                f"refused by the safety envelope: {err}; nothing was sent"
+            ) from None
+
+    async def _learn_position(self, command: str, deadline: float | None) -> _Position:
+        """Wait until nothing is in flight and a fresh status shows the arm at rest; use it."""
+        loop = self._running_loop()
+        while True:
+            while self._conn.pending_count:
+                await self._wait_progress(deadline)
+                self._check_sendable(command, motion=False)
+            timeout = self.status_timeout
+            if deadline is not None:
+                timeout = max(0.0, min(timeout, deadline - loop.time()))
+            report, _ = await self._fetch_status(
+                fresh=True,
+                timeout=timeout,
+                what=f"a status report (the arm's position for the safety envelope, {command!r})",
+            )
+            if self._conn.pending_count or self._conn.in_banner or report.state not in _QUIET:
+                continue  # still moving (or a banner): poll again
+            if self._position is not None:  # restored meanwhile (a failed last line)
+                return self._position
+            position = _Position(report.joints, report.pose, report.rail)
+            self._position = position
+            modes = self._modes
+            if modes is not None and modes.cartesian is None and report.motion_mode is not None:
+                self._modes = replace(modes, cartesian=report.motion_mode == 1)
+            return position
+
+    def _track_written(
+        self,
+        slot: _Slot,
+        data: bytes,
+        verdict: LineCheck | None,
+        what: str | None,
+        warn_unchecked: bool,
+    ) -> None:
+        """Update the predicted position and modes for a line just written."""
+        envelope = self._active_envelope()
+        assert envelope is not None and self._modes is not None
+        modes_before, position_before = self._modes, self._position
+        if verdict is None:  # sent with check_envelope=False: follow it if the envelope can
+            problem: str | None = None
+            try:
+                verdict = self._check_line(envelope, data, position_before, what)
+            except MirobotUsageError as err:
+                problem = str(err)
+            name = what or repr(slot.command)
+            if problem is not None and position_before is not None:
+                _log.warning(
+                    "%s was sent WITHOUT the safety envelope check (check_envelope=False); "
+                    "the envelope would have refused it: %s",
+                    name,
+                    problem,
+                )
+            elif problem is not None:  # the position is unknown: the envelope cannot follow
+                (_log.warning if warn_unchecked else _log.debug)(
+                    "%s was sent WITHOUT the safety envelope check (check_envelope=False); "
+                    "the arm's position is unknown until a status is read: %s",
+                    name,
+                    problem,
+                )
+            else:
+                (_log.warning if warn_unchecked else _log.debug)(
+                    "%s was sent WITHOUT the safety envelope check (check_envelope=False)", name
+                )
+        if verdict is not None:
+            slot.check = verdict
+            self._modes = verdict.modes
+            moved = verdict.moves
+            if moved:
+                joints, pose = verdict.joints, verdict.pose
+                self._position = (
+                    None
+                    if joints is None or pose is None
+                    else _Position(joints, pose, verdict.rail)
+                )
+        else:
+            from mirobot_async.envelope import update_modes
+
+            self._modes = update_modes(data, modes_before)
+            self._position = None
+            moved = True
+        slot.tracked = _Tracked(modes_before, position_before, moved, self._modes != modes_before)
+        self._last_line_id = slot.pending.id
+
+    def _untrack_failed_line(self, slot: _Slot, tracked: _Tracked, *, rejected: bool) -> None:
+        """A line was rejected (error: nothing of it ran) or its motion refused (modes ran)."""
+        if not tracked.moved and not (rejected and tracked.modes_changed):
+            return
+        if slot.pending.id == self._last_line_id:  # nothing was written after it: undo it
+            if rejected:
+                self._modes = tracked.modes_before
+            self._position = tracked.position_before
+            self._position_epoch += 1
+        else:
+            from mirobot_async.envelope import MotionModes
+
+            self._forget_position(MotionModes.unknown() if rejected else None)
 
     def _write_line(self, data: bytes, command: str, exclusive: bool) -> _Slot:
         """Register ``data`` with the state machine, then write it (synchronous: no gap)."""
@@ -1162,21 +1512,40 @@ class Mirobot:
         deadline: float | None,
         timeout: float | None,
         motion: bool = False,
+        check_envelope: bool = True,
+        what: str | None = None,
     ) -> tuple[str, ...]:
         """Send one line and return its output; raise what its reply means."""
         if data.endswith(b"\n"):
             data = data[:-1]
         command = data.decode("ascii")
-        slot = await self._submit(data, command, deadline=deadline, timeout=timeout, motion=motion)
+        slot = await self._submit(
+            data,
+            command,
+            deadline=deadline,
+            timeout=timeout,
+            motion=motion,
+            check_envelope=check_envelope,
+            what=what,
+        )
         output = await self._await_slot(slot, deadline, timeout)
         if _UNLOCKING_RE.match(data.upper().replace(b" ", b"")) and self._needs_reset is None:
             self._alarm = None
         return output
 
     async def send(
-        self, line: str | bytes, *, timeout: float | None = DEFAULT_TIMEOUT
+        self,
+        line: str | bytes,
+        *,
+        check_envelope: bool = True,
+        timeout: float | None = DEFAULT_TIMEOUT,
     ) -> tuple[str, ...]:
         """Send one raw line and return what the firmware printed for it (without the ``ok``).
+
+        With a safety envelope the line is parsed and checked before it is written (a move that
+        leaves the envelope, or that the envelope cannot judge, raises
+        :class:`MirobotUsageError` and nothing is written); ``check_envelope=False`` sends it
+        unchecked and logs a WARNING naming it.
 
         Raises :class:`MotionRefusedError` for "ok but dropped" motions,
         :class:`MirobotCommandError` for an error reply (:class:`MirobotAlarmError` for
@@ -1187,15 +1556,15 @@ class Mirobot:
         the reply is consumed and discarded.
         """
         data = self._encode_raw(line)
-        self._check_raw_line(data)
         loop = self._running_loop()
         deadline = _deadline(loop, timeout)
-        return await self._command(data, deadline=deadline, timeout=timeout)
-
-    def _check_raw_line(self, data: bytes) -> None:
-        """Hook for the safety envelope to check raw lines that move the arm (issue 7)."""
-        # ENVELOPE HOOK: parse motion in raw lines and check it against self._envelope.
-        return
+        return await self._command(
+            data,
+            deadline=deadline,
+            timeout=timeout,
+            check_envelope=check_envelope,
+            what=f"send({data.decode('ascii')!r})",
+        )
 
     # ---- streaming ----
 
@@ -1205,6 +1574,7 @@ class Mirobot:
         *,
         on_progress: Callable[[LineResult], object] | None = None,
         continue_on_error: bool = False,
+        check_envelope: bool = True,
         timeout: float | None = None,
     ) -> Stream:
         """Stream G-code lines with GRBL character counting (the planner never starves).
@@ -1216,12 +1586,21 @@ class Mirobot:
 
         Stops sending at the first failed line (an error, a refusal, a bad line) unless
         ``continue_on_error``; always stops on a reset, an alarm or a lost reply. Lines already in
-        the robot's buffer still run and are reported. ``$`` lines are sent only when nothing
-        else is in flight. ``timeout`` bounds the whole stream (``None``: no limit; each reply
-        is liveness-checked). A lost link raises :class:`MirobotLinkLostError`. Cancelling stops
-        sending; lines in flight are consumed and discarded.
+        the robot's buffer still run and are reported.
+
+        With a safety envelope every line is checked just before it is written, starting where
+        the lines before it leave the arm; a line that leaves the envelope (or that it cannot
+        judge) is not written and the stream stops there, even with ``continue_on_error``: its
+        :class:`LineResult` carries the :class:`MirobotUsageError` (``result.stopped`` is
+        True). ``check_envelope=False`` sends every line unchecked and logs a WARNING when the
+        stream starts and for each line the envelope would have refused.
+
+        ``$`` lines are sent only when nothing else is in flight. ``timeout`` bounds the whole
+        stream (``None``: no limit; each reply is liveness-checked). A lost link raises
+        :class:`MirobotLinkLostError`. Cancelling stops sending; lines in flight are consumed and
+        discarded.
         """
-        return Stream(self, lines, on_progress, continue_on_error, timeout)
+        return Stream(self, lines, on_progress, continue_on_error, timeout, check_envelope)
 
     async def _stream_lines(
         self,
@@ -1229,11 +1608,17 @@ class Mirobot:
         continue_on_error: bool,
         timeout: float | None,
         result: StreamResult,
+        check_envelope: bool = True,
     ) -> AsyncGenerator[LineResult, None]:
         """Producer task: submit lines as the buffer allows. This generator: await in order."""
         loop = self._running_loop()
         deadline = _deadline(loop, timeout)
         self._check_sendable(None, motion=False)
+        if not check_envelope and self._envelope is not None:
+            _log.warning(
+                "stream(check_envelope=False): its lines are sent WITHOUT the safety envelope "
+                "check (each line the envelope would have refused is named below)"
+            )
         # (number, line, slot or the error that kept it from being sent); consumed from ``head``.
         queue: list[tuple[int, str, _Slot | MirobotError | None]] = []
         head = 0
@@ -1258,7 +1643,6 @@ class Mirobot:
                     assert isinstance(item, str | bytes)
                     try:
                         data = self._encode_raw(item)
-                        self._check_raw_line(data)
                     except MirobotUsageError as err:
                         queue.append((number, _text(item), err))
                         wake.set()
@@ -1270,10 +1654,21 @@ class Mirobot:
                     command = data.decode("ascii")
                     try:
                         slot = await self._submit(
-                            data, command, deadline=deadline, timeout=timeout, motion=False
+                            data,
+                            command,
+                            deadline=deadline,
+                            timeout=timeout,
+                            motion=False,
+                            check_envelope=check_envelope,
+                            what=f"stream line {number} {command!r}",
+                            warn_unchecked=False,
                         )
                     except (MirobotResetError, MirobotAlarmError, MirobotTimeoutError) as err:
                         queue.append((number, command, err))
+                        break
+                    except MirobotUsageError as err:  # the safety envelope: stop before it
+                        queue.append((number, command, err))
+                        flags["stop"] = True
                         break
                     queue.append((number, command, slot))
                     result.sent += 1
@@ -1356,56 +1751,6 @@ class Mirobot:
         loop = self._running_loop()
         return await self._require_firmware(_deadline(loop, timeout), timeout)
 
-    async def _check_motion(
-        self,
-        kind: Literal["joints", "pose"],
-        values: tuple[float | None, ...],
-        *,
-        relative: bool,
-        linear: bool = False,
-        deadline: float | None = None,
-    ) -> None:
-        """Check a motion against the workspace safety envelope before anything is written.
-
-        ``values``: (j1..j6, rail) for ``"joints"``, (x, y, z, rx, ry, rz) for ``"pose"``;
-        ``None`` entries stay where they are, relative values add to the current position.
-        Raises :class:`MirobotUsageError` naming the violated bound. When the envelope needs the
-        current position (relative or partial targets, paths), the last status is used, or a
-        status is read first if none is known (a ``?``, never a line).
-        """
-        # ENVELOPE HOOK (issue 7): mirobot_async.envelope.Envelope checks targets and paths.
-        envelope = self._envelope
-        if envelope is None:
-            return
-        current = self._last_status
-        if current is None:
-            loop = self._running_loop()
-            timeout = self.status_timeout
-            if deadline is not None:
-                timeout = max(0.0, min(timeout, deadline - loop.time()))
-            current, _ = await self._fetch_status(
-                fresh=False, timeout=timeout, what="a status report (for the safety envelope)"
-            )
-        what = f"{kind} move"
-        if kind == "joints":
-            joints = tuple(
-                (c + v if relative else v) if v is not None else c
-                for v, c in zip(values[:6], current.joints, strict=True)
-            )
-            rail = values[6]
-            if rail is not None and relative:
-                rail = None if current.rail is None else current.rail + rail
-            envelope.check_joints(joints, rail, start=current.joints, what=what)
-            return
-        pose = tuple(
-            (c + v if relative else v) if v is not None else c
-            for v, c in zip(values, current.pose, strict=True)
-        )
-        if linear:
-            envelope.check_linear_path(current.pose, pose, what=what)
-        else:
-            envelope.check_pose(pose, start=current.joints, what=what)
-
     async def _baseline(self, deadline: float | None) -> StatusReport | None:
         """A fresh status to compute a relative target from, if the arm is at rest."""
         if self._conn.pending_count:
@@ -1423,20 +1768,38 @@ class Mirobot:
         self,
         data: bytes,
         *,
-        target: Callable[[StatusReport | None], _Target | None],
+        target: Callable[[StatusReport | None, LineCheck | None], _Target | None],
         relative: bool,
         wait: bool,
         deadline: float | None,
         timeout: float | None,
+        what: str,
     ) -> StatusReport | None:
-        self._check_sendable(data.decode("ascii").strip(), motion=True)
-        baseline = await self._baseline(deadline) if wait and relative else None
+        """Send a motion line; with ``wait`` await its completion at ``target``.
+
+        ``target(baseline, check)`` gives the goal; for relative moves from ``check`` (the
+        envelope's verdict: the absolute target) or else ``baseline`` (a status read before
+        sending while the arm was at rest), or ``None`` (completion = Idle after the ``ok``).
+        """
+        data = data.rstrip(b"\n")
+        command = data.decode("ascii").strip()
+        self._check_sendable(command, motion=True)
+        use_baseline = wait and relative and self._envelope is None
+        baseline = await self._baseline(deadline) if use_baseline else None
         epoch, alarm_epoch = self._reset_epoch, self._alarm_epoch
-        await self._command(data, deadline=deadline, timeout=timeout, motion=True)
+        slot = await self._submit(
+            data,
+            command,
+            deadline=deadline,
+            timeout=timeout,
+            motion=True,
+            what=f"{what} {command!r}",
+        )
+        await self._await_slot(slot, deadline, timeout)
         if not wait:
             return None
-        command = data.decode("ascii").strip()
-        goal = target(baseline) if (baseline is not None or not relative) else None
+        known = not relative or baseline is not None or slot.check is not None
+        goal = target(baseline, slot.check) if known else None
         return await self._wait_motion(
             command,
             goal,
@@ -1512,13 +1875,16 @@ class Mirobot:
 
         ``speed`` in deg/min (``None``: every joint at its max rate, ``G0``). ``relative`` adds
         to the current angles. Absolute targets outside the joint (and rail) ranges raise
-        :class:`MirobotUsageError` before anything is sent.
+        :class:`MirobotUsageError` before anything is sent, and so does a move that leaves the
+        safety envelope (target, or the tool point along the joint-space path from the
+        predicted position; see the module docstring).
 
         With ``wait`` (default) returns the status report that shows the move finished: ``ok``
         received and a later status ``Idle`` at the target (within 0.01 deg), or ``Idle`` after
-        the arm was seen moving; for relative moves the target is computed from a status read
-        just before sending when the arm is at rest (else completion is ``Idle`` after the
-        ``ok``). Without ``wait`` returns ``None`` once the line is queued (``ok``).
+        the arm was seen moving; for relative moves the target is the envelope's predicted one,
+        or without an envelope computed from a status read just before sending when the arm is
+        at rest (else completion is ``Idle`` after the ``ok``). Without ``wait`` returns
+        ``None`` once the line is queued (``ok``).
 
         Raises :class:`MotionRefusedError` (locked, soft limit...), :class:`MirobotAlarmError`
         (an alarm is remembered or raised meanwhile), :class:`MirobotResetError`,
@@ -1534,7 +1900,6 @@ class Mirobot:
             gcode.move_joints(j1, j2, j3, j4, j5, j6, speed=speed, relative=relative)
         if rail is not None:
             gcode.move_joints(rail=rail, speed=speed, relative=True)  # a finite number
-        await self._check_motion("joints", (*values, rail), relative=relative, deadline=deadline)
         firmware: str = self._firmware or "2021"
         if rail is not None and self._firmware is None and not relative:
             firmware = await self._require_firmware(deadline, timeout)
@@ -1542,9 +1907,15 @@ class Mirobot:
             j1, j2, j3, j4, j5, j6, rail, speed=speed, relative=relative, firmware=firmware
         )
 
-        def target(base: StatusReport | None) -> _Target:
-            if base is None:
+        def target(base: StatusReport | None, check: LineCheck | None) -> _Target:
+            if not relative:
                 return _Target(joints=values, rail=rail)
+            if check is not None and check.joints is not None:
+                joints = tuple(
+                    None if v is None else q for v, q in zip(values, check.joints, strict=True)
+                )
+                return _Target(joints=joints, rail=None if rail is None else check.rail)
+            assert base is not None
             joints = tuple(
                 None if v is None else b + v for v, b in zip(values, base.joints, strict=True)
             )
@@ -1552,7 +1923,13 @@ class Mirobot:
             return _Target(joints=joints, rail=new_rail)
 
         return await self._move(
-            data, target=target, relative=relative, wait=wait, deadline=deadline, timeout=timeout
+            data,
+            target=target,
+            relative=relative,
+            wait=wait,
+            deadline=deadline,
+            timeout=timeout,
+            what="move_joints",
         )
 
     async def move_pose(
@@ -1574,7 +1951,9 @@ class Mirobot:
 
         ``linear=False``: point to point (``G0``); ``linear=True``: straight line (``G1``) at
         ``speed`` mm/min, which is then required. ``relative`` adds to the current pose
-        (orientation component-wise, as the firmware does). Omitted coordinates stay.
+        (orientation component-wise, as the firmware does). Omitted coordinates stay. With a
+        safety envelope the target (``G0``: and the joint-space path to it) or the sampled
+        straight line is checked first: :class:`MirobotUsageError`, nothing sent.
 
         ``wait`` as in :meth:`move_joints` (the pose must read back within 0.1 mm / 0.1 deg).
         Unreachable targets raise :class:`MotionRefusedError` (``reason`` UNREACHABLE or
@@ -1585,20 +1964,29 @@ class Mirobot:
         loop = self._running_loop()
         deadline = _deadline(loop, timeout)
         data = gcode.move_pose(x, y, z, rx, ry, rz, speed=speed, linear=linear, relative=relative)
-        await self._check_motion(
-            "pose", values, relative=relative, linear=linear, deadline=deadline
-        )
 
-        def target(base: StatusReport | None) -> _Target:
-            if base is None:
+        def target(base: StatusReport | None, check: LineCheck | None) -> _Target:
+            if not relative:
                 return _Target(pose=values)
+            if check is not None and check.pose is not None:
+                pose = tuple(
+                    None if v is None else p for v, p in zip(values, check.pose, strict=True)
+                )
+                return _Target(pose=pose)
+            assert base is not None
             pose = tuple(
                 None if v is None else b + v for v, b in zip(values, base.pose, strict=True)
             )
             return _Target(pose=pose)
 
         return await self._move(
-            data, target=target, relative=relative, wait=wait, deadline=deadline, timeout=timeout
+            data,
+            target=target,
+            relative=relative,
+            wait=wait,
+            deadline=deadline,
+            timeout=timeout,
+            what="move_pose",
         )
 
     async def home(
@@ -1659,13 +2047,16 @@ class Mirobot:
         """
         loop = self._running_loop()
         deadline = _deadline(loop, timeout)
-        self._raise_if_closed()
+        # After a hard limit nothing is answered until reset(): fail at once, not after a
+        # liveness check (the lost lines' slots stay registered to match late replies).
+        self._check_sendable(None, motion=False)
         waiting_for = set(self._slots)
         what = "the robot to be Idle"
         try:
             async with asyncio.timeout_at(deadline):
                 while waiting_for & self._slots.keys():
                     await self._wait_progress(deadline)
+                    self._check_sendable(None, motion=False)
                 while True:
                     report, _ = await self._fetch_status(fresh=True, timeout=None)
                     if report.state is State.ALARM:

@@ -34,9 +34,6 @@ so they work in any test style: plain, pytest-asyncio (any mode), anyio or trio.
 This module imports only the standard library at import time, so loading the plugin is cheap.
 """
 
-# Awaiting calls take timeout= by design (issue 4).
-# ruff: noqa: ASYNC109
-
 from __future__ import annotations
 
 import asyncio

@@ -19,25 +19,26 @@ Guarantees:
 * :meth:`SerialLink.write` never blocks: bytes the OS cannot take now are buffered by the
   transport (the client never has more than a few hundred bytes outstanding).
 * End of file, an I/O error or the peer going away calls ``on_lost`` exactly once, promptly
-  (a pty whose other side is closed reports it within a millisecond).
+  (a pty whose other side is closed reports it within a millisecond), and only that: nothing
+  reaches the event loop's exception handler (no "Fatal write error on serial transport", no
+  "Task exception was never retrieved" from a second clean-up; see :class:`_EndOnce`).
 * :meth:`SerialLink.close` is idempotent and bounded: unsent output is discarded, and waiting for
   the transport to finish is limited by a timeout.
 """
-
-# Awaiting calls take timeout= by design (issue 4).
-# ruff: noqa: ASYNC109
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import errno
 import functools
 import logging
+import os
 import urllib.parse
 from collections.abc import Callable
 from typing import Any, Literal
 
-import serial  # type: ignore[import-untyped]
+import serial
 
 from mirobot_async.errors import MirobotConnectionError, MirobotUsageError
 
@@ -155,15 +156,99 @@ class _PolledSerialTransport(asyncio.Transport):
         self._loop.call_soon(self._protocol.connection_lost, _as_exception(exc))
 
 
+class _EndOnce:
+    """Mixed into ``serial_asyncio(_fast).SerialTransport``: the end of the link is quiet and once.
+
+    * A write or read error on a serial port (the device unplugged, the emulator killed) is the
+      end of the link, reported to the protocol's ``connection_lost`` as asyncio's own socket
+      transports do, not also to the event loop's exception handler ("Fatal write error on
+      serial transport" with a traceback in the user's log).
+    * The connection-lost clean-up is scheduled at most once. The libraries schedule it from
+      ``_close`` (read error), ``_abort`` (write error, ``abort()``) and again when flushing
+      after ``_close``; a second run fails in a background task ("Task exception was never
+      retrieved ... 'NoneType' object has no attribute 'connection_lost'").
+    """
+
+    _end_scheduled = False
+
+    def _fatal_error(
+        self, exc: BaseException, message: str = "Fatal error on serial transport"
+    ) -> None:
+        if isinstance(exc, OSError):  # serial.SerialException is an OSError too
+            _log.debug("%s: %s", message, exc)
+            self._abort(exc)
+            return
+        super()._fatal_error(exc, message)  # type: ignore[misc]
+
+    def _close(self, exc: BaseException | None = None) -> None:
+        if self._end_scheduled:
+            return
+        if self._flushed():  # type: ignore[attr-defined]  # then _close schedules the end
+            self._end_scheduled = True
+        super()._close(exc)  # type: ignore[misc]
+
+    def _abort(self, exc: BaseException | None) -> None:
+        if self._end_scheduled:
+            return
+        self._end_scheduled = True
+        super()._abort(exc)  # type: ignore[misc]
+
+
+@functools.cache
+def _transport_class(base: type[asyncio.Transport]) -> Callable[..., asyncio.Transport]:
+    """``base`` (a pyserial-asyncio SerialTransport class) with :class:`_EndOnce` mixed in."""
+    cls: Callable[..., asyncio.Transport] = type(f"_Guarded{base.__name__}", (_EndOnce, base), {})
+    return cls
+
+
 def _as_exception(exc: BaseException | None) -> Exception | None:
     if exc is None or isinstance(exc, Exception):
         return exc
     return RuntimeError(str(exc))
 
 
-def _describe(exc: BaseException) -> str:
-    text = str(exc).strip()
-    return text or type(exc).__name__
+def _os_words(exc: BaseException) -> tuple[int, str] | None:
+    """``(errno, the OS's text)`` of an OS-level error (``OSError``, ``termios.error``)."""
+    if isinstance(exc, OSError) and isinstance(exc.errno, int):
+        try:
+            return exc.errno, os.strerror(exc.errno)
+        except ValueError:  # pragma: no cover - an errno the OS does not know
+            return exc.errno, str(exc.strerror or exc)
+    args = exc.args
+    if len(args) == 2 and isinstance(args[0], int) and isinstance(args[1], str):
+        return args[0], args[1]  # termios.error(25, 'Inappropriate ioctl for device')
+    return None
+
+
+def _open_error_text(url: str, exc: BaseException) -> str:
+    """One sentence: which URL could not be opened and why, quoting the OS's words once.
+
+    pyserial wraps the OS's error in its own text that repeats it (``[Errno 2] could not open
+    port /dev/x: [Errno 2] No such file or directory: '/dev/x'``): the innermost OS error of the
+    exception chain gives the words, pyserial's own text only the stage that failed.
+    """
+    chain: list[BaseException] = []
+    current: BaseException | None = exc
+    while current is not None and current not in chain:
+        chain.append(current)
+        current = current.__cause__ or current.__context__
+    found = next((w for w in map(_os_words, reversed(chain)) if w is not None), None)
+    outer = str(exc).strip()
+    lowered = outer.lower()
+    if "could not exclusively lock" in lowered:
+        stage = "it is in use by another program (could not lock it"
+    elif "could not configure port" in lowered:
+        stage = "it is not a serial port (could not configure it"
+    else:
+        stage = None
+    if found is None:
+        return f"could not open {url!r}: {outer or type(exc).__name__}"
+    code, words = found
+    name = errno.errorcode.get(code)
+    words = f"{words} ({name})" if name else words
+    if stage is not None:
+        return f"could not open {url!r}: {stage}: {words})"
+    return f"could not open {url!r}: {words}"
 
 
 class SerialLink:
@@ -248,15 +333,14 @@ class SerialLink:
                     except (AttributeError, serial.SerialException, OSError):
                         transport = _PolledSerialTransport(loop, protocol, port)
                     else:
-                        transport, _ = await impl.connection_for_serial(
-                            loop, lambda: protocol, port
-                        )
+                        # impl.connection_for_serial(), with the end of the link made quiet
+                        transport = _transport_class(impl.SerialTransport)(loop, protocol, port)
         except TimeoutError as err:
             raise MirobotConnectionError(
                 f"could not open {url!r}: no answer from the OS within {timeout:g} s"
             ) from err
         except (serial.SerialException, OSError, ValueError) as err:
-            raise MirobotConnectionError(f"could not open {url!r}: {_describe(err)}") from err
+            raise MirobotConnectionError(_open_error_text(url, err)) from err
         _log.debug("opened %s with %s", url, implementation)
         return cls(url, transport, protocol, implementation)
 
@@ -288,6 +372,8 @@ class SerialLink:
             return
         self._closed = True
         transport = self._transport
+        # Also when the transport is already closing itself (end of file, I/O error): our
+        # serial transports (_EndOnce) run their clean-up once, so this cannot run it twice.
         port = transport.get_extra_info("serial")
         if port is not None and self.implementation == "original":
             # pyserial-asyncio 0.6 runs tcdrain() on the event loop while closing: make sure

@@ -8,8 +8,12 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import gc
+import logging
 import time
+from typing import Any
 
+import psutil
 import pytest
 
 from mirobot_async import (
@@ -274,6 +278,70 @@ async def test_link_lost_mid_stream_fails_every_pending_call_within_a_second(
         await arm.send("M3 S2")
     with pytest.raises(MirobotLinkLostError):
         await arm.status()
+
+
+def wait_until_dead(pid: int, timeout: float = 5.0) -> None:
+    """Block (without yielding to the event loop) until process ``pid`` has exited."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            if psutil.Process(pid).status() == psutil.STATUS_ZOMBIE:
+                return  # exited (not reaped yet): its end of the pty is closed
+        except psutil.NoSuchProcess:
+            return
+        time.sleep(0.001)  # a poll interval of a bounded condition wait
+    raise AssertionError(f"process {pid} did not exit within {timeout} s")
+
+
+@pytest.mark.mirobot_emulator(time_scale=1)  # G4 P5 takes 5 s: its reply is owed
+@pytest.mark.parametrize("implementation", ["fast", "original"])
+@pytest.mark.parametrize("noticed_by", ["read", "write"])
+async def test_a_lost_link_reaches_no_exception_handler_and_is_reported_once(
+    emu: EmulatorProcess,
+    implementation: Any,
+    noticed_by: str,
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """Killing the emulator: the calls fail with MirobotLinkLostError, and that is all.
+
+    Nothing reaches the event loop's exception handler: no "Fatal write error on serial
+    transport" (a write that hits the dead pty first), no "Task exception was never retrieved
+    ... 'NoneType' object has no attribute 'connection_lost'" (the serial transport's clean-up
+    run twice), and the client logs no WARNING for a loss that a waiting call reports.
+    """
+    loop = asyncio.get_running_loop()
+    reported: list[dict[str, Any]] = []
+    previous = loop.get_exception_handler()
+    loop.set_exception_handler(lambda _loop, context: reported.append(context))
+    try:
+        with caplog.at_level(logging.DEBUG, logger="mirobot_async"):
+            async with Mirobot.connect(emu.url, implementation=implementation) as arm:
+                await arm.unlock()
+                if noticed_by == "read":
+                    call = asyncio.ensure_future(arm.send("G4 P5"))  # owed a reply
+                    await wait_for(lambda: arm.pending_count == 1)
+                    emu.kill()
+                    with pytest.raises(MirobotLinkLostError, match="was lost"):
+                        await asyncio.wait_for(call, 2)
+                else:
+                    emu.kill()
+                    wait_until_dead(emu.pid)  # the event loop has not seen the hangup yet
+                    with pytest.raises(MirobotLinkLostError, match="was lost"):
+                        await asyncio.wait_for(arm.send("M3 S1"), 2)
+                with pytest.raises(MirobotLinkLostError):
+                    await arm.send("M3 S2")
+        # Let the transport's clean-up tasks finish, then collect: a task that failed
+        # unretrieved reports itself when it is garbage-collected.
+        others = asyncio.all_tasks() - {asyncio.current_task()}
+        if others:
+            await asyncio.wait(others, timeout=2)
+        gc.collect()
+        await asyncio.sleep(0)
+    finally:
+        loop.set_exception_handler(previous)
+    assert reported == []
+    loud = [r for r in caplog.records if r.levelno >= logging.WARNING]
+    assert loud == [], [r.getMessage() for r in loud]
 
 
 # ---- cancellation -------------------------------------------------------------------------------

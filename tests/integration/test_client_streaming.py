@@ -53,7 +53,7 @@ async def test_streaming_keeps_the_receive_buffer_full_but_never_overfull(
     def spy(data: bytes, command: str, exclusive: bool) -> Any:
         nonlocal peak
         slot = original(data, command, exclusive)
-        peak = max(peak, arm._conn.bytes_in_flight)
+        peak = max(peak, arm.bytes_in_flight)
         return slot
 
     arm._write_line = spy  # type: ignore[method-assign]
