@@ -214,15 +214,14 @@ async def soak(
                 result.problem(f"client counter {name}: {delta}, expected {wanted}")
         result.corrupted_statuses = deltas[-1]
         # Pending state: the public count, and the state machine's own bookkeeping.
-        conn = arm._conn
         result.pending_count = arm.pending_count
-        result.bytes_in_flight = conn.bytes_in_flight
+        result.bytes_in_flight = arm.bytes_in_flight
         leftovers = {
             "pending lines": arm.pending_count,
-            "bytes in flight": conn.bytes_in_flight,
-            "outstanding status requests": conn.status_requests_outstanding,
-            "reply slots": len(arm._slots),
-            "status waiters": sum(not w.fut.done() for w in arm._status_waiters),
+            "bytes in flight": arm.bytes_in_flight,
+            "outstanding status requests": arm.status_requests_outstanding,
+            "reply slots": arm.reply_slot_count,
+            "status waiters": arm.status_waiter_count,
         }
         for name, count in leftovers.items():
             if count:

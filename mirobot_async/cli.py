@@ -1057,14 +1057,6 @@ def _logging_to_stderr(verbose: int) -> Iterator[None]:
         logger.propagate = saved[1]
 
 
-def _quiet_loop_errors(loop: asyncio.AbstractEventLoop, context: dict[str, object]) -> None:
-    """Errors nobody awaited (e.g. in a serial library's clean-up after the link broke) are
-    logged, not printed as tracebacks: shown with ``-v``, at DEBUG."""
-    logger = logging.getLogger("mirobot_async.cli")
-    if logger.isEnabledFor(logging.DEBUG):
-        loop.default_exception_handler(context)
-
-
 def _run_async(
     handler: Callable[[argparse.Namespace], Awaitable[int]], args: argparse.Namespace
 ) -> tuple[int, bool]:
@@ -1084,7 +1076,6 @@ def _run_async(
 
         with contextlib.suppress(NotImplementedError, RuntimeError):  # e.g. not on Windows
             loop.add_signal_handler(signal.SIGINT, on_sigint)
-        loop.set_exception_handler(_quiet_loop_errors)
         try:
             return await handler(args)
         finally:

@@ -1,4 +1,4 @@
-"""Shared test configuration: hypothesis profiles (deterministic in CI, no deadlines on a shared box)."""
+"""Shared test configuration: hypothesis profiles (deterministic in CI, no deadlines)."""
 
 import os
 

@@ -29,6 +29,7 @@ def test_readme_example_is_short_and_runs_as_written() -> None:
 
 def test_readme_test_command_is_the_one_ci_runs() -> None:
     ci = (README.parent / ".ci" / "run").read_text()
-    shown = re.search(r"pip install -e '\.\[test\]' && (python -m pytest[^\n`]*)", README.read_text())
+    pattern = r"pip install -e '\.\[test\]' && (python -m pytest[^\n`]*)"
+    shown = re.search(pattern, README.read_text())
     assert shown is not None
     assert shown.group(1).strip() in ci
