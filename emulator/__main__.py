@@ -36,7 +36,8 @@ def _build_parser() -> argparse.ArgumentParser:
         description="A virtual WLKATA Mirobot (firmware model) on a pseudo-terminal. The first "
         "line of stdout is the device path; stdin takes fault-injection commands "
         "(drop-ok [N], corrupt-status [N], ignore-status [N], stall S, hard-limit [AXIS], "
-        "reset, close, time-scale X), each answered 'ack <command>'.",
+        "reset, close, split-bytes [on|off], delay MS, time-scale X; stats for the "
+        "counters), each answered 'ack <command>'.",
     )
     parser.add_argument(
         "--firmware",
@@ -80,7 +81,8 @@ def _build_parser() -> argparse.ArgumentParser:
         metavar="SPEC",
         help="inject a fault (repeatable): drop-ok:N, corrupt-status:N, "
         "corrupt-status-rate:P, ignore-status:N, stall:AFTER_S:DURATION_S, "
-        "hard-limit:AFTER_S[:AXIS], reset:AFTER_S, close:AFTER_S",
+        "hard-limit:AFTER_S[:AXIS], reset:AFTER_S, close:AFTER_S, split-bytes (one byte "
+        "per write), delay:MS (hold every output line MS ms)",
     )
     parser.add_argument(
         "--homing-seconds",

@@ -18,8 +18,14 @@ Fault specifications (command line, ``--fault SPEC``, repeatable)::
     hard-limit:AFTER_S[:AXIS] trip a hard limit switch (default axis 1)
     reset:AFTER_S             spontaneous reset: the banner appears mid-stream
     close:AFTER_S             close the port (unplugged cable); the emulator then exits
+    split-bytes[:on|off]      write the output one byte at a time, each byte read by the client
+                              before the next is written (the client sees single-byte reads)
+    delay:MS                  hold every output line MS milliseconds before writing it (order
+                              preserved)
 
 Timed faults count wall-clock seconds since the server opened its pty (not simulated seconds).
+The link faults (``split-bytes``, ``delay``) act from the start, on every line after the power-on
+banner; the control channel turns them on, off or changes them while running.
 
 Control commands (the server's stdin, one per line; each answered ``ack <command>``)::
 
@@ -30,7 +36,13 @@ Control commands (the server's stdin, one per line; each answered ``ack <command
     hard-limit [AXIS]    trip a hard limit now (default axis 1)
     reset                spontaneous reset now
     close                close the port now, then exit
+    split-bytes [on|off] write the output one byte per write from now on (default on) / stop
+    delay MS             hold every output line MS milliseconds from now on (0 = off)
     time-scale X         change the simulation speed from now on (0 = instant motion)
+    stats                no fault: answered ``ack stats NAME=N ...`` with the server's counters
+                         (bytes and lines received from the client, bytes written, oks dropped,
+                         statuses corrupted, ...), so that tests can see what really crossed
+                         the wire
 
 An "ok line" is a line that is exactly ``ok``; an ``ok`` glued to other text (``in homeing
 moving...ok``) is not counted or dropped. A "status line" is a line starting with ``<``.
@@ -41,25 +53,31 @@ from __future__ import annotations
 import math
 import random
 import re
+from collections import deque
 from collections.abc import Iterable
 from dataclasses import dataclass
 
 __all__ = [
     "COUNTED_KINDS",
+    "LINK_KINDS",
     "TIMED_KINDS",
     "Command",
     "Fault",
     "FaultFilter",
     "FaultSchedule",
     "FaultSpecError",
+    "OutputDelay",
     "corrupt_status_line",
+    "link_commands",
     "parse_command",
     "parse_fault",
 ]
 
 COUNTED_KINDS = frozenset({"drop-ok", "corrupt-status", "ignore-status"})
 TIMED_KINDS = frozenset({"stall", "hard-limit", "reset", "close"})
-COMMAND_KINDS = COUNTED_KINDS | TIMED_KINDS | {"time-scale"}
+LINK_KINDS = frozenset({"split-bytes", "delay"})
+COMMAND_KINDS = COUNTED_KINDS | TIMED_KINDS | LINK_KINDS | {"time-scale", "stats"}
+MAX_DELAY_MS = 60_000.0
 
 
 class FaultSpecError(ValueError):
@@ -70,9 +88,9 @@ class FaultSpecError(ValueError):
 class Command:
     """An action to perform now (from the control channel or from a timed fault).
 
-    ``count`` is N for the counted kinds and the axis for ``hard-limit``; ``value`` is the
-    duration for ``stall`` and the factor for ``time-scale``. ``text`` is the normalised command
-    line, echoed in the ``ack``.
+    ``count`` is N for the counted kinds, the axis for ``hard-limit`` and 1 (on) or 0 (off) for
+    ``split-bytes``; ``value`` is the duration in seconds for ``stall`` and ``delay`` and the
+    factor for ``time-scale``. ``text`` is the normalised command line, echoed in the ``ack``.
     """
 
     kind: str
@@ -86,7 +104,8 @@ class Fault:
     """One ``--fault`` specification.
 
     Counted kinds use ``n`` (1-based index); ``corrupt-status-rate`` uses ``rate``; timed kinds
-    use ``at`` (seconds after start) and ``command`` (what to do then).
+    use ``at`` (seconds after start) and ``command`` (what to do then); link kinds use
+    ``command`` (applied when the server starts).
     """
 
     kind: str
@@ -114,6 +133,28 @@ def _seconds(text: str, what: str, *, allow_zero: bool = True) -> float:
     if not math.isfinite(value) or value < 0 or (value == 0 and not allow_zero):
         raise FaultSpecError(f"{what}: expected a non-negative number of seconds, got {text!r}")
     return value
+
+
+def _milliseconds(text: str, what: str) -> float:
+    """A ``delay`` argument in milliseconds -> seconds."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise FaultSpecError(f"{what}: expected a number of milliseconds, got {text!r}") from None
+    if not math.isfinite(value) or not 0 <= value <= MAX_DELAY_MS:
+        raise FaultSpecError(
+            f"{what}: expected a number of milliseconds in 0..{MAX_DELAY_MS:g}, got {text!r}"
+        )
+    return value / 1000.0
+
+
+def _on_off(text: str, what: str) -> int:
+    word = text.lower()
+    if word in ("on", "1", "yes", "true"):
+        return 1
+    if word in ("off", "0", "no", "false"):
+        return 0
+    raise FaultSpecError(f"{what}: expected on or off, got {text!r}")
 
 
 def parse_fault(spec: str) -> Fault:
@@ -151,7 +192,16 @@ def parse_fault(spec: str) -> Fault:
     if kind in ("reset", "close"):
         need(1, 1)
         return Fault(kind, at=_seconds(args[0], spec), command=Command(kind, text=kind))
-    known = sorted(COUNTED_KINDS | TIMED_KINDS | {"corrupt-status-rate"})
+    if kind == "split-bytes":
+        need(0, 1)
+        on = _on_off(args[0], spec) if args else 1
+        text = "split-bytes " + ("on" if on else "off")
+        return Fault(kind, command=Command(kind, count=on, text=text))
+    if kind == "delay":
+        need(1, 1)
+        seconds = _milliseconds(args[0], spec)
+        return Fault(kind, command=Command(kind, value=seconds, text=f"delay {args[0]}"))
+    known = sorted(COUNTED_KINDS | TIMED_KINDS | LINK_KINDS | {"corrupt-status-rate"})
     raise FaultSpecError(f"unknown fault {spec!r} (known: {', '.join(known)})")
 
 
@@ -178,6 +228,15 @@ def parse_command(line: str) -> Command:
         if len(args) != 1:
             raise FaultSpecError("time-scale takes one argument: X")
         return Command(kind, value=_seconds(args[0], kind), text=text)
+    if kind == "split-bytes":
+        if len(args) > 1:
+            raise FaultSpecError("split-bytes takes at most one argument: on or off")
+        on = _on_off(args[0], kind) if args else 1
+        return Command(kind, count=on, text="split-bytes " + ("on" if on else "off"))
+    if kind == "delay":
+        if len(args) != 1:
+            raise FaultSpecError("delay takes one argument: MS (milliseconds)")
+        return Command(kind, value=_milliseconds(args[0], kind), text=text)
     if args:
         raise FaultSpecError(f"{kind} takes no argument")
     return Command(kind, text=text)
@@ -316,6 +375,61 @@ class FaultFilter:
                     continue
             out.append(byte)
         return bytes(out)
+
+
+def link_commands(faults: Iterable[Fault]) -> list[Command]:
+    """The commands of the link faults (``split-bytes``, ``delay``), to apply at start, in order."""
+    return [f.command for f in faults if f.kind in LINK_KINDS and f.command is not None]
+
+
+class OutputDelay:
+    """The ``delay`` fault: every output chunk is held ``delay`` seconds, order preserved.
+
+    :meth:`push` a chunk (whole lines) at time ``now``; :meth:`pop` returns, concatenated, the
+    chunks whose time has come, oldest first. A chunk is never released before one pushed earlier
+    (lowering the delay while chunks wait does not reorder them). With a zero delay and nothing
+    waiting, a chunk pushed at ``now`` is released by ``pop(now)``.
+    """
+
+    def __init__(self, delay: float = 0.0) -> None:
+        self._queue: deque[tuple[float, bytes]] = deque()
+        self._last_release = -math.inf
+        self.delay = delay
+
+    @property
+    def delay(self) -> float:
+        """Seconds each chunk pushed from now on is held."""
+        return self._delay
+
+    @delay.setter
+    def delay(self, seconds: float) -> None:
+        if not math.isfinite(seconds) or seconds < 0:
+            raise ValueError(f"delay must be a finite number of seconds >= 0, got {seconds!r}")
+        self._delay = seconds
+
+    def __len__(self) -> int:
+        return sum(len(data) for _, data in self._queue)
+
+    def push(self, data: bytes, now: float) -> None:
+        if not data:
+            return
+        release = max(now + self._delay, self._last_release)
+        self._last_release = release
+        self._queue.append((release, bytes(data)))
+
+    def pop(self, now: float) -> bytes:
+        out = bytearray()
+        while self._queue and self._queue[0][0] <= now:
+            out += self._queue.popleft()[1]
+        return bytes(out)
+
+    def next_time(self) -> float | None:
+        """When the oldest waiting chunk is due, or None."""
+        return self._queue[0][0] if self._queue else None
+
+    def clear(self) -> None:
+        self._queue.clear()
+        self._last_release = -math.inf
 
 
 class FaultSchedule:

@@ -35,6 +35,18 @@ What it models
   firmware's output into lines for them (a line is only sent once its ``\\n`` has been produced).
   A stall holds the output (the firmware keeps running and the output comes out afterwards).
   Timed faults count wall-clock seconds from the moment the port was created.
+- **Counters.** The control command ``stats`` is answered ``ack stats NAME=N ...`` with what
+  crossed the wire: ``bytes_in``, ``lines_in`` (``\\n`` bytes), ``status_requests_in`` (``?``),
+  ``resets_in`` (``%``) received from the client; ``bytes_out`` written to it; the data faults'
+  ``oks_seen``, ``dropped_oks``, ``status_lines``, ``corrupted_status``, ``ignored_status``;
+  ``split_writes`` and ``ports_opened``. Tests use them to check what a client really sent.
+- **Link faults.** ``delay`` holds every output line for a number of wall-clock milliseconds
+  (order preserved; the firmware keeps running). ``split-bytes`` writes the output one byte per
+  ``write``, and writes the next byte only once the previous one has reached the port and been
+  read by the client (watched with ``FIONREAD`` on the emulator's own slave fd), so the client's
+  reads return single bytes. That costs some tens of microseconds per byte (the output then
+  runs at about 20 KB/s), and a client that does not read holds the output back (the emulator
+  keeps serving input meanwhile).
 
 What it does not model
 ----------------------
@@ -54,6 +66,7 @@ so it can also run in a thread of the process under test (:class:`VirtualMirobot
 
 from __future__ import annotations
 
+import array
 import contextlib
 import errno
 import fcntl
@@ -70,7 +83,16 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Protocol
 
-from .faults import Command, Fault, FaultFilter, FaultSchedule, FaultSpecError, parse_command
+from .faults import (
+    Command,
+    Fault,
+    FaultFilter,
+    FaultSchedule,
+    FaultSpecError,
+    OutputDelay,
+    link_commands,
+    parse_command,
+)
 
 if TYPE_CHECKING:
     import threading
@@ -89,6 +111,16 @@ TIOCPKT_FLUSHREAD = getattr(termios, "TIOCPKT_FLUSHREAD", 1)
 USB_PACKET_PAYLOAD = 62  # FTDI full-speed packet: 64 bytes, 2 of them modem status
 MAX_LOGGED_ERRORS = 5  # tracebacks of firmware-model exceptions written to the log
 PACING_GRANULARITY_S = 0.002  # paced bytes are released in chunks of about this duration
+# split-bytes: a written byte reaches the slave's input queue asynchronously (the kernel pushes
+# the pty's flip buffer from a work queue, usually within microseconds): wait this long at most
+# to see it arrive there. Waits poll FIONREAD: busily for SPLIT_SPIN_S (a reading client takes
+# a few microseconds per byte, time.sleep costs ~60), then every SPLIT_POLL_S.
+SPLIT_LANDING_S = 0.0003
+SPLIT_SPIN_S = 0.0003
+SPLIT_POLL_S = 0.0001
+SPLIT_READ_WAIT_S = 0.002  # wait this long for the client to read a byte just written, ...
+SPLIT_RETRY_S = 0.001  # ... else look again this much later (from the loop)
+SPLIT_BUDGET_S = 0.005  # write bytes for at most this long, then serve input again
 
 
 class FirmwareLike(Protocol):
@@ -297,9 +329,18 @@ class EmulatorServer:
         self._wall_anchor = 0.0
         self._sim_anchor = 0.0
         self._start = 0.0
-        # Data path: firmware -> lines -> faults -> stall -> wire pacing -> USB latency -> master.
+        # Data path: firmware -> lines -> faults -> delay -> stall -> wire pacing -> USB latency
+        # -> master (one byte per write with split-bytes).
         self._filter = FaultFilter(options.faults, seed=options.seed)
         self._schedule = FaultSchedule(options.faults)
+        self._delay = OutputDelay()
+        self._split = False
+        self.split_writes = 0  # bytes written one by one (split-bytes)
+        self.bytes_in = 0  # bytes received from the client (before pacing and faults)
+        self.lines_in = 0  # b"\n" among them
+        self.status_requests_in = 0  # b"?" among them
+        self.resets_in = 0  # b"%" among them
+        self.bytes_out = 0  # bytes written to the client (the power-on banner included)
         self._partial = bytearray()
         self._stalled = bytearray()
         self._stall_until = -math.inf
@@ -348,6 +389,8 @@ class EmulatorServer:
         self._wbuf += self._partial[:end]
         del self._partial[:end]
         self._write_master()
+        for command in link_commands(self.options.faults):  # from now on, not the banner
+            self._apply(command, now)
         if self.options.link:
             self._make_link(self.options.link, path)
         return path
@@ -472,7 +515,7 @@ class EmulatorServer:
                 if self._stop or self._master < 0:
                     break
                 want = selectors.EVENT_READ if now >= self._master_eio_until else 0
-                if self._wbuf:
+                if self._wbuf and not (self._split and self._slave_unread()):
                     want |= selectors.EVENT_WRITE
                 if want != master_events:
                     if master_events and want:
@@ -542,6 +585,11 @@ class EmulatorServer:
                 times.append(t)
         if self._stalled:
             times.append(self._stall_until)
+        delayed = self._delay.next_time()
+        if delayed is not None:
+            times.append(delayed)
+        if self._split and self._wbuf:
+            times.append(now + SPLIT_RETRY_S)
         if self._master_eio_until > now:
             times.append(self._master_eio_until)
         due = self._schedule.next_time()
@@ -567,9 +615,12 @@ class EmulatorServer:
         for line in _OUTPUT_LINES.findall(complete):
             kept = self._filter.output_line(line)
             if kept:
-                self._stalled += kept
+                self._delay.push(kept, now)
 
     def _flush_output(self, now: float) -> None:
+        released = self._delay.pop(now)
+        if released:
+            self._stalled += released
         if self._stalled and now >= self._stall_until:
             self._out_wire.push(bytes(self._stalled), now)
             self._stalled.clear()
@@ -585,19 +636,70 @@ class EmulatorServer:
     def _write_master(self) -> None:
         if self._master < 0 or not self._wbuf:
             return
-        try:
-            written = os.write(self._master, self._wbuf)
-        except BlockingIOError:
+        if self._split:
+            self._write_split()
             return
+        written = self._write_some(self._wbuf)
+        del self._wbuf[:written]
+
+    def _write_some(self, data: bytes | bytearray) -> int:
+        """One ``write`` to the master; returns the number of bytes taken (0: try later)."""
+        try:
+            written = os.write(self._master, data)
+        except BlockingIOError:
+            return 0
         except OSError as exc:
             if exc.errno == errno.EIO:  # no slave open: keep the bytes, retry a bit later
                 self._master_eio_until = time.monotonic() + 0.05
-                return
+                return 0
             raise
-        del self._wbuf[:written]
+        self.bytes_out += written
+        return written
+
+    def _write_split(self) -> None:
+        """split-bytes: one byte per write, the next only once the client has read it.
+
+        Returns after ``SPLIT_BUDGET_S`` (the loop serves input, then calls again) or when the
+        client has not read the last byte ``SPLIT_READ_WAIT_S`` after it was written (the loop
+        looks again every ``SPLIT_RETRY_S``; a client that does not read costs one ``ioctl``).
+        """
+        start = -math.inf  # when the last byte landed in the port: none in this call
+        deadline = time.monotonic() + SPLIT_BUDGET_S
+        while self._wbuf and self._master >= 0:
+            if self._slave_unread():  # the client has not read the last byte yet
+                waited = time.monotonic() - start
+                if waited >= SPLIT_READ_WAIT_S or time.monotonic() >= deadline:
+                    return
+                if waited >= SPLIT_SPIN_S:
+                    time.sleep(SPLIT_POLL_S)
+                continue
+            if not self._write_some(self._wbuf[:1]):
+                return
+            del self._wbuf[:1]
+            self.split_writes += 1
+            # Let the byte reach the slave's input queue before looking whether it was read:
+            # otherwise the next byte could join it there and the client read both at once.
+            start = time.monotonic()
+            landing = start + SPLIT_LANDING_S
+            while not self._slave_unread() and time.monotonic() < landing:
+                pass
+            if time.monotonic() >= deadline:
+                return
+
+    def _slave_unread(self) -> int:
+        """Bytes waiting in the port for the client to read (0 if unknown)."""
+        if self._slave < 0:
+            return 0
+        count = array.array("i", [0])
+        try:
+            fcntl.ioctl(self._slave, termios.FIONREAD, count)
+        except OSError:
+            return 0
+        return count[0]
 
     def _discard_output(self) -> None:
         self._partial.clear()
+        self._delay.clear()
         self._stalled.clear()
         self._out_wire.clear()
         self._usb.clear()
@@ -629,6 +731,10 @@ class EmulatorServer:
                 fw.read_output()  # the reset wipes whatever the firmware had not printed yet
                 self._guard(fw.reset)
         if data:
+            self.bytes_in += len(data)
+            self.lines_in += data.count(b"\n")
+            self.status_requests_in += data.count(b"?")
+            self.resets_in += data.count(b"%")
             self._in_wire.push(data, now)
 
     def _drain_wake(self) -> None:
@@ -677,12 +783,35 @@ class EmulatorServer:
         if self._master >= 0:
             self._guard(self._collect_output, now)
         if answer:
-            answer(f"ack {command.text}")
+            extra = f" {self.stats_text()}" if command.kind == "stats" else ""
+            answer(f"ack {command.text}{extra}")
+
+    def stats(self) -> dict[str, int]:
+        """The counters answered to the ``stats`` command (see the module docstring)."""
+        flt = self._filter
+        return {
+            "bytes_in": self.bytes_in,
+            "lines_in": self.lines_in,
+            "status_requests_in": self.status_requests_in,
+            "resets_in": self.resets_in,
+            "bytes_out": self.bytes_out,
+            "oks_seen": flt.oks_seen,
+            "dropped_oks": flt.dropped_oks,
+            "status_lines": flt.status_lines_seen,
+            "corrupted_status": flt.corrupted_status_lines,
+            "ignored_status": flt.ignored_status_requests,
+            "split_writes": self.split_writes,
+            "ports_opened": self.ports_opened,
+        }
+
+    def stats_text(self) -> str:
+        """:meth:`stats` as ``name=value`` words."""
+        return " ".join(f"{name}={value}" for name, value in self.stats().items())
 
     def _apply(self, command: Command, now: float) -> None:
         fw = self.firmware
         assert fw is not None
-        if self._filter.apply(command):
+        if self._filter.apply(command) or command.kind == "stats":
             return
         if command.kind == "stall":
             self._stall_until = max(self._stall_until, now + command.value)
@@ -694,6 +823,10 @@ class EmulatorServer:
             fw.reset()
         elif command.kind == "time-scale":
             self._set_scale(command.value, now)
+        elif command.kind == "delay":
+            self._delay.delay = command.value
+        elif command.kind == "split-bytes":
+            self._split = bool(command.count)
         elif command.kind == "close":
             self._close_link()
 
@@ -773,6 +906,11 @@ class VirtualMirobot:
     @property
     def firmware(self) -> FirmwareLike | None:
         return self._server.firmware
+
+    @property
+    def server(self) -> EmulatorServer:
+        """The server (its counters: ``split_writes``, ``ports_opened``, ``firmware_errors``)."""
+        return self._server
 
     def start(self) -> str:
         import threading

@@ -2,9 +2,16 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
+import math
+import os
 import random
 import re
+import selectors
+import termios
+import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -14,10 +21,13 @@ from mirobot_emulator.faults import (
     FaultFilter,
     FaultSchedule,
     FaultSpecError,
+    OutputDelay,
     corrupt_status_line,
+    link_commands,
     parse_command,
     parse_fault,
 )
+from mirobot_emulator.server import ServerOptions, VirtualMirobot
 
 VECTORS = Path(__file__).resolve().parents[3] / "shared" / "protocol" / "vectors.json"
 STATUS = (
@@ -85,6 +95,16 @@ def _is_fragment_duplication(original: bytes, corrupted: bytes) -> bool:
         ),
         ("reset:2", Fault("reset", at=2.0, command=Command("reset", text="reset"))),
         ("close:0", Fault("close", at=0.0, command=Command("close", text="close"))),
+        (
+            "split-bytes",
+            Fault("split-bytes", command=Command("split-bytes", count=1, text="split-bytes on")),
+        ),
+        (
+            "split-bytes:off",
+            Fault("split-bytes", command=Command("split-bytes", count=0, text="split-bytes off")),
+        ),
+        ("delay:20", Fault("delay", command=Command("delay", value=0.02, text="delay 20"))),
+        ("delay:0", Fault("delay", command=Command("delay", value=0.0, text="delay 0"))),
     ],
 )
 def test_parse_fault(spec: str, expected: Fault) -> None:
@@ -108,6 +128,15 @@ def test_parse_fault(spec: str, expected: Fault) -> None:
         "reset",
         "close:soon",
         "explode:1",
+        "split-bytes:maybe",
+        "split-bytes:on:off",
+        "delay",
+        "delay:-1",
+        "delay:x",
+        "delay:inf",
+        "delay:nan",
+        "delay:1:2",
+        "delay:1e9",
     ],
 )
 def test_parse_fault_rejects(spec: str) -> None:
@@ -133,6 +162,13 @@ def test_fault_spec_error_is_a_value_error() -> None:
         ("close", Command("close", text="close")),
         ("time-scale 0", Command("time-scale", value=0.0, text="time-scale 0")),
         ("time-scale 12.5", Command("time-scale", value=12.5, text="time-scale 12.5")),
+        ("split-bytes", Command("split-bytes", count=1, text="split-bytes on")),
+        ("split-bytes on", Command("split-bytes", count=1, text="split-bytes on")),
+        ("SPLIT-BYTES OFF", Command("split-bytes", count=0, text="split-bytes off")),
+        ("delay 20", Command("delay", value=0.02, text="delay 20")),
+        ("delay 0", Command("delay", value=0.0, text="delay 0")),
+        ("delay 2.5", Command("delay", value=0.0025, text="delay 2.5")),
+        ("stats", Command("stats", text="stats")),
     ],
 )
 def test_parse_command(line: str, expected: Command) -> None:
@@ -141,7 +177,24 @@ def test_parse_command(line: str, expected: Command) -> None:
 
 @pytest.mark.parametrize(
     "line",
-    ["", "   ", "fly", "drop-ok 0", "drop-ok 1 2", "stall", "stall -1", "reset now", "time-scale"],
+    [
+        "",
+        "   ",
+        "fly",
+        "drop-ok 0",
+        "drop-ok 1 2",
+        "stall",
+        "stall -1",
+        "reset now",
+        "time-scale",
+        "split-bytes maybe",
+        "split-bytes on off",
+        "delay",
+        "delay -5",
+        "delay nan",
+        "delay 1 2",
+        "stats now",
+    ],
 )
 def test_parse_command_rejects(line: str) -> None:
     with pytest.raises(FaultSpecError):
@@ -187,7 +240,15 @@ def test_drop_ok_command_drops_the_next_n() -> None:
 
 def test_apply_refuses_commands_that_are_not_data_faults() -> None:
     flt = FaultFilter()
-    for line in ("reset", "close", "stall 1", "hard-limit", "time-scale 2"):
+    for line in (
+        "reset",
+        "close",
+        "stall 1",
+        "hard-limit",
+        "time-scale 2",
+        "split-bytes",
+        "delay 5",
+    ):
         assert not flt.apply(parse_command(line))
 
 
@@ -331,3 +392,186 @@ def test_empty_schedule() -> None:
     schedule = FaultSchedule()
     assert schedule.next_time() is None
     assert schedule.due(1e9) == []
+
+
+def test_schedule_ignores_link_faults_and_link_commands_lists_them_in_order() -> None:
+    faults = [
+        parse_fault("delay:20"),
+        parse_fault("reset:1"),
+        parse_fault("split-bytes"),
+        parse_fault("drop-ok:1"),
+    ]
+    schedule = FaultSchedule(faults)
+    assert [c.kind for c in schedule.due(100.0)] == ["reset"]
+    assert link_commands(faults) == [
+        Command("delay", value=0.02, text="delay 20"),
+        Command("split-bytes", count=1, text="split-bytes on"),
+    ]
+    assert link_commands([parse_fault("stall:1:1")]) == []
+
+
+# ----------------------------------------------------------------------------- delay
+def test_delay_holds_each_chunk_for_the_delay() -> None:
+    delay = OutputDelay(0.02)
+    delay.push(b"ok\r\n", 1.0)
+    delay.push(STATUS, 1.005)
+    assert len(delay) == 4 + len(STATUS)
+    assert delay.next_time() == pytest.approx(1.02)
+    assert delay.pop(1.0199) == b""
+    assert delay.pop(1.02) == b"ok\r\n"
+    assert delay.next_time() == pytest.approx(1.025)
+    assert delay.pop(1.024) == b""
+    assert delay.pop(5.0) == STATUS
+    assert delay.next_time() is None
+    assert len(delay) == 0
+
+
+def test_delay_zero_passes_through() -> None:
+    delay = OutputDelay()
+    assert delay.delay == 0.0
+    delay.push(b"ok\r\n", 3.0)
+    assert delay.pop(3.0) == b"ok\r\n"
+    delay.push(b"", 3.0)
+    assert delay.next_time() is None
+
+
+def test_lowering_the_delay_never_reorders() -> None:
+    delay = OutputDelay(0.5)
+    delay.push(b"first\r\n", 0.0)  # due at 0.5
+    delay.delay = 0.0
+    delay.push(b"second\r\n", 0.1)  # would be due at 0.1: waits for "first"
+    assert delay.pop(0.2) == b""
+    assert delay.pop(0.5) == b"first\r\nsecond\r\n"
+    delay.push(b"third\r\n", 0.6)  # nothing waits: due at once
+    assert delay.pop(0.6) == b"third\r\n"
+
+
+def test_delay_clear_forgets_everything() -> None:
+    delay = OutputDelay(10.0)
+    delay.push(b"ok\r\n", 0.0)
+    delay.clear()
+    assert delay.pop(100.0) == b""
+    delay.delay = 0.0
+    delay.push(b"ok\r\n", 1.0)  # not held behind the cleared chunk's release time
+    assert delay.pop(1.0) == b"ok\r\n"
+
+
+@pytest.mark.parametrize("bad", [-0.001, math.inf, math.nan])
+def test_delay_rejects_bad_values(bad: float) -> None:
+    with pytest.raises(ValueError):
+        OutputDelay(bad)
+    delay = OutputDelay()
+    with pytest.raises(ValueError):
+        delay.delay = bad
+
+
+# ----------------------------------------------------------------------------- link faults, served
+# The link faults act in the pty server (mirobot_emulator.server); served here in a thread of the
+# test process and read with plain os.read on the port.
+
+
+def _read_until(fd: int, done: Callable[[bytes], bool], timeout: float = 10.0) -> list[bytes]:
+    """Read chunks from ``fd`` until ``done(everything)``; return the chunks as read."""
+    chunks: list[bytes] = []
+    data = b""
+    deadline = time.monotonic() + timeout
+    with selectors.DefaultSelector() as selector:
+        selector.register(fd, selectors.EVENT_READ)
+        while not done(data):
+            left = deadline - time.monotonic()
+            assert left > 0, f"timed out; read so far: {data!r}"
+            if selector.select(left):
+                chunk = os.read(fd, 4096)
+                chunks.append(chunk)
+                data += chunk
+    return chunks
+
+
+@contextlib.contextmanager
+def _served(*faults: str) -> Iterator[tuple[VirtualMirobot, int]]:
+    options = ServerOptions(
+        firmware="classic", time_scale=0, faults=tuple(map(parse_fault, faults))
+    )
+    with VirtualMirobot(options) as robot:
+        fd = os.open(robot.path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+        try:
+            termios.tcflush(fd, termios.TCIFLUSH)  # the power-on banner, as pyserial does
+            yield robot, fd
+        finally:
+            os.close(fd)
+
+
+def _settings_dump_done(data: bytes) -> bool:
+    return data.endswith(b"ok\r\n") and data.count(b"\n") > 20
+
+
+def test_split_bytes_serves_single_byte_reads() -> None:
+    with _served() as (_, fd):
+        os.write(fd, b"$$\n")
+        whole = b"".join(_read_until(fd, _settings_dump_done))
+    with _served("split-bytes") as (robot, fd):
+        os.write(fd, b"$$\n")
+        chunks = _read_until(fd, _settings_dump_done)
+        assert b"".join(chunks) == whole  # the same bytes, only cut differently
+        singles = sum(len(chunk) == 1 for chunk in chunks)
+        assert singles >= 0.9 * len(chunks), [len(c) for c in chunks]
+        # turned off from the control channel: whole lines again
+        assert robot.command("split-bytes off") == "ack split-bytes off"
+        written = robot.server.split_writes
+        os.write(fd, b"$$\n")
+        assert b"".join(_read_until(fd, _settings_dump_done)) == whole
+        assert robot.server.split_writes == written
+
+
+def test_split_bytes_from_the_control_channel() -> None:
+    with _served() as (robot, fd):
+        assert robot.command("split-bytes") == "ack split-bytes on"
+        os.write(fd, b"\n" * 50)
+        chunks = _read_until(fd, lambda data: data.count(b"ok\r\n") == 50)
+        assert b"".join(chunks) == b"ok\r\n" * 50
+        assert sum(len(chunk) == 1 for chunk in chunks) >= 0.9 * len(chunks)
+
+
+def test_delay_holds_every_reply_and_keeps_the_order() -> None:
+    with _served("delay:150") as (robot, fd):
+        start = time.monotonic()
+        os.write(fd, b"M3 S5\n?\nM99\n")
+        data = b"".join(_read_until(fd, lambda d: d.count(b"\n") >= 4))
+        assert time.monotonic() - start >= 0.14
+        lines = data.split(b"\r\n")
+        assert lines[0] == b"ok"
+        assert lines[1].startswith(b"<Idle,") and b"Pump PWM:5," in lines[1]
+        assert lines[2:] == [b"ok", b"error: Unsupported command", b""]
+        # changed from the control channel
+        assert robot.command("delay 0") == "ack delay 0"
+        start = time.monotonic()
+        os.write(fd, b"\n")
+        assert b"".join(_read_until(fd, lambda d: d.endswith(b"ok\r\n"))) == b"ok\r\n"
+        assert time.monotonic() - start < 0.14
+
+
+def _stats(robot: VirtualMirobot) -> dict[str, int]:
+    answer = robot.command("stats")
+    assert answer.startswith("ack stats ")
+    return {name: int(value) for name, value in (w.split("=") for w in answer.split()[2:])}
+
+
+def test_stats_counts_what_crossed_the_wire() -> None:
+    with _served("drop-ok:1", "corrupt-status:2") as (robot, fd):
+        before = _stats(robot)
+        assert before["bytes_in"] == before["lines_in"] == 0
+        assert before["bytes_out"] > 0  # the power-on banner
+        os.write(fd, b"M3 S1\n?\nM3 S2\n?")
+        data = b"".join(_read_until(fd, lambda d: d.count(b"ok\r\n") == 2 and d.count(b">") == 2))
+        stats = _stats(robot)
+        assert stats["bytes_in"] == 15
+        assert stats["lines_in"] == 3
+        assert stats["status_requests_in"] == 2
+        assert stats["resets_in"] == 0
+        assert stats["bytes_out"] == before["bytes_out"] + len(data)
+        assert stats["oks_seen"] == 3
+        assert stats["dropped_oks"] == 1
+        assert stats["status_lines"] == 2
+        assert stats["corrupted_status"] == 1
+        assert stats["ignored_status"] == stats["split_writes"] == 0
+        assert stats["ports_opened"] == 1  # our flush
