@@ -950,7 +950,7 @@ class Mirobot:
         if self._needs_reset is not None:
             raise MirobotAlarmError(
                 command,
-                f"{self._needs_reset} (nothing but a status request is sent until reset())",
+                f"{self._needs_reset} (nothing, not even a status request, is sent until reset())",
             )
         if motion and self._alarm is not None:
             raise MirobotAlarmError(command, self._alarm)
