@@ -68,6 +68,8 @@ __all__ = [
     "read_program",
 ]
 
+_log = logging.getLogger("mirobot_async.cli")
+
 PROG: Final = "mirobot"
 EXIT_OK: Final = 0
 EXIT_FAILED: Final = 1
@@ -889,17 +891,34 @@ def _failure_words(err: MirobotError) -> str:
 
 
 @contextlib.asynccontextmanager
-async def _background(*jobs: Awaitable[None] | None) -> AsyncIterator[None]:
-    """Run ``jobs`` (None: skipped) as tasks for the duration of the block, then cancel them."""
-    tasks = [asyncio.ensure_future(job) for job in jobs if job is not None]
+async def _background(**jobs: Awaitable[None] | None) -> AsyncIterator[None]:
+    """Run ``jobs`` (None: skipped; keyword: what it is, for messages) as tasks for the duration
+    of the block, then cancel them.
+
+    A job's failure never replaces the block's outcome: after a block that succeeded it is a
+    warning on stderr (e.g. the trace is incomplete), after one that failed it is only logged
+    at debug level (most likely the same cause, such as the link lost). A cancellation of the
+    calling task while the jobs wind down (a second Ctrl-C) propagates: ``gather`` raises
+    :class:`asyncio.CancelledError` only then, the jobs' own cancellations are results.
+    """
+    tasks = {
+        name.replace("_", " "): asyncio.ensure_future(job)
+        for name, job in jobs.items()
+        if job is not None
+    }
+    succeeded = False
     try:
         yield
+        succeeded = True
     finally:
-        for task in tasks:
+        for task in tasks.values():
             task.cancel()
-        for task in tasks:
-            with contextlib.suppress(asyncio.CancelledError):
-                await task
+        results = await asyncio.gather(*tasks.values(), return_exceptions=True)
+        for name, result in zip(tasks, results, strict=True):
+            if isinstance(result, Exception):
+                _log.debug("%s failed", name, exc_info=result)
+                if succeeded:
+                    _note(f"warning: {name} failed: {type(result).__name__}: {result}")
 
 
 def _report_failures(
@@ -916,7 +935,7 @@ def _report_failures(
     if not args.continue_on_error and already_sent > 0:
         _note(
             f"stopped at line {program[first - 1].number}, but the {already_sent} line(s) after "
-            "it were already in the robot's buffer (pipelined streaming) and were processed"
+            "it had already been sent (pipelined) before the refusal arrived"
         )
 
 
@@ -930,7 +949,7 @@ async def cmd_run(args: argparse.Namespace) -> int:
             await _prepare(arm, args)
             progress = ProgressBar(len(program), sys.stderr)
             recorder = None if trace is None else _record(arm, trace, DEFAULT_TRACE_INTERVAL)
-            async with _background(progress.tick(), recorder):
+            async with _background(progress_bar=progress.tick(), status_recording=recorder):
                 try:
                     result = await arm.stream(
                         [line.text for line in program],

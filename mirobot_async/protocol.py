@@ -194,7 +194,9 @@ class MirobotConnection:
     ``rx_buffer_size`` is the robot's receive buffer (128 bytes on every known firmware);
     ``max_reply_length`` bounds a line from the robot: a longer one is reported once as a
     :class:`ProtocolViolation` and skipped up to the next line end, so memory stays bounded
-    whatever the robot (or line noise) sends.
+    whatever the robot (or line noise) sends. ``max_output_lines`` bounds the text lines kept
+    for one pending line (``$$`` prints 85 on the 2021 firmware): further ones are dropped until
+    that line's reply, and the drop is reported once as a :class:`ProtocolViolation`.
     """
 
     #: A banner that has not ended after this many non-empty lines is closed anyway (the classic
@@ -210,25 +212,33 @@ class MirobotConnection:
         "_events",
         "_next_id",
         "_output",
+        "_output_dropped",
         "_pending",
         "_status_outstanding",
+        "max_output_lines",
         "max_reply_length",
         "rx_buffer_size",
     )
 
-    def __init__(self, *, rx_buffer_size: int = 128, max_reply_length: int = 512) -> None:
+    def __init__(
+        self, *, rx_buffer_size: int = 128, max_reply_length: int = 512, max_output_lines: int = 256
+    ) -> None:
         if rx_buffer_size < 2:
             raise MirobotUsageError(f"rx_buffer_size must be at least 2, not {rx_buffer_size}")
         if max_reply_length < 1:
             raise MirobotUsageError(f"max_reply_length must be positive, not {max_reply_length}")
+        if max_output_lines < 1:
+            raise MirobotUsageError(f"max_output_lines must be positive, not {max_output_lines}")
         self.rx_buffer_size = rx_buffer_size
         self.max_reply_length = max_reply_length
+        self.max_output_lines = max_output_lines
         self._buffer = bytearray()  # an incomplete line, never longer than max_reply_length
         self._discarding = False  # skipping the rest of an overlong line
         self._closed = False
         self._events: deque[Event] = deque()
         self._pending: deque[PendingLine] = deque()
         self._output: list[str] = []  # text printed so far for the oldest pending line
+        self._output_dropped = False  # more than max_output_lines of it: the rest is dropped
         self._bytes_in_flight = 0
         self._status_outstanding = 0
         self._next_id = 0
@@ -343,6 +353,7 @@ class MirobotConnection:
         line = self._pending.popleft()
         self._bytes_in_flight -= len(line.wire)
         self._output.clear()
+        self._output_dropped = False
         return line
 
     # ---- robot -> host ----
@@ -464,7 +475,7 @@ class MirobotConnection:
             if reply.ok:
                 self._final_ok(text, reply, raw_bytes)
             elif self._pending:
-                self._output.append(text)
+                self._add_output(text, raw_bytes)
             else:
                 events.append(UnsolicitedText(kind, reply.text))
 
@@ -478,6 +489,21 @@ class MirobotConnection:
         else:
             self._events.append(StatusReceived(report, line))
 
+    def _add_output(self, text: str, raw_bytes: bytes) -> None:
+        """Keep ``text`` for the oldest pending line, up to ``max_output_lines`` lines."""
+        output = self._output
+        if len(output) < self.max_output_lines:
+            output.append(text)
+        elif not self._output_dropped:
+            self._output_dropped = True
+            self._events.append(
+                ProtocolViolation(
+                    f"more than {self.max_output_lines} text lines for one pending line; "
+                    "dropping the rest until its reply",
+                    raw_bytes,
+                )
+            )
+
     def _final_ok(self, text: str, reply: Reply | None, raw_bytes: bytes = _OK) -> None:
         """Acknowledge the oldest pending line; ``text`` is a line with a glued ``ok`` or ``""``."""
         if not self._pending:
@@ -488,8 +514,9 @@ class MirobotConnection:
         line = self._pending.popleft()
         self._bytes_in_flight -= len(line.wire)
         output = self._output
+        self._output_dropped = False
         if text:
-            output.append(text)
+            output.append(text)  # even past the cap: one line, and it may hold a refusal
         if output:
             out = tuple(output)
             output.clear()
@@ -505,6 +532,7 @@ class MirobotConnection:
         self._bytes_in_flight -= len(line.wire)
         out = tuple(self._output)
         self._output.clear()
+        self._output_dropped = False
         self._events.append(LineRejected(line, text, code, out))
 
     def _reset(self) -> None:
@@ -512,6 +540,7 @@ class MirobotConnection:
         failed = tuple(self._pending)
         self._pending.clear()
         self._output.clear()
+        self._output_dropped = False
         self._bytes_in_flight = 0
         self._status_outstanding = 0
         self._events.append(ResetDetected(failed))

@@ -106,6 +106,39 @@ def emulator_command(
 
 
 # --------------------------------------------------------------------------------------------
+# Shared by the asyncio and the synchronous handles
+
+
+def _control_reply(raw: bytes) -> str | None:
+    """The emulator's answer to a control command if stdout line ``raw`` is one (``ack ...``
+    or ``error ...``), else ``None`` (anything else it prints is logged at debug level)."""
+    text = raw.decode("utf-8", "replace").strip()
+    if text.startswith(("ack ", "error ")) or text in ("ack", "error"):
+        return text
+    if text:
+        _log.debug("emulator: %s", text)
+    return None
+
+
+def _control_text(command: str) -> str:
+    """``command`` as sent on the control channel: one non-empty line."""
+    text = command.strip()
+    if not text or "\n" in text:
+        raise MirobotUsageError(f"command={command!r} must be one non-empty line")
+    return text
+
+
+def _control_result(text: str, reply: str | None) -> str:
+    """The ``ack`` line answering ``text``; :class:`EmulatorError` for a refusal or no answer
+    (``None``: the emulator's stdout ended)."""
+    if reply is None:
+        raise EmulatorError(f"the emulator exited before answering {text!r}")
+    if reply.startswith("error"):
+        raise EmulatorError(f"the emulator refused {text!r}: {reply}")
+    return reply
+
+
+# --------------------------------------------------------------------------------------------
 # asyncio
 
 
@@ -184,11 +217,9 @@ class EmulatorProcess:
         assert stdout is not None
         try:
             while line := await stdout.readline():
-                text = line.decode("utf-8", "replace").strip()
-                if text.startswith(("ack ", "error ")) or text in ("ack", "error"):
-                    self._replies.put_nowait(text)
-                elif text:
-                    _log.debug("emulator: %s", text)
+                reply = _control_reply(line)
+                if reply is not None:
+                    self._replies.put_nowait(reply)
         except (OSError, ValueError):  # pragma: no cover - pipe torn down
             pass
         finally:
@@ -205,9 +236,7 @@ class EmulatorProcess:
         answered in order; concurrent calls are serialised. Cancellation is safe (a late answer
         is skipped by the next call only if it has no reply waiting: prefer not to cancel).
         """
-        text = command.strip()
-        if not text or "\n" in text:
-            raise MirobotUsageError(f"command={command!r} must be one non-empty line")
+        text = _control_text(command)
         async with self._control_lock:
             stdin = self._process.stdin
             if stdin is None or self._process.returncode is not None or stdin.is_closing():
@@ -223,10 +252,7 @@ class EmulatorProcess:
                 raise EmulatorError(f"cannot send {text!r}: {err}") from err
             if reply is None:
                 self._replies.put_nowait(None)  # keep reporting the end to later calls
-                raise EmulatorError(f"the emulator exited before answering {text!r}")
-            if reply.startswith("error"):
-                raise EmulatorError(f"the emulator refused {text!r}: {reply}")
-            return reply
+            return _control_result(text, reply)
 
     def kill(self) -> None:
         """SIGKILL the emulator now (its port disappears, like a pulled cable); does not wait."""
@@ -257,11 +283,8 @@ class EmulatorProcess:
         returncode = await _reap(process, timeout=timeout)
         with contextlib.suppress(TimeoutError):
             async with asyncio.timeout(timeout):
-                await self._reader
-        if not self._reader.done():  # pragma: no cover - stdout held open by a grandchild
-            self._reader.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await self._reader
+                await asyncio.wait({self._reader})  # the reader's own failure is not ours
+        await _cancel_and_wait(self._reader)  # still running: stdout held open by a grandchild
         if process.stdin is not None:
             with contextlib.suppress(Exception):
                 await process.stdin.wait_closed()
@@ -272,6 +295,21 @@ class EmulatorProcess:
 
     async def __aexit__(self, *exc_info: object) -> None:
         await self.stop()
+
+
+async def _cancel_and_wait(*tasks: asyncio.Task[Any]) -> None:
+    """Cancel ``tasks`` and wait until they are done, logging their failures.
+
+    A task's own failure is logged, never raised (it must not replace the caller's result or
+    exception); a cancellation of the calling task while waiting propagates (``gather`` raises
+    :class:`asyncio.CancelledError` only then: the tasks' own cancellations are results).
+    """
+    for task in tasks:
+        task.cancel()
+    results = await asyncio.gather(*tasks, return_exceptions=True)
+    for task, result in zip(tasks, results, strict=True):
+        if isinstance(result, Exception):  # not CancelledError (a BaseException)
+            _log.warning("%s failed: %r", task.get_name(), result, exc_info=result)
 
 
 async def _reap(
@@ -388,11 +426,9 @@ class SyncEmulatorProcess:
                 buffer += chunk
                 while b"\n" in buffer:
                     raw, buffer = buffer.split(b"\n", 1)
-                    text = raw.decode("utf-8", "replace").strip()
-                    if text.startswith(("ack", "error")):
-                        self._replies.put(text)
-                    elif text:
-                        _log.debug("emulator: %s", text)
+                    reply = _control_reply(raw)
+                    if reply is not None:
+                        self._replies.put(reply)
         except (OSError, ValueError):  # pragma: no cover - pipe closed under us
             pass
         finally:
@@ -410,9 +446,7 @@ class SyncEmulatorProcess:
 
     def control(self, command: str, *, timeout: float = CONTROL_TIMEOUT) -> str:
         """Send a control command; return its ``ack`` line (as :meth:`EmulatorProcess.control`)."""
-        text = command.strip()
-        if not text or "\n" in text:
-            raise MirobotUsageError(f"command={command!r} must be one non-empty line")
+        text = _control_text(command)
         with self._control_lock:
             stdin = self._process.stdin
             if stdin is None or stdin.closed or self._process.poll() is not None:
@@ -427,11 +461,8 @@ class SyncEmulatorProcess:
             except queue.Empty as err:
                 raise MirobotTimeoutError(f"the emulator's answer to {text!r}", timeout) from err
             if reply is None:
-                self._replies.put(None)
-                raise EmulatorError(f"the emulator exited before answering {text!r}")
-            if reply.startswith("error"):
-                raise EmulatorError(f"the emulator refused {text!r}: {reply}")
-            return reply
+                self._replies.put(None)  # keep reporting the end to later calls
+            return _control_result(text, reply)
 
     def kill(self) -> None:
         """SIGKILL the emulator now (like a pulled cable); does not wait."""

@@ -4,6 +4,7 @@ output formatting, exit statuses (no subprocess, no emulator)."""
 from __future__ import annotations
 
 import argparse
+import asyncio
 import io
 from pathlib import Path
 
@@ -487,3 +488,77 @@ def test_unusable_files_and_ports_exit_2_before_any_robot_is_started(
     lines = capsys.readouterr().err.splitlines()
     assert len(lines) == 1 and lines[0].startswith("mirobot: error: ")
     assert str(missing) in lines[0]
+
+
+# --------------------------------------------------------------------------------------------
+# run: summary of a stopped run, background jobs
+
+
+def test_stopped_run_says_how_many_lines_had_already_been_sent(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    from mirobot_async.client import LineResult, StreamResult
+
+    program = [cli.ProgramLine(n, f"G0 X{n}") for n in (2, 3, 5, 6, 7)]
+    result = StreamResult(sent=4, acknowledged=1, errors=[LineResult(2, "G0 X3")], stopped=True)
+    args = argparse.Namespace(continue_on_error=False)
+    cli._report_failures(args, program, result)
+    err = capsys.readouterr().err
+    assert "1 line was refused; 1 of 5 acknowledged" in err
+    assert (
+        "stopped at line 3, but the 2 line(s) after it had already been sent (pipelined) "
+        "before the refusal arrived"
+    ) in err
+    # Nothing in flight after the refused line: nothing to say about it.
+    cli._report_failures(args, program, StreamResult(2, 1, [LineResult(2, "G0 X3")], True))
+    assert "stopped at" not in capsys.readouterr().err
+
+
+async def _fail_soon() -> None:
+    await asyncio.sleep(0)
+    raise OSError("disk full")
+
+
+async def test_background_job_failure_is_a_warning_not_the_result(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    async with cli._background(status_recording=_fail_soon(), nothing=None):
+        await asyncio.sleep(0.01)
+    assert "warning: status recording failed: OSError: disk full" in capsys.readouterr().err
+
+
+async def test_background_job_failure_does_not_replace_the_blocks_error(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    with pytest.raises(MirobotLinkLostError):
+        async with cli._background(status_recording=_fail_soon()):
+            await asyncio.sleep(0.01)
+            raise MirobotLinkLostError("link lost")
+    assert "warning" not in capsys.readouterr().err  # most likely the same cause: debug only
+
+
+async def test_cancelling_the_caller_during_background_clean_up_propagates() -> None:
+    slow_clean_up = asyncio.Event()
+    job_done = False
+
+    async def stubborn() -> None:
+        nonlocal job_done
+        try:
+            await asyncio.sleep(10)
+        except asyncio.CancelledError:
+            slow_clean_up.set()
+            await asyncio.sleep(10)  # a slow clean-up, cut short by the second cancellation
+        finally:
+            job_done = True
+
+    async def body() -> str:
+        async with cli._background(job=stubborn()):
+            await asyncio.sleep(0)
+        return "finished"
+
+    task = asyncio.create_task(body())
+    await slow_clean_up.wait()
+    task.cancel()  # e.g. a second Ctrl-C while the background jobs wind down
+    with pytest.raises(asyncio.CancelledError):
+        await task
+    assert job_done

@@ -20,6 +20,7 @@ from hypothesis.stateful import (
     precondition,
     rule,
 )
+from mirobot_emulator.settings import PROFILES, default_settings, format_dump
 
 from mirobot_async.errors import MirobotProtocolError, MirobotUsageError, RefusalReason
 from mirobot_async.protocol import (
@@ -319,6 +320,8 @@ def test_constructor_validates() -> None:
         MirobotConnection(rx_buffer_size=1)
     with pytest.raises(MirobotUsageError):
         MirobotConnection(max_reply_length=0)
+    with pytest.raises(MirobotUsageError):
+        MirobotConnection(max_output_lines=0)
 
 
 # ---- expire_oldest -------------------------------------------------------------------------------
@@ -458,6 +461,33 @@ def test_overlong_line_without_newline_is_reported_once_and_memory_stays_bounded
     assert conn.buffered_bytes == 0
     # The rest of the overlong line is skipped up to the line end; then all is normal again.
     assert feed(conn, [b"more garbage\r\nok\r\n"]) == [LineAcknowledged(a, (), None)]
+
+
+def test_text_lines_for_one_pending_line_are_capped_and_the_drop_reported_once() -> None:
+    conn = MirobotConnection(max_output_lines=3)
+    a, b = conn.send_line("M50"), conn.send_line("M20")
+    events = feed(conn, [wire([f"text {i}" for i in range(1000)] + ["ok"])])
+    assert events == [
+        ProtocolViolation(
+            "more than 3 text lines for one pending line; dropping the rest until its reply",
+            b"text 3",
+        ),
+        LineAcknowledged(a, ("text 0", "text 1", "text 2"), None),
+    ]
+    # The next pending line starts afresh (and is reported again if it overflows too).
+    events = feed(conn, [wire([f"more {i}" for i in range(5)] + ["error: Not idle"])])
+    assert [type(e) for e in events] == [ProtocolViolation, LineRejected]
+    assert events[1] == LineRejected(b, "Not idle", None, ("more 0", "more 1", "more 2"))
+
+
+def test_default_output_cap_is_well_above_the_longest_settings_dump() -> None:
+    longest = max(len(format_dump(default_settings(p), p)) for p in PROFILES)
+    conn = MirobotConnection()
+    assert conn.max_output_lines >= 2 * longest
+    a = conn.send_line("$$")
+    dump = format_dump(default_settings("2021"), "2021")
+    events = feed(conn, [wire([*dump, "ok"])])
+    assert events == [LineAcknowledged(a, tuple(dump), None)]
 
 
 def test_overlong_complete_line_is_a_violation_too() -> None:
