@@ -111,6 +111,7 @@ import inspect
 import logging
 import math
 import re
+from collections import deque
 from collections.abc import (
     AsyncGenerator,
     AsyncIterable,
@@ -198,6 +199,7 @@ _QUIET: Final = frozenset({State.IDLE, State.ALARM, State.CHECK})
 # Alarms after which the firmware processes nothing but "%" (PROTOCOL.md 6.1; GRBL's critical
 # alarms print "[Reset to continue]").
 _RESET_ONLY_ALARMS: Final = ("hard limit", "soft limit")
+_STATUS_ASKS_KEPT: Final = 8  # send times of unanswered "?" remembered (see Mirobot._on_status)
 # Alarms printed by a reset that interrupts motion or homing; the banner follows.
 _RESET_ALARMS: Final = ("abort during cycle", "homing fail")
 # Raw lines whose success clears a remembered alarm: $X, $H, $HH, $H0..$H7, $HE, M50.
@@ -312,6 +314,12 @@ class _Slot:
     sent_at: float
     check: LineCheck | None = None  # the envelope's verdict on the line (its target)
     tracked: _Tracked | None = None
+    # Called synchronously when the reply (or failure) is settled, before anything else runs.
+    watch: Callable[[_Slot], None] | None = None
+
+
+class _StreamStopped(Exception):
+    """Raised by :meth:`Mirobot._submit` when a stream's ``should_stop`` says so: not written."""
 
 
 @dataclass(slots=True, eq=False)
@@ -379,11 +387,21 @@ def _firmware_from_banner(lines: Iterable[str]) -> tuple[Firmware | None, str | 
     return None, None
 
 
-def _deadline(loop: asyncio.AbstractEventLoop, timeout: float | None) -> float | None:
+def _check_timeout(timeout: float | None) -> None:
+    """Raise :class:`MirobotUsageError` unless ``timeout`` is ``None`` or a number >= 0.
+
+    Every public awaiting call checks its ``timeout`` before it writes anything.
+    """
     if timeout is None:
-        return None
+        return
     if isinstance(timeout, bool) or not isinstance(timeout, int | float) or not timeout >= 0:
         raise MirobotUsageError(f"timeout={timeout!r} must be a number >= 0 or None")
+
+
+def _deadline(loop: asyncio.AbstractEventLoop, timeout: float | None) -> float | None:
+    _check_timeout(timeout)
+    if timeout is None:
+        return None
     return loop.time() + timeout
 
 
@@ -410,7 +428,8 @@ class Stream:
     """A pipelined stream of lines, returned by :meth:`Mirobot.stream`. Use it once, either way:
 
     * ``result = await arm.stream(lines)`` -> :class:`StreamResult` (``on_progress`` is called
-      with each :class:`LineResult` in order);
+      with each :class:`LineResult` in order); a ``Stream`` is awaitable but not a coroutine:
+      to run it in a task use :meth:`run`, ``asyncio.create_task(arm.stream(lines).run())``;
     * ``async for result in arm.stream(lines): ...`` -> each :class:`LineResult` in order as it
       is acknowledged (close the iteration early with ``contextlib.aclosing`` to stop sending at
       once).
@@ -447,9 +466,13 @@ class Stream:
         return self._take()
 
     def __await__(self) -> Generator[Any, None, StreamResult]:
-        return self._run().__await__()
+        return self.run().__await__()
 
-    async def _run(self) -> StreamResult:
+    async def run(self) -> StreamResult:
+        """Run the stream to its end and return its :class:`StreamResult` (as ``await``).
+
+        A coroutine, so it can be given to ``asyncio.create_task()`` or ``asyncio.gather()``.
+        """
         results = self._take()
         async with contextlib.aclosing(results):
             async for line_result in results:
@@ -539,7 +562,7 @@ class Mirobot:
         self._alarm_epoch = 0
         self._needs_reset: str | None = None
         self._reset_epoch = 0
-        self._resetting = False
+        self._resetting = 0  # reset() calls awaiting their banner: no line is written meanwhile
         self._banner_started = -math.inf
         self._banner_waiters: list[tuple[float, asyncio.Future[tuple[str, ...] | BaseException]]]
         self._banner_waiters = []
@@ -547,7 +570,9 @@ class Mirobot:
         """The lines of the last reset banner seen (power-on, :meth:`reset`, spontaneous)."""
         # status
         self._status_waiters: list[_StatusWaiter] = []
-        self._status_oldest_ask: float | None = None  # the oldest unanswered "?" (None: none)
+        # When each unanswered "?" was written, oldest first: a status line (even a corrupted
+        # one) answers the oldest. Bounded: a "?" the robot ignored is dropped eventually.
+        self._status_asks: deque[float] = deque(maxlen=_STATUS_ASKS_KEPT)
         self._status_last_ask = -math.inf
         self._status_timer: asyncio.TimerHandle | None = None
         self._last_status: StatusReport | None = None
@@ -603,6 +628,7 @@ class Mirobot:
     async def _open(self, url: str, timeout: float | None, probe: bool) -> Mirobot:
         if self._opened:
             raise MirobotUsageError("this Mirobot was already connected; create a new one")
+        _check_timeout(timeout)
         self._opened = True
         self._loop = asyncio.get_running_loop()
         self.url = url
@@ -727,7 +753,11 @@ class Mirobot:
 
     @property
     def status_requests_outstanding(self) -> int:
-        """``?`` written and not answered yet (0 or 1, as the client never asks twice at once)."""
+        """``?`` written and not answered yet (as counted by the protocol state machine).
+
+        Usually 0 or 1; more while an unanswered ``?`` is asked again after
+        :attr:`status_retry_interval` (a ``?`` the robot ignored is never answered).
+        """
         return self._conn.status_requests_outstanding
 
     @property
@@ -820,8 +850,15 @@ class Mirobot:
                 stats.replies_discarded += 1
                 _log.debug("discarding the reply to %r (its caller left)", slot.command)
             else:
-                slot.fut.set_result(event)
+                self._settle(slot, event)
         self._notify()
+
+    @staticmethod
+    def _settle(slot: _Slot, outcome: _Outcome) -> None:
+        """Give ``slot`` its outcome and tell its watcher at once (no loop iteration between)."""
+        slot.fut.set_result(outcome)
+        if slot.watch is not None:
+            slot.watch(slot)
 
     def _on_alarm(self, text: str) -> None:
         self.stats.alarms += 1
@@ -839,8 +876,8 @@ class Mirobot:
         self._needs_reset = text
         for slot in self._slots.values():
             if not slot.fut.done():
-                slot.fut.set_result(
-                    MirobotAlarmError(slot.command, text, output=("ALARM: " + text,))
+                self._settle(
+                    slot, MirobotAlarmError(slot.command, text, output=("ALARM: " + text,))
                 )
         for waiter in self._status_waiters:
             if not waiter.fut.done():
@@ -871,9 +908,9 @@ class Mirobot:
         for pending in event.failed:
             slot = self._slots.pop(pending.id, None)
             if slot is not None and not slot.fut.done():
-                slot.fut.set_result(MirobotResetError(slot.command))
-        # A "?" in flight may or may not be answered after a reset: keep counting it as
-        # outstanding (at most one), the retry timer asks again if its reply never comes.
+                self._settle(slot, MirobotResetError(slot.command))
+        # A "?" in flight may or may not be answered after a reset: its send time is kept until
+        # the banner ends (see _on_banner); the retry timer asks again if no reply comes.
         self._notify()
 
     def _on_banner(self, event: BannerReceived) -> None:
@@ -897,6 +934,9 @@ class Mirobot:
             else:
                 keep.append((asked_at, fut))
         self._banner_waiters = keep
+        # A "?" written before or during the reset may never be answered: forget them all (a
+        # late reply is then credited to none, so it satisfies no waiter asking for a fresh one).
+        self._status_asks.clear()
         self._notify()
         self._pump_status()
 
@@ -920,9 +960,7 @@ class Mirobot:
         (_log.debug if self._closing else _log.info if told else _log.warning)("%s", message)
         for slot in self._slots.values():
             if not slot.fut.done():
-                slot.fut.set_result(
-                    MirobotLinkLostError(f"{message}; no reply to {slot.command!r}")
-                )
+                self._settle(slot, MirobotLinkLostError(f"{message}; no reply to {slot.command!r}"))
         self._slots.clear()
         for waiter in self._status_waiters:
             if not waiter.fut.done():
@@ -960,9 +998,9 @@ class Mirobot:
     def _on_status(self, report: StatusReport) -> None:
         self.stats.status_reports += 1
         self._last_status = report
-        asked = self._status_oldest_ask
-        asked_at = self._status_last_ask if asked is None else asked
-        self._status_oldest_ask = None
+        # Credited to the oldest "?" unanswered (a report nobody asked for: to none), so that
+        # a waiter never gets a report older than itself.
+        asked_at = self._status_asks.popleft() if self._status_asks else -math.inf
         keep: list[_StatusWaiter] = []
         for waiter in self._status_waiters:
             if waiter.fut.done():
@@ -977,7 +1015,8 @@ class Mirobot:
     def _on_status_corrupted(self, event: StatusCorrupted) -> None:
         self.stats.status_corrupted += 1
         _log.warning("dropped a corrupted status line (%s)", event.reason)
-        self._status_oldest_ask = None  # answered, unreadably: ask again at once
+        if self._status_asks:  # the oldest "?" was answered, unreadably: ask again
+            self._status_asks.popleft()
         self._pump_status()
 
     def _pump_status(self) -> None:
@@ -992,7 +1031,7 @@ class Mirobot:
             return
         loop = self._running_loop()
         now = loop.time()
-        if self._status_oldest_ask is not None:
+        if self._status_asks:
             due = self._status_last_ask + self.status_retry_interval
             if now < due:
                 self._arm_status_timer(due)
@@ -1010,8 +1049,7 @@ class Mirobot:
         self.stats.bytes_sent += len(data)
         if _wire.isEnabledFor(logging.DEBUG):
             _wire.debug("-> ?")
-        if self._status_oldest_ask is None:
-            self._status_oldest_ask = now
+        self._status_asks.append(now)  # (the oldest is dropped beyond _STATUS_ASKS_KEPT)
         self._status_last_ask = now
         self._arm_status_timer(now + self.status_retry_interval)
 
@@ -1034,6 +1072,7 @@ class Mirobot:
 
         Returns the report and the time its ``?`` was written.
         """
+        _check_timeout(timeout)
         self._raise_if_closed()
         if self._needs_reset is not None:
             raise MirobotAlarmError(
@@ -1080,6 +1119,7 @@ class Mirobot:
         """
         if not interval >= 0:
             raise MirobotUsageError(f"interval={interval!r} must be >= 0")
+        _check_timeout(timeout)
         loop = self._running_loop()
         next_time = loop.time()
         while True:
@@ -1198,13 +1238,14 @@ class Mirobot:
             )
             if slot is not None and not slot.fut.done():
                 elapsed = self._running_loop().time() - slot.sent_at
-                slot.fut.set_result(
+                self._settle(
+                    slot,
                     MirobotTimeoutError(
                         f"the reply to {command!r} (lost: the robot is {state.value} and answered "
                         "a later status request)",
                         round(elapsed, 3),
                         command=command,
-                    )
+                    ),
                 )
         if expired:
             self._notify()
@@ -1220,8 +1261,14 @@ class Mirobot:
         check_envelope: bool = True,
         what: str | None = None,
         warn_unchecked: bool = True,
+        should_stop: Callable[[], bool] | None = None,
+        watch: Callable[[_Slot], None] | None = None,
     ) -> _Slot:
         """Wait for this line's turn and for room in the receive buffer, then write it.
+
+        ``should_stop`` (a stream's) is asked right before the write, with no await in between:
+        if true, :class:`_StreamStopped` is raised and nothing is written. ``watch`` is set on the
+        slot as the line is written (see :attr:`_Slot.watch`).
 
         With an envelope the line is checked (``check_envelope``) under the send lock, against
         the position and modes predicted from every line written before it, and checked again
@@ -1246,6 +1293,8 @@ class Mirobot:
                         raise MirobotResetError(
                             command, "the robot reset while it waited to be sent; not sent"
                         )
+                    if should_stop is not None and should_stop():
+                        raise _StreamStopped
                     if envelope_on and check_envelope and checked_epoch != self._position_epoch:
                         position_epoch = self._position_epoch
                         waiting_for = (
@@ -1257,7 +1306,10 @@ class Mirobot:
                         waiting_for = f"room in the robot's receive buffer to send {command!r}"
                         continue  # re-check everything after the awaits
                     if self._ready_to_send(exclusive, nbytes):
+                        if should_stop is not None and should_stop():
+                            raise _StreamStopped  # a reply received meanwhile stopped it
                         slot = self._write_line(data, command, exclusive)
+                        slot.watch = watch  # no reply can be dispatched before this
                         if envelope_on:
                             self._track_written(
                                 slot,
@@ -1625,6 +1677,21 @@ class Mirobot:
         wake = asyncio.Event()
         flags = {"stop": False, "done": False, "exhausted": False}
 
+        def should_stop() -> bool:
+            return flags["stop"]
+
+        def watch(slot: _Slot) -> None:
+            # Runs as the reply is dispatched, before the producer can wake: a failing line
+            # stops the stream at once, so nothing is written after its reply arrived.
+            outcome = slot.fut.result()
+            if isinstance(outcome, BaseException):
+                flags["stop"] = True  # reset, alarm, lost reply, lost link: always fatal
+            elif isinstance(outcome, LineRejected):
+                if not continue_on_error or "alarm lock" in outcome.text.lower():
+                    flags["stop"] = True
+            elif outcome.refusal is not None and not continue_on_error:
+                flags["stop"] = True
+
         async def produce() -> None:
             number = 0
             sync_items = iter(lines) if not isinstance(lines, AsyncIterable) else None
@@ -1662,7 +1729,11 @@ class Mirobot:
                             check_envelope=check_envelope,
                             what=f"stream line {number} {command!r}",
                             warn_unchecked=False,
+                            should_stop=should_stop,
+                            watch=watch,
                         )
+                    except _StreamStopped:
+                        break
                     except (MirobotResetError, MirobotAlarmError, MirobotTimeoutError) as err:
                         queue.append((number, command, err))
                         break
@@ -2076,10 +2147,10 @@ class Mirobot:
         :class:`MirobotTimeoutError` after ``timeout`` seconds (default :data:`STATUS_TIMEOUT`).
         Cancelling only stops waiting: the hold was already sent.
         """
-        self._check_sendable("!", motion=False)
-        self._write_realtime(self._conn.feed_hold())
         loop = self._running_loop()
         deadline = _deadline(loop, timeout)
+        self._check_sendable("!", motion=False)
+        self._write_realtime(self._conn.feed_hold())
         try:
             async with asyncio.timeout_at(deadline):
                 while True:
@@ -2097,6 +2168,7 @@ class Mirobot:
         Raises :class:`MirobotTimeoutError` after ``timeout`` seconds (default
         :data:`STATUS_TIMEOUT`) without a status. Cancelling only stops waiting for the status.
         """
+        _check_timeout(timeout)
         self._check_sendable("~", motion=False)
         self._write_realtime(self._conn.cycle_start())
         report, _ = await self._fetch_status(
@@ -2125,6 +2197,7 @@ class Mirobot:
         stops waiting: the ``%`` was sent, and lines written before its banner arrives fail with
         :class:`MirobotResetError`.
         """
+        _check_timeout(timeout)
         self._raise_if_closed()
         loop = self._running_loop()
         asked_at = loop.time()
@@ -2132,7 +2205,7 @@ class Mirobot:
         entry = (asked_at, fut)
         self._banner_waiters.append(entry)
         alarm_epoch = self._alarm_epoch
-        self._resetting = True
+        self._resetting += 1
         try:
             self._write_realtime(self._conn.request_reset())
             async with asyncio.timeout(timeout):
@@ -2140,7 +2213,7 @@ class Mirobot:
         except TimeoutError as err:
             raise MirobotTimeoutError("the banner after a reset", timeout, command="%") from err
         finally:
-            self._resetting = False
+            self._resetting -= 1
             if not fut.done():
                 fut.cancel()
             with contextlib.suppress(ValueError):

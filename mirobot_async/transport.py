@@ -251,6 +251,22 @@ def _open_error_text(url: str, exc: BaseException) -> str:
     return f"could not open {url!r}: {words}"
 
 
+def _close_port(port: Any) -> None:
+    """Close a port that no transport owns (opening failed after the OS opened it)."""
+    try:
+        port.close()
+    except Exception:  # pragma: no cover - best effort
+        _log.debug("could not close a port left over by a failed open", exc_info=True)
+
+
+def _close_opened_port(opening: asyncio.Future[Any]) -> None:
+    """Done-callback of an open nobody waits for any more: close the port if it was opened."""
+    if opening.cancelled() or opening.exception() is not None:
+        return  # nothing opened (the exception is retrieved: it was already reported)
+    _log.debug("closing a port opened after its caller gave up")
+    _close_port(opening.result())
+
+
 class SerialLink:
     """One open serial link. Create it with :meth:`open`; never blocks the event loop."""
 
@@ -325,16 +341,27 @@ class SerialLink:
                         loop, lambda: protocol, url, **serial_kwargs
                     )
                 else:
-                    port = await loop.run_in_executor(
+                    opening = loop.run_in_executor(
                         None, functools.partial(serial.serial_for_url, url, **serial_kwargs)
                     )
                     try:
-                        port.fileno()
-                    except (AttributeError, serial.SerialException, OSError):
-                        transport = _PolledSerialTransport(loop, protocol, port)
-                    else:
-                        # impl.connection_for_serial(), with the end of the link made quiet
-                        transport = _transport_class(impl.SerialTransport)(loop, protocol, port)
+                        # shielded: if this wait is cancelled (or times out) while the OS is
+                        # still opening, the port it opens is closed (not leaked) once it is open
+                        port = await asyncio.shield(opening)
+                    except BaseException:
+                        opening.add_done_callback(_close_opened_port)
+                        raise
+                    try:
+                        try:
+                            port.fileno()
+                        except (AttributeError, serial.SerialException, OSError):
+                            transport = _PolledSerialTransport(loop, protocol, port)
+                        else:
+                            # impl.connection_for_serial(), with the end of the link made quiet
+                            transport = _transport_class(impl.SerialTransport)(loop, protocol, port)
+                    except BaseException:
+                        _close_port(port)
+                        raise
         except TimeoutError as err:
             raise MirobotConnectionError(
                 f"could not open {url!r}: no answer from the OS within {timeout:g} s"

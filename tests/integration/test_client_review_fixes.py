@@ -1,0 +1,257 @@
+"""Regression tests for fixes from a code review of the client and the serial transport."""
+
+from __future__ import annotations
+
+import asyncio
+import math
+import time
+from typing import Any
+
+import pytest
+
+from mirobot_async import (
+    Mirobot,
+    MirobotCommandError,
+    MirobotConnectionError,
+    MirobotResetError,
+    MirobotUsageError,
+)
+from mirobot_async.protocol import LineRejected
+from mirobot_async.testing import EmulatorProcess
+
+pytestmark = [pytest.mark.timeout(60), pytest.mark.usefixtures("no_leftover_tasks")]
+
+
+async def test_stream_writes_nothing_after_the_failing_reply_arrived(
+    ready_arm: Mirobot, emu: EmulatorProcess
+) -> None:
+    arm = ready_arm
+    lines = ["M3 S0"] * 30 + ["G4 P0.3", "FOO BAR"] + ["M3 S0"] * 60
+    failing = lines.index("FOO BAR") + 1
+    written = 0
+    written_when_error_arrived: int | None = None
+    written_after_error = 0
+    original_write = arm._write_line
+    original_on_reply = arm._on_reply
+
+    def write_spy(data: bytes, command: str, exclusive: bool) -> Any:
+        nonlocal written, written_after_error
+        written += 1
+        if written_when_error_arrived is not None:
+            written_after_error += 1
+        return original_write(data, command, exclusive)
+
+    def reply_spy(event: Any) -> None:
+        nonlocal written_when_error_arrived
+        original_on_reply(event)
+        if written_when_error_arrived is None and isinstance(event, LineRejected):
+            written_when_error_arrived = written
+
+    arm._write_line = write_spy  # type: ignore[method-assign]
+    arm._on_reply = reply_spy  # type: ignore[method-assign]
+    before = int((await emu.control("stats")).split("lines_in=")[1].split()[0])
+    result = await arm.stream(lines)
+    assert result.stopped and len(result.errors) == 1
+    assert result.errors[0].number == failing
+    assert isinstance(result.errors[0].error, MirobotCommandError)
+    assert written_when_error_arrived is not None
+    assert written_after_error == 0
+    assert result.sent == written_when_error_arrived
+    # the lines after the failing one that were already in flight fit the 128-byte buffer
+    assert failing <= result.sent <= failing + 128 // len(b"M3 S0\n")
+    await asyncio.sleep(0.2)
+    after = int((await emu.control("stats")).split("lines_in=")[1].split()[0])
+    assert after - before == result.sent
+    assert arm.pending_count == 0
+
+
+def _spy_writes(arm: Mirobot) -> list[bytes]:
+    """Record every chunk written to the link."""
+    link = arm._link
+    assert link is not None
+    written: list[bytes] = []
+    original = link.write
+
+    def spy(data: bytes) -> None:
+        written.append(bytes(data))
+        original(data)
+
+    link.write = spy  # type: ignore[method-assign]
+    return written
+
+
+BAD_TIMEOUTS: list[Any] = ["x", -1, math.nan, -math.inf, True]
+
+
+@pytest.mark.parametrize("bad", BAD_TIMEOUTS, ids=repr)
+async def test_bad_timeouts_are_refused_before_anything_is_written(
+    ready_arm: Mirobot, bad: Any
+) -> None:
+    arm = ready_arm
+    written = _spy_writes(arm)
+    for call in (arm.hold, arm.resume, arm.reset, arm.status, arm.wait_idle, arm.settings):
+        with pytest.raises(MirobotUsageError, match="timeout"):
+            await call(timeout=bad)
+    with pytest.raises(MirobotUsageError, match="timeout"):
+        await arm.send("M3 S0", timeout=bad)
+    with pytest.raises(MirobotUsageError, match="timeout"):
+        await arm.stream(["M3 S0"], timeout=bad)
+    with pytest.raises(MirobotUsageError, match="timeout"):
+        await anext(aiter(arm.statuses(timeout=bad)))
+    assert written == []
+    assert (await arm.status()).state is not None  # still usable
+
+
+async def test_a_late_status_reply_is_not_credited_to_a_newer_request(
+    ready_arm: Mirobot, emu: EmulatorProcess
+) -> None:
+    """Every reply answers the oldest "?": a fresh waiter never gets a report older than itself.
+
+    The emulator holds every output line 0.9 s, and "?" is asked again every 0.2 s: replies to
+    the "?" of 0, 0.2, 0.4... arrive at 0.9, 1.1, 1.3... The pump is switched on at 0.5, and a
+    waiter for a fresh report starts then: it must see the pump on (a "?" of 0.6 or later).
+    """
+    arm = ready_arm
+    await arm.set_pump(0)
+    arm.status_retry_interval = 0.2
+    arm.liveness_interval = 10.0
+    loop = asyncio.get_running_loop()
+    await emu.control("delay 900")
+    try:
+        first = asyncio.create_task(arm.status())
+        await asyncio.sleep(0.5)
+        pump = asyncio.create_task(arm.set_pump(500))
+        await asyncio.sleep(0)  # the line is written
+        started = loop.time()
+        report, asked_at = await arm._fetch_status(fresh=True, timeout=5.0)
+        assert asked_at >= started
+        assert report.pump_pwm == 500, report
+        await first
+        await pump
+    finally:
+        await emu.control("delay 0")
+
+
+async def test_no_line_is_written_while_a_second_concurrent_reset_awaits_its_banner(
+    ready_arm: Mirobot,
+) -> None:
+    """Reset A's banner starts; reset B is called then (it needs a banner of its own): A ends
+    first, and a line sent then must wait for B's banner instead of being lost to B's reset."""
+    arm = ready_arm
+    loop = asyncio.get_running_loop()
+    original_on_reset = arm._on_reset
+    second: list[asyncio.Task[tuple[str, ...]]] = []
+
+    def on_reset(event: Any) -> None:
+        original_on_reset(event)
+        if not second:
+            second.append(loop.create_task(arm.reset(timeout=5.0)))
+
+    arm._on_reset = on_reset  # type: ignore[method-assign]
+    await arm.reset(timeout=5.0)
+    assert second
+    reset_b = second[0]
+    assert not reset_b.done()
+    assert arm._resetting  # B still waits for its banner: nothing may be written
+    writes: list[str] = []
+    original_write = arm._write_line
+
+    def write_spy(data: bytes, command: str, exclusive: bool) -> Any:
+        writes.append(command)
+        return original_write(data, command, exclusive)
+
+    arm._write_line = write_spy  # type: ignore[method-assign]
+    # Held back until B's banner, then failed as documented for lines waiting for their turn.
+    with pytest.raises(MirobotResetError, match="not sent"):
+        await arm.send("M50", timeout=5.0)
+    assert writes == []
+    await reset_b
+    assert not arm._resetting
+    await arm.send("M50", timeout=5.0)
+    assert writes == ["M50"]
+
+
+class _PortSpy:
+    """Wraps ``serial.serial_for_url``: records each port opened and whether it was closed."""
+
+    def __init__(self, monkeypatch: pytest.MonkeyPatch, delay: float = 0.0) -> None:
+        import serial
+
+        self.ports: list[Any] = []
+        original = serial.serial_for_url
+
+        def opener(*args: Any, **kwargs: Any) -> Any:
+            if delay:
+                time.sleep(delay)  # (in the executor thread) an open that hangs a while
+            port = original(*args, **kwargs)
+            self.ports.append(port)
+            return port
+
+        monkeypatch.setattr(serial, "serial_for_url", opener)
+
+
+async def test_a_port_is_closed_when_building_its_transport_fails(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from mirobot_async import transport
+
+    spy = _PortSpy(monkeypatch)
+
+    def broken(*args: Any, **kwargs: Any) -> Any:
+        raise OSError("no transport today")
+
+    monkeypatch.setattr(transport, "_PolledSerialTransport", broken)
+    with pytest.raises(MirobotConnectionError, match="no transport today"):
+        await transport.SerialLink.open("loop://", on_data=lambda _: None, on_lost=lambda _: None)
+    assert len(spy.ports) == 1
+    assert not spy.ports[0].is_open
+
+
+async def test_a_port_opened_after_the_open_timed_out_is_closed(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from mirobot_async import transport
+
+    spy = _PortSpy(monkeypatch, delay=0.3)
+    with pytest.raises(MirobotConnectionError, match="within"):
+        await transport.SerialLink.open(
+            "loop://", on_data=lambda _: None, on_lost=lambda _: None, timeout=0.05
+        )
+    for _ in range(100):
+        await asyncio.sleep(0.02)
+        if spy.ports and not spy.ports[0].is_open:
+            break
+    assert len(spy.ports) == 1
+    assert not spy.ports[0].is_open
+
+
+async def test_a_port_opened_after_the_open_was_cancelled_is_closed(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from mirobot_async import transport
+
+    spy = _PortSpy(monkeypatch, delay=0.3)
+    opening = asyncio.create_task(
+        transport.SerialLink.open("loop://", on_data=lambda _: None, on_lost=lambda _: None)
+    )
+    await asyncio.sleep(0.05)
+    opening.cancel()
+    with pytest.raises(asyncio.CancelledError):
+        await opening
+    for _ in range(100):
+        await asyncio.sleep(0.02)
+        if spy.ports and not spy.ports[0].is_open:
+            break
+    assert len(spy.ports) == 1
+    assert not spy.ports[0].is_open
+
+
+async def test_a_stream_runs_in_a_task_through_its_run_coroutine(ready_arm: Mirobot) -> None:
+    arm = ready_arm
+    task = asyncio.create_task(arm.stream(["M3 S0", "M3 S10"] * 10).run())
+    result = await task
+    assert result.ok and result.sent == result.acknowledged == 20
+    stream = arm.stream(["M3 S0"])
+    assert (await stream).acknowledged == 1
+    with pytest.raises(MirobotUsageError, match="only once"):
+        await stream.run()
