@@ -475,18 +475,7 @@ class Firmware:
         self._hold = False
         self._check = False
         self._check_q: Vec7 = motion.ZERO
-        # parser state (set by _parser_init)
-        self._motion = 0
-        self._plane = 17
-        self._units = 21
-        self._distance = 90
-        self._feed_mode = 94
-        self._coord_select = 54
-        self._spindle = 5
-        self._coolant = 9
-        self._feed = 0.0
-        self._pump_pwm = 0.0
-        self._valve_pwm = 0.0
+        # parser state: modal groups, feed, PWMs (all set by _parser_init below)
         self._cart_mode = False
         self._cart: Pose = (0.0,) * 6
         self._power_on_condition(interrupted=False)

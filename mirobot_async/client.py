@@ -1557,6 +1557,12 @@ class Mirobot:
             )
         return result.output
 
+    async def _command_within(self, data: bytes, timeout: float | None) -> tuple[str, ...]:
+        """:meth:`_command` with a deadline ``timeout`` seconds from now (the one-line calls)."""
+        return await self._command(
+            data, deadline=_deadline(self._running_loop(), timeout), timeout=timeout
+        )
+
     async def _command(
         self,
         data: bytes,
@@ -2234,16 +2240,12 @@ class Mirobot:
         Errors, ``timeout`` (default :data:`DEFAULT_TIMEOUT`) and cancellation as in :meth:`send`.
         """
         data = gcode.set_pump(pwm)
-        await self._command(
-            data, deadline=_deadline(self._running_loop(), timeout), timeout=timeout
-        )
+        await self._command_within(data, timeout)
 
     async def set_valve(self, pwm: int, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
         """``M4 E<pwm>``: PWM output 2 (valve, or the V1.1 gripper). As :meth:`set_pump`."""
         data = gcode.set_valve(pwm)
-        await self._command(
-            data, deadline=_deadline(self._running_loop(), timeout), timeout=timeout
-        )
+        await self._command_within(data, timeout)
 
     async def suction_on(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
         """Suction cup: pump sucking (``M3 S1000``). As :meth:`set_pump`."""
@@ -2264,9 +2266,7 @@ class Mirobot:
 
         As :meth:`set_pump`."""
         data = gcode.set_gripper(False, legacy=legacy)
-        await self._command(
-            data, deadline=_deadline(self._running_loop(), timeout), timeout=timeout
-        )
+        await self._command_within(data, timeout)
 
     async def gripper_close(
         self, *, legacy: bool = False, timeout: float | None = DEFAULT_TIMEOUT
@@ -2275,9 +2275,7 @@ class Mirobot:
 
         As :meth:`set_pump`."""
         data = gcode.set_gripper(True, legacy=legacy)
-        await self._command(
-            data, deadline=_deadline(self._running_loop(), timeout), timeout=timeout
-        )
+        await self._command_within(data, timeout)
 
     # ---- settings ----
 
@@ -2288,9 +2286,7 @@ class Mirobot:
         :meth:`send`.
         """
         data = gcode.set_soft_limits(on)
-        await self._command(
-            data, deadline=_deadline(self._running_loop(), timeout), timeout=timeout
-        )
+        await self._command_within(data, timeout)
 
     async def set_hard_limits(self, on: bool, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
         """``$21=1|0``: stop with ``ALARM: Hard limit`` when a J1..J3 switch trips (on).
@@ -2299,9 +2295,7 @@ class Mirobot:
         :meth:`send`.
         """
         data = gcode.set_hard_limits(on)
-        await self._command(
-            data, deadline=_deadline(self._running_loop(), timeout), timeout=timeout
-        )
+        await self._command_within(data, timeout)
 
     async def _settings(self, deadline: float | None, timeout: float | None) -> dict[int, float]:
         output = await self._command(gcode.settings_dump(), deadline=deadline, timeout=timeout)
