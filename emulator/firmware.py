@@ -121,6 +121,7 @@ Taken from GRBL 0.9j / the open firmware where PROTOCOL.md is silent
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Final
@@ -153,6 +154,9 @@ LINE_BUFFER_SIZE: Final = 80
 
 DEFAULT_HOMING_SECONDS: Final = 10.0
 """Switch search of ``$H`` when the constructor is not told otherwise (PROTOCOL 9)."""
+
+MOTION_END_HISTORY: Final = 64
+"""How many ends of motion :attr:`Firmware.motion_end_times` keeps."""
 
 HOMING_RAIL_FACTOR: Final = 1.5
 """ASSUMED: ``$H0`` (arm and rail) searches this many times ``homing_seconds``."""
@@ -455,6 +459,10 @@ class Firmware:
         self.homing_seconds: float = float(homing_seconds)
         self.now: float = 0.0
         """Simulated seconds since power-on."""
+        self.motion_end_times: deque[float] = deque(maxlen=MOTION_END_HISTORY)
+        """Simulated instants at which the planner last went from busy to empty (newest last)."""
+        self.motion_ends: int = 0
+        """How many such instants there have been (``motion_end_times`` keeps the last ones)."""
         self.settings: dict[int, float] = cfg.default_settings(profile)
         self.rx_lost: int = 0
         """Bytes lost so far because the receive ring was full."""
@@ -526,6 +534,9 @@ class Firmware:
             self.now += ttc
             zero_steps = zero_steps + 1 if ttc == 0.0 else 0
             self._after_step()
+            if not self._planner.busy:
+                self.motion_end_times.append(self.now)
+                self.motion_ends += 1
             if zero_steps > 100_000:  # pragma: no cover - a planner bug, never loop forever
                 break
         self._service()

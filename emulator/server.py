@@ -40,6 +40,13 @@ What it models
   ``resets_in`` (``%``) received from the client; ``bytes_out`` written to it; the data faults'
   ``oks_seen``, ``dropped_oks``, ``status_lines``, ``corrupted_status``, ``ignored_status``;
   ``split_writes`` and ``ports_opened``. Tests use them to check what a client really sent.
+- **Ends of motion.** The control command ``motion-ends`` is answered ``ack motion-ends T ...``
+  with the ``time.monotonic()`` instants (oldest first, the last :data:`MOTION_END_HISTORY`) at
+  which the firmware's planner went from busy to empty. They are the firmware's simulated end
+  instants mapped to wall time through the clock (``wall = anchor + sim / time-scale``, exact
+  to the float), not the moments the loop noticed; at ``--time-scale 0`` motion has no duration
+  and the instant is when the loop ran it. ``time.monotonic()`` is system-wide on Linux, so
+  other processes can compare them with their own readings.
 - **Link faults.** ``delay`` holds every output line for a number of wall-clock milliseconds
   (order preserved; the firmware keeps running). ``split-bytes`` writes the output one byte per
   ``write``, and writes the next byte only once the previous one has reached the port and been
@@ -118,6 +125,7 @@ PACING_GRANULARITY_S = 0.002  # paced bytes are released in chunks of about this
 SPLIT_LANDING_S = 0.0003
 SPLIT_SPIN_S = 0.0003
 SPLIT_POLL_S = 0.0001
+MOTION_END_HISTORY = 64  # ends of motion answered to the ``motion-ends`` control command
 SPLIT_READ_WAIT_S = 0.002  # wait this long for the client to read a byte just written, ...
 SPLIT_RETRY_S = 0.001  # ... else look again this much later (from the loop)
 SPLIT_BUDGET_S = 0.005  # write bytes for at most this long, then serve input again
@@ -351,6 +359,9 @@ class EmulatorServer:
         self._master_eio_until = -math.inf
         self.ports_opened = 0  # input flushes seen (a client opening the port)
         self.firmware_errors = 0  # exceptions raised by the firmware model (logged, survived)
+        # Ends of motion (wall clock), read from the firmware's motion_end_times after each run.
+        self.motion_end_walls: deque[float] = deque(maxlen=MOTION_END_HISTORY)
+        self._motion_ends_seen = 0
 
     # ------------------------------------------------------------------ lifecycle
     def open(self) -> str:
@@ -478,6 +489,7 @@ class EmulatorServer:
             target = self._sim_time(wall)
             if target > fw.now:
                 fw.advance(target - fw.now)
+                self._collect_motion_ends(wall)
         else:
             self._run_to_idle()
 
@@ -487,6 +499,32 @@ class EmulatorServer:
         assert fw is not None
         if fw.next_deadline() is not None:
             fw.advance(math.inf)  # the firmware's "until nothing changes"; its clock stays finite
+            self._collect_motion_ends(time.monotonic())
+
+    def _collect_motion_ends(self, wall: float) -> None:
+        """Map the firmware's new ends of motion (simulated) to wall time; ``wall`` is now.
+
+        Called right after each ``advance``, before the clock's anchors can change, so the
+        mapping in force during the run is the one used.
+        """
+        fw = self.firmware
+        ends = getattr(fw, "motion_end_times", None)  # optional: not part of FirmwareLike
+        total = getattr(fw, "motion_ends", None)
+        if ends is None or not isinstance(total, int):
+            return
+        if total < self._motion_ends_seen:  # a new firmware object
+            self._motion_ends_seen = 0
+        new = min(total - self._motion_ends_seen, len(ends))
+        self._motion_ends_seen = total
+        if new <= 0:
+            return
+        for sim in list(ends)[len(ends) - new :]:
+            if self._scale > 0:
+                self.motion_end_walls.append(
+                    self._wall_anchor + (float(sim) - self._sim_anchor) / self._scale
+                )
+            else:
+                self.motion_end_walls.append(wall)
 
     # ------------------------------------------------------------------ loop
     def serve(self) -> str:
@@ -769,6 +807,18 @@ class EmulatorServer:
 
     def _handle_command(self, text: str, reply: Callable[[str], None] | None) -> None:
         answer = reply or self._on_reply
+        words = text.split()
+        if words and words[0].lower() == "motion-ends":
+            # A query of the server itself (not a fault): see "Ends of motion" above.
+            if len(words) > 1:
+                if answer:
+                    answer(f"error {text.strip()}: motion-ends takes no argument")
+                return
+            if self.firmware is not None and self._master >= 0:
+                self._guard(self._sync_clock, time.monotonic())
+            if answer:
+                answer(" ".join(["ack motion-ends", *(f"{t:.6f}" for t in self.motion_end_walls)]))
+            return
         try:
             command = parse_command(text)
         except FaultSpecError as exc:

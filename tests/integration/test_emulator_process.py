@@ -601,3 +601,29 @@ def test_control_errors(emulator: Callable[..., Emulator]) -> None:
     assert emu.command("time-scale 2") == "ack time-scale 2"
     with emu.port() as port:
         assert status(port)
+
+
+def test_control_motion_ends_reports_the_end_of_motion(emulator: Callable[..., Emulator]) -> None:
+    emu = emulator("--firmware", "2021", "--time-scale", "1")
+    with emu.port() as port:
+        unlock(port, "2021")
+        before = emu.command("motion-ends").split()[2:]
+        command(port, "M21 G90 G1 X2 F2000")
+        last_run_asked = time.monotonic()
+        while True:
+            asked = time.monotonic()
+            match = status(port)
+            if match["state"] == "Idle":
+                idle_seen = time.monotonic()
+                break
+            assert match["state"] == "Run", match[0]
+            last_run_asked = asked
+        words = emu.command("motion-ends").split()
+    assert words[:2] == ["ack", "motion-ends"]
+    ends = [float(word) for word in words[2:]]
+    assert len(ends) == len(before) + 1, words
+    end = ends[-1]
+    # The end lies between the last status that still showed Run and the first Idle one.
+    assert last_run_asked - 0.002 <= end <= idle_seen + 0.002, (last_run_asked, end, idle_seen)
+    assert idle_seen - end < 0.020
+    assert emu.command("motion-ends now").startswith("error motion-ends now:")
