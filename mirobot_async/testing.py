@@ -228,8 +228,9 @@ class EmulatorProcess:
     async def control(self, command: str, *, timeout: float = CONTROL_TIMEOUT) -> str:
         """Send one control command (``drop-ok``, ``corrupt-status``, ``ignore-status``,
         ``stall S``, ``hard-limit``, ``reset``, ``close``, ``time-scale X``, ``split-bytes on|off``,
-        ``delay MS``, ``stats``) and return the emulator's ``ack ...`` line, which means the fault
-        is armed or done (``stats`` answers with the emulator's counters in that line).
+        ``delay MS``, ``stats``, ``motion-ends``) and return the emulator's ``ack ...`` line, which
+        means the fault is armed or done (``stats`` answers with the emulator's counters in that
+        line, ``motion-ends`` with the ``time.monotonic()`` instants at which motion last ended).
 
         Raises :class:`EmulatorError` if the emulator refuses the command or has exited, and
         :class:`MirobotTimeoutError` after ``timeout`` seconds without an answer. Commands are
