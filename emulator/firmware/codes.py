@@ -1,0 +1,110 @@
+"""The firmware's numbers and texts: GRBL 0.9j status codes, error lines per profile, the
+Mirobot messages of PROTOCOL 4.3, the ``$`` help and the version strings."""
+
+from __future__ import annotations
+
+from typing import Final
+
+PROFILES: Final = ("classic", "2021")
+
+VERSIONS: Final = {"classic": "20191228_2", "2021": "20210516"}
+GRBL_VERSION: Final = "0.9j"
+BUILD_DATES: Final = {"classic": "20191228", "2021": "20210516"}  # ASSUMED ($I)
+
+# --- GRBL 0.9j status codes ---------------------------------------------------------------
+EXPECTED_COMMAND_LETTER: Final = 1
+BAD_NUMBER_FORMAT: Final = 2
+INVALID_STATEMENT: Final = 3
+NEGATIVE_VALUE: Final = 4
+SETTING_DISABLED: Final = 5
+SETTING_STEP_PULSE_MIN: Final = 6
+IDLE_ERROR: Final = 8
+ALARM_LOCK: Final = 9
+SOFT_LIMIT_ERROR: Final = 10
+OVERFLOW: Final = 11
+UNSUPPORTED_COMMAND: Final = 20
+MODAL_GROUP_VIOLATION: Final = 21
+UNDEFINED_FEED_RATE: Final = 22
+COMMAND_VALUE_NOT_INTEGER: Final = 23
+AXIS_COMMAND_CONFLICT: Final = 24
+WORD_REPEATED: Final = 25
+NO_AXIS_WORDS: Final = 26
+INVALID_LINE_NUMBER: Final = 27
+VALUE_WORD_MISSING: Final = 28
+G53_INVALID_MOTION_MODE: Final = 30
+AXIS_WORDS_EXIST: Final = 31
+NO_AXIS_WORDS_IN_PLANE: Final = 32
+INVALID_TARGET: Final = 33
+ARC_RADIUS_ERROR: Final = 34
+NO_OFFSETS_IN_PLANE: Final = 35
+UNUSED_WORDS: Final = 36
+
+_STATUS_TEXT: Final = {
+    EXPECTED_COMMAND_LETTER: "Expected command letter",
+    BAD_NUMBER_FORMAT: "Bad number format",
+    INVALID_STATEMENT: "Invalid statement",
+    NEGATIVE_VALUE: "Value < 0",
+    SETTING_DISABLED: "Setting disabled",
+    SETTING_STEP_PULSE_MIN: "Value < 3 usec",
+    7: "EEPROM read fail. Using defaults",
+    IDLE_ERROR: "Not idle",
+    ALARM_LOCK: "Alarm lock",
+    SOFT_LIMIT_ERROR: "Homing not enabled",
+    OVERFLOW: "Line overflow",
+    UNSUPPORTED_COMMAND: "Unsupported command",
+    MODAL_GROUP_VIOLATION: "Modal group violation",
+    UNDEFINED_FEED_RATE: "Undefined feed rate",
+}
+
+_CODES_2021: Final = {
+    UNDEFINED_FEED_RATE: (113, "Undefined feed rate"),  # 2021 manual 2.1.3
+    ARC_RADIUS_ERROR: (116, "Arc radius error"),  # 2021 manual 2.1.9
+}
+
+# --- Mirobot texts (PROTOCOL 4.3, exact) ------------------------------------------------------
+TEXT_LOCKED: Final = "Locked status of each axis!"
+TEXT_SOFT_LIMIT: Final = "Soft limit triggered:"
+TEXT_UNREACHABLE: Final = "GOAL OUT OF WORKSPACE, THERE IS NO VAILD VALUS FOR  THETA3!"
+TEXT_OUT_OF_LIMIT: Final = "There is one angle out of limit!!!"
+TEXT_M50: Final = "M50: Unlock each axis."
+TEXT_M20: Final = "M20: Cartesian mode start."
+TEXT_M21: Final = "M21: Angle mode start."
+TEXT_HOMED: Final = {"classic": "in homeing moving...ok", "2021": "Info, in homing moving...ok"}
+FEEDBACK_RESET_TO_CONTINUE: Final = "[Reset to continue]"
+FEEDBACK_ALARM_LOCK: Final = "['$H'|'$X' to unlock]"
+FEEDBACK_UNLOCKED: Final = "[Caution: Unlocked]"
+
+HELP: Final = (
+    "$$ (view Grbl settings)",
+    "$# (view # parameters)",
+    "$G (view parser state)",
+    "$I (view build info)",
+    "$N (view startup blocks)",
+    "$x=value (save Grbl setting)",
+    "$Nx=line (save startup block)",
+    "$C (check gcode mode)",
+    "$X (kill alarm lock)",
+    "$H (run homing cycle)",
+    "~ (cycle start)",
+    "! (feed hold)",
+    "? (current status)",
+    "ctrl-x (reset Grbl)",
+)
+
+
+def error_text(status: int) -> str:
+    """The classic text of GRBL 0.9j status ``status`` (PROTOCOL 4.1)."""
+    return _STATUS_TEXT.get(status, f"Invalid gcode ID:{status}")
+
+
+def error_line(profile: str, status: int) -> str:
+    """The final reply of a failed line, per profile (ASSUMED code rule for 2021)."""
+    if profile == "classic":
+        return f"error: {error_text(status)}"
+    code, text = _CODES_2021.get(status, (100 + status, error_text(status)))
+    return f"Error, E{code},{text}"
+
+
+def refusal_lines(text: str) -> list[str]:
+    """ASSUMED shape of the "ok but dropped" texts: an empty line, then the text."""
+    return ["", text]

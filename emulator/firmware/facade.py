@@ -1,0 +1,275 @@
+"""The :class:`Firmware` facade: bytes in, bytes out, an explicit clock; realtime bytes and the
+loop that feeds received lines to the ``$`` commands and the G-code executor."""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from typing import Final
+
+from .. import motion
+from ..motion import Vec7
+from . import codes as c
+from .gcode import GcodeExecutor
+from .linebuffer import RX_BUFFER_SIZE
+from .machine import Machine
+from .reports import banner, status_line
+from .scanner import read_float
+from .system import SystemCommands
+
+DEFAULT_HOMING_SECONDS: Final = 10.0
+"""Switch search of ``$H`` when the constructor is not told otherwise (PROTOCOL 9)."""
+
+MOTION_END_HISTORY: Final = 64
+"""How many ends of motion :attr:`Firmware.motion_end_times` keeps."""
+
+STATUS_DURING_CRITICAL_ALARM: Final = False
+"""Whether ``?`` is answered after a hard limit, before the reset. GRBL 0.9j's critical-event
+loop does not answer it (its status report there is commented out as a TODO); PROTOCOL 6.1:
+"nothing but ``%`` is processed until reset"."""
+
+_REALTIME: Final = frozenset(b"?!~%")
+
+
+class Firmware:
+    """A virtual Mirobot controller: call :meth:`receive`, :meth:`advance`, :meth:`read_output`.
+
+    ``profile`` is ``"classic"`` (20191228_2) or ``"2021"`` (20210516); ``homing_seconds`` the
+    switch search of ``$H`` (default :data:`DEFAULT_HOMING_SECONDS`). The arm is powered on at
+    construction: the banner is already in the output.
+    """
+
+    def __init__(self, profile: str = "2021", *, homing_seconds: float | None = None) -> None:
+        if profile not in c.PROFILES:
+            raise ValueError(f"unknown firmware profile {profile!r} (use 'classic' or '2021')")
+        if homing_seconds is None:
+            homing_seconds = DEFAULT_HOMING_SECONDS
+        if not (math.isfinite(homing_seconds) and homing_seconds >= 0.0):
+            raise ValueError(f"homing_seconds must be finite and >= 0, got {homing_seconds}")
+        self.profile: str = profile
+        self.homing_seconds: float = float(homing_seconds)
+        self.now: float = 0.0
+        """Simulated seconds since power-on."""
+        self.motion_end_times: deque[float] = deque(maxlen=MOTION_END_HISTORY)
+        """Simulated instants at which the planner last went from busy to empty (newest last)."""
+        self.motion_ends: int = 0
+        """How many such instants there have been (``motion_end_times`` keeps the last ones)."""
+        self._m = Machine(profile, self.homing_seconds)
+        self.settings: dict[int, float] = self._m.settings
+        self._system = SystemCommands(self._m, self.reset)
+        self._gcode = GcodeExecutor(self._m)
+        self._m.power_on_condition(interrupted=False)
+        self._m.parser_init(feed=200.0)
+        self._m.emit_lines(banner(self._m))
+
+    # ------------------------------------------------------------------------------------------
+    # public API
+
+    def receive(self, data: bytes) -> None:
+        """Bytes from the host. Realtime bytes act at once wherever they are; the others enter
+        the 128-byte receive ring (lost when it is full) and complete lines are executed as soon
+        as the parser is free (not waiting for the planner, a homing search, a dwell or a hold).
+        """
+        for byte in bytes(data):
+            if byte in _REALTIME:
+                self._realtime(byte)
+                continue
+            if self._m.rx.put(byte) and not self._m.blocked():
+                self._pump()
+
+    def advance(self, dt: float) -> None:
+        """Run the simulated clock ``dt`` seconds (``math.inf``: until nothing changes by itself).
+
+        Lines waiting for the planner are executed as blocks finish, their replies printed.
+        """
+        if not dt >= 0.0:
+            raise ValueError(f"dt must be >= 0, got {dt}")
+        planner = self._m.planner
+        end = self.now + dt
+        self._service()
+        zero_steps = 0
+        while True:
+            ttc = planner.time_to_next_change()
+            if ttc is None:
+                if not math.isinf(end):
+                    self.now = end
+                break
+            left = end - self.now
+            if ttc > left:
+                planner.advance(left)
+                self.now = end
+                break
+            planner.advance(ttc)
+            self.now += ttc
+            zero_steps = zero_steps + 1 if ttc == 0.0 else 0
+            self._after_step()
+            if not planner.busy:
+                self.motion_end_times.append(self.now)
+                self.motion_ends += 1
+            if zero_steps > 100_000:  # pragma: no cover - a planner bug, never loop forever
+                break
+        self._service()
+
+    def read_output(self) -> bytes:
+        """Everything printed since the last call (each line ends ``\\r\\n``)."""
+        out = bytes(self._m.out)
+        self._m.out.clear()
+        return out
+
+    def next_deadline(self) -> float | None:
+        """Simulated time of the next internal change, None when nothing changes by itself."""
+        ttc = self._m.planner.time_to_next_change()
+        return None if ttc is None else self.now + ttc
+
+    def reset(self) -> None:
+        """Soft reset, exactly as if ``%`` had arrived."""
+        m = self._m
+        interrupted = False
+        if not m.critical:
+            running = m.planner.running
+            if running is not None and running.kind == "home_search":
+                m.emit("ALARM: Homing fail")
+                interrupted = True
+            elif m.moving():
+                m.emit("ALARM: Abort during cycle")
+                interrupted = True
+        else:
+            interrupted = True  # the hard-limit alarm survives the reset
+        m.planner.abort()
+        m.rx.clear()
+        m.pending = None
+        m.limit_blocks.clear()
+        m.hold = False
+        m.check = False
+        m.critical = False
+        m.power_on_condition(interrupted=interrupted)
+        m.parser_init(feed=200.0)
+        m.emit_lines(banner(m))
+
+    def trigger_hard_limit(self, axis: int = 1) -> None:
+        """Fault injection: a limit switch (``axis``, informative) closes now.
+
+        Motion stops at once, ``ALARM: Hard limit`` and ``[Reset to continue]`` are printed and
+        nothing but ``%`` is processed until a reset. Ignored while already in that state.
+        """
+        del axis  # the firmware does not say which switch
+        if not self._m.critical:
+            self._m.hard_limit_alarm()
+
+    def status_line(self) -> str:
+        """The status report at this instant, without its ``\\r\\n`` (PROTOCOL 5)."""
+        return status_line(self._m)
+
+    @property
+    def state(self) -> str:
+        """The state word of the status report (``Idle``, ``Run``, ``Hold``, ``Home``, ...)."""
+        return self._m.state
+
+    @property
+    def joints(self) -> Vec7:
+        """Current joint position: J1..J6 (degrees) and the rail (mm)."""
+        return self._m.planner.position
+
+    @property
+    def rx_free(self) -> int:
+        """Free bytes in the 128-byte receive ring."""
+        return self._m.rx.free
+
+    @property
+    def rx_lost(self) -> int:
+        """Bytes lost so far because the receive ring was full."""
+        return self._m.rx.lost
+
+    @property
+    def locked(self) -> bool:
+        """True while the axes are locked (power-on / reset lock; ``M50`` or homing clears it)."""
+        return self._m.locked
+
+    @property
+    def parser_blocked(self) -> bool:
+        """True while received lines wait (planner full, homing search, dwell, hold, alarm)."""
+        return self._m.blocked()
+
+    # ------------------------------------------------------------------------------------------
+    # realtime bytes
+
+    def _realtime(self, byte: int) -> None:
+        m = self._m
+        if byte == 0x25:  # %
+            self.reset()
+            self._service()
+            return
+        if m.critical and not (byte == 0x3F and STATUS_DURING_CRITICAL_ALARM):
+            return  # nothing but % until reset (GRBL's critical-event loop)
+        if byte == 0x3F:  # ?
+            m.emit(status_line(m))
+        elif byte == 0x21:  # !
+            running = m.planner.running
+            if (
+                m.alarm
+                or m.check
+                or (running is not None and running.kind not in motion.HOLDABLE_KINDS)
+            ):
+                return  # GRBL ignores a feed hold in Alarm, check mode and homing
+            m.hold = True
+            m.planner.hold()
+        elif byte == 0x7E and m.hold:  # ~
+            m.hold = False
+            m.planner.resume()
+            self._service()
+
+    # ------------------------------------------------------------------------------------------
+    # the main loop: pending lines, received bytes
+
+    def _after_step(self) -> None:
+        m = self._m
+        if m.limit_blocks:
+            queued = m.planner.blocks
+            for block in m.limit_blocks:
+                if not any(b is block for b in queued):
+                    m.hard_limit_alarm()
+                    return
+        self._service()
+
+    def _service(self) -> None:
+        """Push waiting blocks, finish waiting lines, then execute received lines."""
+        m = self._m
+        while True:
+            if m.pending is not None and not m.progress_pending():
+                return
+            if m.blocked() or not len(m.rx):
+                return
+            self._pump()
+
+    def _pump(self) -> None:
+        """Take complete lines from the receive ring and execute them while the parser is free."""
+        m = self._m
+        while not m.blocked():
+            line = m.rx.take_line()
+            if line is None:
+                return
+            if line.overflow:
+                m.error(c.OVERFLOW)
+            else:
+                self._execute_line(line.text)
+
+    def _execute_line(self, line: str) -> None:
+        m = self._m
+        if not line:
+            m.emit("ok")
+        elif line[0] == "$":
+            self._system.execute(line)
+        elif m.alarm and not self._m50_allowed_in_alarm(line):
+            m.error(c.ALARM_LOCK)
+        else:
+            self._gcode.execute(line)
+
+    def _m50_allowed_in_alarm(self, line: str) -> bool:
+        """ASSUMED: on 2021 a bare ``M50`` unlocks even in Alarm (the manual's power-on use)."""
+        if self.profile != "2021" or line[:1] != "M":
+            return False
+        parsed = read_float(line, 1)
+        return parsed is not None and parsed == (50.0, len(line))
+
+
+__all__ = ["RX_BUFFER_SIZE", "Firmware"]

@@ -1,0 +1,126 @@
+"""STEP 4 of GRBL 0.9j's parser: a valid G-code line executed on the :class:`Machine`."""
+
+from __future__ import annotations
+
+from .. import motion
+from ..motion import Block
+from . import codes as c
+from .geometry import Refusal, pose6
+from .machine import Machine, Pending
+from .scanner import scan
+from .validation import CheckedLine, check_line
+
+
+class GcodeExecutor:
+    """Scans, checks and executes one G-code line (prints its replies)."""
+
+    def __init__(self, machine: Machine) -> None:
+        self.m = machine
+
+    def execute(self, line: str) -> None:
+        m = self.m
+        scanned = scan(line, m.profile)
+        if isinstance(scanned, int):
+            m.error(scanned)
+            return
+        checked = check_line(scanned, m.modal, m.parser_q(), m.geometry)
+        if isinstance(checked, int):
+            m.error(checked)
+            return
+        self._run(checked)
+
+    def _set_modal(self, line: CheckedLine) -> list[str]:
+        """The modal effects of a valid line; the information lines it prints."""
+        m = self.m
+        g = line.block
+        modal = m.modal
+        out: list[str] = []
+        modal.feed_mode = line.feed_mode
+        modal.feed = line.feed
+        modal.pump_pwm = line.pump
+        modal.valve_pwm = line.valve
+        if g.spindle is not None:
+            modal.spindle = g.spindle
+        if g.coolant is not None:
+            modal.coolant = g.coolant
+        if g.plane is not None:
+            modal.plane = g.plane
+        modal.units = line.units
+        modal.distance = line.distance
+        if g.coord_select is not None:
+            modal.coord_select = g.coord_select
+        modal.motion = line.motion_mode
+        if g.unlock:
+            m.locked = False
+            m.alarm = False
+            out.append(m.info(c.TEXT_M50))
+        if g.coord_mode == 20:
+            modal.cart_mode = True
+            modal.cart = pose6(line.base[:6])
+            if m.profile == "2021":
+                out.append(m.info(c.TEXT_M20))
+        elif g.coord_mode == 21:
+            modal.cart_mode = False
+            if m.profile == "2021":
+                out.append(m.info(c.TEXT_M21))
+        return out
+
+    def _run(self, line: CheckedLine) -> None:
+        m = self.m
+        g = line.block
+        q0 = m.parser_q()
+        out = self._set_modal(line)
+        blocks: list[Block] = []
+        hard_limit: Block | None = None
+        wait_idle = False
+        if g.nonmodal == 4 and not m.check:
+            wait_idle = True
+            # The dwell starts where the queued motion ends; the motion of this line follows.
+            blocks.append(motion.dwell_block(g.words["P"], m.planner.planned_position))
+        if line.axis_command and line.motion_mode != 80:
+            start = blocks[-1].end if blocks else q0
+            try:
+                new_blocks, hard_limit, end_q = m.moves.plan(
+                    line.motion_mode,
+                    line.cart,
+                    start,
+                    line.target,
+                    line.feed,
+                    line.feed_mode,
+                    line.arc,
+                    cart_start=m.modal.cart,
+                    locked=m.locked,
+                    check=m.check,
+                )
+            except Refusal as refusal:
+                out += c.refusal_lines(refusal.text)
+            else:
+                if m.check:
+                    m.check_q = end_q
+                blocks += new_blocks
+                if line.cart:
+                    m.modal.cart = pose6(line.target[:6])
+        m.emit_lines(out)
+
+        flow = g.flow
+        if flow in (0, 2, 30) and not m.check:
+            wait_idle = True
+        if not blocks and not wait_idle:
+            if flow in (2, 30):
+                m.modal.program_end()
+                m.emit("[Pgm End]")
+            m.emit("ok")
+            return
+
+        def finish() -> list[str]:
+            if flow in (2, 30):
+                m.modal.program_end()
+                return ["[Pgm End]", "ok"]
+            if flow == 0:
+                m.hold = True
+                return []
+            return ["ok"]
+
+        then = Pending([], "released", lambda: ["ok"]) if flow == 0 else None
+        until = "idle" if wait_idle else "queued"
+        m.wait(Pending(blocks, until, finish, then=then, hard_limit=hard_limit))

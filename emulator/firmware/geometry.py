@@ -1,0 +1,170 @@
+"""The arm's geometry from the settings: FK, firmware-branch IK, soft limits, limit switches.
+
+IK failures arrive as the kinematics module's typed exceptions and leave here as
+:class:`Refusal` carrying the firmware's text (:func:`kinematics_refusal`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Final
+
+from mirobot_async import kinematics as kin
+
+from .. import motion
+from ..motion import AxisLimits, Vec7
+from . import codes as c
+
+Pose = tuple[float, float, float, float, float, float]
+
+HARD_LIMIT_SWITCHES: Final[tuple[tuple[float, float], ...]] = tuple(kin.JOINT_LIMITS[:3])
+"""ASSUMED: positions (deg) of the J1..J3 limit switches: the factory range ends."""
+
+FW_LETTERS: Final = "ABCDXYZ"  # soft-limit letters in the firmware's axis order a..g
+
+
+class Refusal(Exception):
+    """A motion refused with one of the "ok but dropped" texts."""
+
+    def __init__(self, text: str) -> None:
+        super().__init__(text)
+        self.text = text
+
+
+def kinematics_refusal(exc: kin.Unreachable | kin.OutOfLimits) -> Refusal:
+    """The firmware's text for a typed IK failure."""
+    if isinstance(exc, kin.OutOfLimits):
+        return Refusal(c.TEXT_OUT_OF_LIMIT)
+    return Refusal(c.TEXT_UNREACHABLE)
+
+
+def lerp(a: Sequence[float], b: Sequence[float], u: float) -> tuple[float, ...]:
+    """The point ``u`` of the way from ``a`` to ``b``."""
+    return tuple(x + (y - x) * u for x, y in zip(a, b, strict=True))
+
+
+def vec7(values: Sequence[float]) -> Vec7:
+    """The first seven numbers of ``values`` as a joint vector."""
+    return (
+        float(values[0]),
+        float(values[1]),
+        float(values[2]),
+        float(values[3]),
+        float(values[4]),
+        float(values[5]),
+        float(values[6]),
+    )
+
+
+def pose6(values: Sequence[float]) -> Pose:
+    """The first six numbers of ``values`` as a pose."""
+    return (
+        float(values[0]),
+        float(values[1]),
+        float(values[2]),
+        float(values[3]),
+        float(values[4]),
+        float(values[5]),
+    )
+
+
+class Geometry:
+    """FK, IK and limits of one profile, read from the live ``settings`` mapping."""
+
+    def __init__(self, profile: str, settings: Mapping[int, float]) -> None:
+        self.profile = profile
+        self.settings = settings
+
+    def dh_values(self) -> tuple[float, float, float, float, float, float]:
+        """D1, A1, A2, A3, D4, L (classic: fixed; 2021: ``$29..$34``)."""
+        if self.profile == "classic":
+            dh = kin.DH_CLASSIC
+            return (dh.d1, dh.a1, dh.a2, dh.a3, dh.d4, dh.l)
+        s = self.settings
+        return (s[29], s[30], s[31], s[32], s[33], s[34])
+
+    def dh(self) -> kin.DH:
+        return kin.DH(*self.dh_values())
+
+    def tool(self) -> tuple[float, float, float]:
+        """The tool offset (2021 ``$46..$48``)."""
+        if self.profile == "classic":
+            return (0.0, 0.0, 0.0)
+        return (self.settings[46], self.settings[47], self.settings[48])
+
+    def base_offset(self) -> tuple[float, float, float]:
+        """The base offset added to absolute ``M20`` targets (2021 ``$41..$43``)."""
+        if self.profile == "classic":
+            return (0.0, 0.0, 0.0)
+        return (self.settings[41], self.settings[42], self.settings[43])
+
+    def fk(self, q: Sequence[float]) -> Pose:
+        return pose6(kin.forward(tuple(q[:6]), self.dh(), self.tool()))
+
+    def ik(self, pose: Sequence[float], *, check_limits: bool = True) -> tuple[float, ...]:
+        """Firmware-branch IK, raising :class:`Refusal` with the firmware's text."""
+        try:
+            return tuple(
+                kin.inverse(
+                    tuple(float(v) for v in pose),
+                    self.dh(),
+                    "firmware",
+                    tool=self.tool(),
+                    limits=kin.JOINT_LIMITS if check_limits else None,
+                )
+            )
+        except (kin.Unreachable, kin.OutOfLimits) as exc:
+            raise kinematics_refusal(exc) from None
+
+    def limits(self) -> AxisLimits:
+        return AxisLimits.from_settings(self.settings)
+
+    def soft_violation(self, q: Sequence[float]) -> str | None:
+        """The firmware letter of the first axis (order a..g) outside its ``$13x/$14x`` range."""
+        if self.settings[20] == 0:
+            return None
+        for k, letter in enumerate(FW_LETTERS):
+            value = q[motion.LETTER_TO_JOINT[k]]
+            if value > self.settings[130 + k] or value < -self.settings[140 + k]:
+                return letter
+        return None
+
+    @staticmethod
+    def limit_pins(q: Sequence[float]) -> int:
+        """The ``Lim`` bits of the J1..J3 switches closed at ``q``."""
+        pins = 0
+        for j, (lo, hi) in enumerate(HARD_LIMIT_SWITCHES):
+            if q[j] <= lo + 1e-9 or q[j] >= hi - 1e-9:
+                pins |= 1 << (j + 4)  # J1..J3 are the firmware axes e, f, g (bits 4..6)
+        return pins
+
+    def switch_crossing(self, start: Sequence[float], end: Sequence[float]) -> Vec7 | None:
+        """Where a joint move first carries J1..J3 out of their switches (``$21=1``), or None."""
+        if not self.settings[21]:
+            return None
+        best: float | None = None
+        for j, (lo, hi) in enumerate(HARD_LIMIT_SWITCHES):
+            a, b = start[j], end[j]
+            if not lo <= a <= hi or lo <= b <= hi:
+                continue
+            edge = hi if b > hi else lo
+            f = (edge - a) / (b - a)
+            if best is None or f < best:
+                best = f
+        if best is None:
+            return None
+        point = list(lerp(start, end, best))
+        for j, (lo, hi) in enumerate(HARD_LIMIT_SWITCHES):
+            point[j] = min(max(point[j], lo), hi) if lo <= start[j] <= hi else point[j]
+        return vec7(point)
+
+    @staticmethod
+    def unwrap(q: Sequence[float], ref: Sequence[float]) -> tuple[float, ...]:
+        """Shift J4 and J6 by whole turns to lie nearest to ``ref`` (within their ranges)."""
+        out = list(q[:6])
+        for j in (3, 5):
+            lo, hi = kin.JOINT_LIMITS[j]
+            shifted = out[j] + 360.0 * round((ref[j] - out[j]) / 360.0)
+            if lo <= shifted <= hi:
+                out[j] = shifted
+        return tuple(out)

@@ -1,0 +1,99 @@
+"""The receive ring and the line discipline (PROTOCOL 2): bytes in, filtered lines out.
+
+A byte enters the 128-byte ring (lost when it is full); the parser takes bytes from the ring
+into the line buffer only while it is free, so the ring is what the host's character counting
+sees. Filtering: ``\\r`` or ``\\n`` end a line, bytes ``<= 0x20`` and ``/`` are dropped, ``(...)``
+and ``;`` comments removed, letters upper-cased.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Final
+
+RX_BUFFER_SIZE: Final = 128
+"""Receive ring in bytes (ASSUMED: all 128 usable)."""
+
+LINE_BUFFER_SIZE: Final = 80
+"""Longest accepted line after filtering, in bytes (ASSUMED: 80 accepted, 81 overflow)."""
+
+_NO_COMMENT: Final = 0
+_PARENTHESES: Final = 1
+_SEMICOLON: Final = 2
+
+
+@dataclass(frozen=True, slots=True)
+class ReceivedLine:
+    """A complete filtered line, or an overflowing one (``overflow``: its text is cut)."""
+
+    text: str
+    overflow: bool = False
+
+
+class LineBuffer:
+    """The 128-byte receive ring plus the line being assembled from it."""
+
+    def __init__(self) -> None:
+        self.lost: int = 0
+        """Bytes lost so far because the ring was full."""
+        self._ring = bytearray()
+        self._line = bytearray()
+        self._comment = _NO_COMMENT
+        self._overflow = False
+
+    def __len__(self) -> int:
+        """Bytes waiting in the ring."""
+        return len(self._ring)
+
+    @property
+    def free(self) -> int:
+        """Free bytes in the ring."""
+        return RX_BUFFER_SIZE - len(self._ring)
+
+    def put(self, c: int) -> bool:
+        """One received byte into the ring; False (and counted as lost) when the ring is full."""
+        if len(self._ring) >= RX_BUFFER_SIZE:
+            self.lost += 1
+            return False
+        self._ring.append(c)
+        return True
+
+    def clear(self) -> None:
+        """Drop the ring and the partial line (soft reset)."""
+        self._ring.clear()
+        self._line.clear()
+        self._comment = _NO_COMMENT
+        self._overflow = False
+
+    def take_line(self) -> ReceivedLine | None:
+        """Move bytes from the ring into the line until one line is complete; None if the ring
+        ran dry first (the partial line is kept)."""
+        ring = self._ring
+        while ring:
+            c = ring[0]
+            del ring[0]
+            if c in (0x0A, 0x0D):
+                line = ReceivedLine(self._line.decode("latin-1"), self._overflow)
+                self._line.clear()
+                self._comment = _NO_COMMENT
+                self._overflow = False
+                return line
+            self._filter(c)
+        return None
+
+    def _filter(self, c: int) -> None:
+        if self._comment:
+            if c == 0x29 and self._comment == _PARENTHESES:  # ')'
+                self._comment = _NO_COMMENT
+        elif c <= 0x20 or c == 0x2F:  # whitespace, control bytes, '/' (block delete)
+            pass
+        elif c == 0x28:  # '('
+            self._comment = _PARENTHESES
+        elif c == 0x3B:  # ';'
+            self._comment = _SEMICOLON
+        elif len(self._line) >= LINE_BUFFER_SIZE:
+            self._overflow = True
+        elif 0x61 <= c <= 0x7A:
+            self._line.append(c - 0x20)
+        else:
+            self._line.append(c)

@@ -1,0 +1,180 @@
+"""The controller's shared state: settings, planner, modal state, machine flags, the output
+and the line that waits for the planner (:class:`Pending`). The ``$`` commands, the G-code
+executor and the :class:`~mirobot_emulator.firmware.Firmware` facade all work on one
+:class:`Machine`."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+from .. import motion
+from .. import settings as cfg
+from ..motion import Block, Planner, Vec7
+from . import codes as c
+from .geometry import Geometry
+from .linebuffer import LineBuffer
+from .modal import ModalState
+from .moves import MoveBuilder
+
+N_STARTUP_LINE = 2  # GRBL 0.9j config.h
+
+
+@dataclass
+class Pending:
+    """A line whose final reply waits for the planner (the parser is blocked meanwhile).
+
+    ``blocks`` are pushed as slots free up; then ``until`` must hold: ``"queued"`` (nothing
+    more), ``"idle"`` (the planner is empty), ``"searched"`` (no homing search left) or
+    ``"released"`` (the feed hold is released). ``finish`` then acts and returns the lines to
+    print (the final reply last); ``then`` is the next stage, if any.
+    """
+
+    blocks: list[Block]
+    until: str
+    finish: Callable[[], list[str]]
+    then: Pending | None = None
+    hard_limit: Block | None = None
+
+
+class Machine:
+    """Everything the firmware knows between two bytes, and how it prints."""
+
+    def __init__(self, profile: str, homing_seconds: float) -> None:
+        self.profile = profile
+        self.homing_seconds = homing_seconds
+        self.settings: dict[int, float] = cfg.default_settings(profile)
+        self.geometry = Geometry(profile, self.settings)
+        self.moves = MoveBuilder(self.geometry, self.settings)
+        self.planner = Planner(motion.ZERO)
+        self.modal = ModalState()
+        self.rx = LineBuffer()
+        self.out = bytearray()
+        self.pending: Pending | None = None
+        self.limit_blocks: list[Block] = []
+        """Blocks that end on a limit switch: the alarm fires when one of them is done."""
+        self.startup_lines = [""] * N_STARTUP_LINE
+        self.build_info = ""
+        self.alarm = False
+        self.critical = False
+        """A hard-limit alarm: nothing but ``%`` is processed until reset."""
+        self.locked = True
+        self.hold = False
+        self.check = False
+        self.check_q: Vec7 = motion.ZERO
+        """The joints the parser works from in check mode (``$C``)."""
+
+    # output ---------------------------------------------------------------------------------
+
+    def emit(self, line: str) -> None:
+        self.out += line.encode("latin-1", "replace") + b"\r\n"
+
+    def emit_lines(self, lines: Sequence[str]) -> None:
+        for line in lines:
+            self.emit(line)
+
+    def error(self, status: int) -> None:
+        self.emit(c.error_line(self.profile, status))
+
+    def reply(self, status: int) -> None:
+        """``ok`` for status 0, else the error line."""
+        if status:
+            self.error(status)
+        else:
+            self.emit("ok")
+
+    def info(self, text: str) -> str:
+        """``text`` as the profile prints an information line."""
+        return text if self.profile == "classic" else f"Info, {text}"
+
+    # state ----------------------------------------------------------------------------------
+
+    @property
+    def state(self) -> str:
+        """The state word of the status report (``Idle``, ``Run``, ``Hold``, ``Home``, ...)."""
+        if self.alarm or self.critical:
+            return "Alarm"
+        if self.hold:
+            return "Hold"
+        planner_state = self.planner.state
+        if planner_state == "home":
+            return "Home"
+        if planner_state == "hold":
+            return "Hold"
+        if self.check:
+            return "Check"
+        if planner_state == "run":
+            return "Run"
+        return "Idle"
+
+    def power_on_condition(self, *, interrupted: bool) -> None:
+        """ASSUMED: locked after power-on and every reset; 2021 then in Alarm too."""
+        self.locked = True
+        self.alarm = interrupted or self.profile == "2021"
+
+    def parser_init(self, *, feed: float) -> None:
+        """GRBL ``gc_init`` with ``feed``; the pose is the FK of the planned joints."""
+        self.modal.init(feed=feed, pose=self.geometry.fk(self.planner.planned_position))
+
+    def moving(self) -> bool:
+        """True when the arm is physically in motion (a reset then loses position)."""
+        running = self.planner.running
+        if running is None or running.kind == "dwell":
+            return False
+        if self.planner.held:
+            return self.planner.time_to_next_change() is not None
+        return True
+
+    def blocked(self) -> bool:
+        """True while received lines wait (planner full, homing, dwell, hold, alarm)."""
+        return self.pending is not None or self.hold or self.critical
+
+    def parser_q(self) -> Vec7:
+        """The joints the parser works from (the end of queued motion)."""
+        return self.check_q if self.check else self.planner.planned_position
+
+    def hard_limit_alarm(self) -> None:
+        """A limit switch closed: stop, print the alarm, refuse everything but ``%``."""
+        self.emit("ALARM: Hard limit")
+        self.emit(c.FEEDBACK_RESET_TO_CONTINUE)
+        self.planner.abort()
+        self.limit_blocks.clear()
+        self.pending = None
+        self.hold = False
+        self.alarm = True
+        self.critical = True
+
+    # the waiting line -----------------------------------------------------------------------
+
+    def wait(self, pending: Pending) -> None:
+        """Make ``pending`` the waiting line and progress it as far as possible now."""
+        self.pending = pending
+        self.progress_pending()
+
+    def progress_pending(self) -> bool:
+        """Advance the waiting line; True when it is finished (the parser is free again)."""
+        while self.pending is not None:
+            p = self.pending
+            while p.blocks and self.planner.free > 0:
+                self.planner.push(p.blocks.pop(0))
+            if p.blocks:
+                return False
+            if p.hard_limit is not None:
+                self.limit_blocks.append(p.hard_limit)
+                p.hard_limit = None
+            if not self._pending_done(p.until):
+                return False
+            self.pending = p.then
+            self.emit_lines(p.finish())
+        return True
+
+    def _pending_done(self, until: str) -> bool:
+        if until == "queued":
+            return True
+        if until == "idle":
+            return not self.planner.busy
+        if until == "searched":
+            return not any(b.kind == "home_search" for b in self.planner.blocks)
+        if until == "released":
+            return not self.hold
+        raise AssertionError(until)  # pragma: no cover

@@ -1,0 +1,260 @@
+"""Accepted motion lines into planner blocks (:mod:`mirobot_emulator.motion`): joint moves,
+Cartesian lines, arcs and gate moves, checked sample by sample before anything moves."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Final
+
+import numpy as np
+
+from .. import motion
+from ..motion import Block, Vec7
+from . import codes as c
+from .geometry import Geometry, Pose, Refusal, lerp, pose6, vec7
+
+PATH_SAMPLE_MM: Final = 2.0
+"""Cartesian paths are checked (IK, limits) every this many mm ..."""
+PATH_SAMPLE_DEG: Final = 2.0
+"""... and every this many degrees of orientation change."""
+
+MAX_PATH_CHECK_SAMPLES: Final = 2000
+"""ASSUMED cap on the check samples of one path (a huge re-orientation is sampled coarser)."""
+
+MAX_FEED: Final = 1e12
+MIN_FEED: Final = 1e-9
+"""Clamps for G93 inverse-time feeds that overflow or vanish (units/min)."""
+
+SNAP_TOLERANCE: Final = 1e-4
+"""Largest joint gap (deg) between the arm and the IK of its pose that needs no snap move."""
+
+PathAt = Callable[[float], tuple[Pose, float]]
+Segment = tuple[PathAt, float, int]
+"""A path piece: pose and rail at ``u`` in [0, 1], its length (mm), its check samples."""
+
+Planned = tuple[list[Block], Block | None, Vec7]
+"""The blocks of a line, the block that ends on a limit switch (if any), the end joints."""
+
+
+@dataclass
+class Arc:
+    """An XY arc of the commanded pose: centre, radius, start angle and signed travel."""
+
+    cx: float
+    cy: float
+    radius: float
+    start_angle: float
+    travel: float
+
+
+def sample_count(length: float, turn: float) -> int:
+    """Check samples of a path of ``length`` mm turning ``turn`` degrees (capped)."""
+    n = max(
+        1,
+        math.ceil(length / PATH_SAMPLE_MM - 1e-9),
+        math.ceil(turn / PATH_SAMPLE_DEG - 1e-9),
+    )
+    return min(n, MAX_PATH_CHECK_SAMPLES)
+
+
+def line_segment(p0: Pose, p1: Pose, rail0: float, rail1: float) -> Segment:
+    length = math.dist(p0[:3], p1[:3])
+    turn = max(abs(b - a) for a, b in zip(p0[3:], p1[3:], strict=True))
+    n = sample_count(length, turn)
+
+    def at(u: float) -> tuple[Pose, float]:
+        if u >= 1.0:
+            return p1, rail1
+        return pose6(lerp(p0, p1, u)), rail0 + (rail1 - rail0) * u
+
+    return at, length, n
+
+
+def arc_segment(arc: Arc, p0: Pose, p1: Pose, rail0: float, rail1: float) -> Segment:
+    dz = p1[2] - p0[2]
+    length = math.hypot(abs(arc.travel) * arc.radius, dz)
+    turn = max(abs(b - a) for a, b in zip(p0[3:], p1[3:], strict=True))
+    n = sample_count(length, turn)
+
+    def at(u: float) -> tuple[Pose, float]:
+        if u <= 0.0:
+            return p0, rail0
+        if u >= 1.0:
+            return p1, rail1
+        angle = arc.start_angle + arc.travel * u
+        x = arc.cx + arc.radius * math.cos(angle)
+        y = arc.cy + arc.radius * math.sin(angle)
+        rest = lerp(p0[2:], p1[2:], u)
+        return pose6((x, y, *rest)), rail0 + (rail1 - rail0) * u
+
+    return at, length, n
+
+
+class MoveBuilder:
+    """Builds the blocks of one accepted motion line (raises :class:`Refusal`)."""
+
+    def __init__(self, geometry: Geometry, settings: Mapping[int, float]) -> None:
+        self.geometry = geometry
+        self.settings = settings
+
+    def plan(
+        self,
+        motion_mode: int,
+        cart: bool,
+        start: Vec7,
+        target: Vec7,
+        feed: float,
+        feed_mode: int,
+        arc: Arc | None,
+        *,
+        cart_start: Pose,
+        locked: bool,
+        check: bool,
+    ) -> Planned:
+        """The blocks of a motion line from ``start`` (joints; ``cart_start`` the commanded
+        pose there) to ``target`` (joints, or pose + rail when ``cart``)."""
+        if not cart:
+            if locked:
+                raise Refusal(c.TEXT_LOCKED)
+            rate = None if motion_mode == 0 else feed
+            return self.joint_move(start, target, rate, feed_mode, check=check)
+        if motion_mode == 0:
+            q = self.geometry.ik(target[:6])
+            end = vec7((*q, target[6]))
+            if locked:
+                raise Refusal(c.TEXT_LOCKED)
+            return self.joint_move(start, end, None, feed_mode, check=check)
+        p0 = cart_start
+        rail0 = start[6]
+        segments: list[Segment] = []
+        if motion_mode == 1:
+            segments.append(line_segment(p0, pose6(target[:6]), rail0, target[6]))
+        elif motion_mode == 5:
+            lift = self.settings[49]
+            z_top = max(p0[2], target[2]) + lift
+            up = (p0[0], p0[1], z_top, p0[3], p0[4], p0[5])
+            over = (target[0], target[1], z_top, target[3], target[4], target[5])
+            segments.append(line_segment(p0, up, rail0, rail0))
+            segments.append(line_segment(up, over, rail0, target[6]))
+            segments.append(line_segment(over, pose6(target[:6]), target[6], target[6]))
+        else:
+            assert arc is not None
+            segments.append(arc_segment(arc, p0, pose6(target[:6]), rail0, target[6]))
+        return self.path_move(start, segments, feed, feed_mode, locked=locked, check=check)
+
+    def joint_move(
+        self, start: Vec7, end: Vec7, feed: float | None, feed_mode: int, *, check: bool
+    ) -> Planned:
+        """One joint-space block (feed None: rapid), cut at a limit switch."""
+        letter = self.geometry.soft_violation(end)
+        if letter is not None:
+            raise Refusal(c.TEXT_SOFT_LIMIT + letter)
+        if check:
+            return [], None, end
+        cut = self.geometry.switch_crossing(start, end)
+        if cut is not None:
+            end = cut
+        length = math.sqrt(math.fsum((b - a) ** 2 for a, b in zip(start, end, strict=True)))
+        if length == 0.0 and cut is None:
+            return [], None, end
+        if feed is not None and feed_mode == 93:
+            feed = feed * length
+        if feed is not None and not math.isfinite(feed):
+            feed = None  # the max rates limit the motion
+        elif feed is not None and feed <= 0.0:
+            feed = MIN_FEED
+        try:
+            block = motion.joint_block(start, end, feed, self.geometry.limits())
+        except ValueError:
+            raise Refusal(c.TEXT_UNREACHABLE) from None
+        return [block], (block if cut is not None else None), end
+
+    def path_move(
+        self,
+        start: Vec7,
+        segments: Sequence[Segment],
+        feed: float,
+        feed_mode: int,
+        *,
+        locked: bool,
+        check: bool,
+    ) -> Planned:
+        """Check every sample of every segment, then build the blocks (raises Refusal)."""
+        geometry = self.geometry
+        checked: list[tuple[PathAt, float, list[Vec7]]] = []
+        prev: Sequence[float] = start
+        for at, length, n in segments:
+            refs: list[Vec7] = []
+            for k in range(n + 1):
+                pose, rail = at(k / n)
+                q = geometry.unwrap(geometry.ik(pose), prev)
+                refs.append(vec7((*q, rail)))
+                prev = refs[-1]
+            checked.append((at, length, refs))
+        # soft limits on every sample (the IK limits were checked above)
+        for _at, _length, refs in checked:
+            for q in refs:
+                letter = geometry.soft_violation(q)
+                if letter is not None:
+                    raise Refusal(c.TEXT_SOFT_LIMIT + letter)
+        if locked:
+            raise Refusal(c.TEXT_LOCKED)
+        if check:
+            return [], None, checked[-1][2][-1]
+        limits = geometry.limits()
+        blocks: list[Block] = []
+        current = start
+        for at, length, refs in checked:
+            gap = max(abs(a - b) for a, b in zip(refs[0], current, strict=True))
+            if gap > SNAP_TOLERANCE:
+                blocks.append(motion.joint_block(current, refs[0], None, limits))
+                current = refs[0]
+            poses = self._poses_function(at, refs, current)
+            still = max(abs(a - b) for a, b in zip(refs[-1], current, strict=True)) == 0.0
+            if length == 0.0 and still:
+                continue
+            rate = feed
+            if feed_mode == 93:
+                span = length if length > 0.0 else math.dist(refs[0], refs[-1])
+                rate = feed * span
+            if not math.isfinite(rate):
+                rate = MAX_FEED  # an absurd G93 feed: the max rates limit the motion
+            elif rate <= 0.0:
+                rate = MIN_FEED
+            try:
+                block = motion.path_block(current, poses, length, rate, limits)
+            except ValueError:
+                raise Refusal(c.TEXT_UNREACHABLE) from None
+            blocks.append(block)
+            current = block.end
+        return blocks, None, current
+
+    def _poses_function(
+        self, at: PathAt, refs: Sequence[Vec7], start: Vec7
+    ) -> Callable[[float], Vec7]:
+        """``poses(u)`` for :func:`motion.path_block`: IK of the path, continuous in J4/J6."""
+        geometry = self.geometry
+        ref_array = np.asarray(refs, dtype=np.float64)
+        n = len(refs) - 1
+
+        def poses(u: float) -> Vec7:
+            if u <= 0.0:
+                return start
+            pose, rail = at(u)
+            if u >= 1.0:
+                return refs[-1]
+            k = min(int(u * n), n - 1)
+            f = u * n - k
+            ref = ref_array[k] + (ref_array[k + 1] - ref_array[k]) * f
+            q = geometry.unwrap(geometry.ik(pose, check_limits=False), ref.tolist())
+            return vec7((*q, rail))
+
+        def safe(u: float) -> Vec7:
+            try:
+                return poses(u)
+            except Refusal as exc:
+                raise ValueError(exc.text) from None
+
+        return safe

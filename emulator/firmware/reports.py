@@ -1,0 +1,88 @@
+"""What the firmware prints about itself: the status report, the banner, ``$#``."""
+
+from __future__ import annotations
+
+import math
+
+from .. import motion
+from .. import settings as cfg
+from . import codes as c
+from .machine import Machine
+from .scanner import uint8
+
+
+def fmt(value: float) -> str:
+    """A status number: 3 decimals; ASSUMED ``0.000`` rather than ``-0.000``."""
+    text = cfg.grbl_float(value)
+    return "0.000" if text == "-0.000" else text
+
+
+def status_line(m: Machine) -> str:
+    """The status report at this instant, without its ``\\r\\n`` (PROTOCOL 5)."""
+    mask = uint8(m.settings[10])
+    parts = ["<", m.state]
+    q = m.planner.position
+    if mask & 1:
+        wire = (q[3], q[4], q[5], q[6], q[0], q[1], q[2])
+        parts.append(",Angle(ABCDXYZ):")
+        parts.append(",".join(fmt(v) for v in wire))
+        pose = m.geometry.fk(q)
+        parts.append(",Cartesian coordinate(XYZ RxRyRz):")
+        parts.append(",".join(fmt(v) for v in pose))
+    if mask & 32:
+        pump = math.trunc(m.modal.pump_pwm) % 2**32
+        valve = math.trunc(m.modal.valve_pwm) % 2**32
+        parts.append(f",Pump PWM:{pump},Valve PWM:{valve}")
+    if mask & 64:
+        parts.append(f",Motion_MODE:{1 if m.modal.cart_mode else 0}")
+    if mask & 4:
+        parts.append(f",Buf:{len(m.planner.blocks)}")
+    if mask & 8:
+        parts.append(f",RX:{len(m.rx)}")
+    if mask & 16:
+        parts.append(f",Lim:{m.geometry.limit_pins(q):07b}")
+    parts.append(">")
+    return "".join(parts)
+
+
+def banner(m: Machine) -> list[str]:
+    """The welcome message (PROTOCOL 4.2), then the unlock hint when in Alarm."""
+    d1, a1, a2, a3, d4, el = m.geometry.dh_values()
+    offsets = m.geometry.base_offset()
+    pose = m.geometry.fk(motion.ZERO)
+    lines = [
+        "",
+        f"Grbl {c.GRBL_VERSION} ['$' for help]",
+        "",
+        f"Qinnew Robot {c.VERSIONS[m.profile]} based on Grbl {c.GRBL_VERSION} ['$' for help]",
+        "",
+        f"D1: {int(d1)}",
+        f"A1: {int(a1)}",
+        f"A2: {int(a2)}",
+        f"A3: {int(a3)}",
+        f"D4: {int(d4)}",
+        f"L: {int(el)}",
+        f"X offset: {int(offsets[0])}",
+        f"Y offset: {int(offsets[1])}",
+        f"Z offset: {int(offsets[2])}",
+        "Initialized Cartesian coordinates and rotation: ",
+        f"X: {int(pose[0])}",
+        f"Y: {int(pose[1])}",
+        f"Z: {int(pose[2])}",
+        f"RX: {int(pose[3])}",
+        f"RY: {int(pose[4])}",
+        f"RZ: {int(pose[5])}",
+        "Using reset pos!",
+    ]
+    if m.alarm:
+        lines.append(c.FEEDBACK_ALARM_LOCK)
+    return lines
+
+
+def ngc_parameters() -> list[str]:
+    """``$#``: every offset is zero (work coordinate systems are not modelled)."""
+    zeros = ",".join(["0.000"] * motion.AXES)
+    lines = [f"[G{n}:{zeros}]" for n in range(54, 60)]
+    lines += [f"[G28:{zeros}]", f"[G30:{zeros}]", f"[G92:{zeros}]", "[TLO:0.000]"]
+    lines.append(f"[PRB:{zeros}:0]")
+    return lines

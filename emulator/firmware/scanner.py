@@ -1,0 +1,195 @@
+"""STEP 2 of GRBL 0.9j's parser: a filtered line into its words (:class:`GBlock`), with the
+modal-group, repeat and sign checks; plus GRBL's number reading."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Final
+
+from . import codes as c
+
+AXIS_WORDS: Final = "XYZABCD"  # index = joint (M21: J1..J6, rail) or pose component (M20)
+_VALUE_WORDS: Final = frozenset("FIJKLNPRSETXYZABCD")
+_NON_NEGATIVE_WORDS: Final = frozenset("FNPTSE")
+
+
+def read_float(line: str, i: int) -> tuple[float, int] | None:
+    """GRBL 0.9j ``read_float``: sign, digits, one point, at most 8 significant digits kept.
+
+    Returns the value and the index after it, or None when no digit was read.
+    """
+    n = len(line)
+    negative = False
+    if i < n and line[i] in "+-":
+        negative = line[i] == "-"
+        i += 1
+    intval = 0
+    exp = 0
+    ndigit = 0
+    decimal = False
+    while i < n:
+        ch = line[i]
+        if "0" <= ch <= "9":
+            ndigit += 1
+            if ndigit <= 8:
+                if decimal:
+                    exp -= 1
+                intval = intval * 10 + (ord(ch) - 48)
+            elif not decimal:
+                exp += 1
+        elif ch == "." and not decimal:
+            decimal = True
+        else:
+            break
+        i += 1
+    if ndigit == 0:
+        return None
+    value = float(intval) * 10.0**exp if intval else 0.0
+    return (-value if negative else value), i
+
+
+def c_round(x: float) -> int:
+    """C ``round``: half away from zero."""
+    return math.floor(x + 0.5) if x >= 0 else -math.floor(-x + 0.5)
+
+
+def uint8(value: float) -> int:
+    """C conversion of a float to ``uint8_t`` as GRBL does it for command numbers."""
+    return math.trunc(value) % 256
+
+
+@dataclass
+class GBlock:
+    """The words of one G-code line (GRBL's ``parser_block_t``)."""
+
+    nonmodal: int | None = None  # 4 (dwell) or 53 (absolute override)
+    motion: int | None = None  # 0, 1, 2, 3, 5 (2021 gate), 80
+    axis_command: bool = False  # an explicit G0..G3/G5 in the line
+    plane: int | None = None
+    distance: int | None = None
+    feed_mode: int | None = None
+    units: int | None = None
+    coord_select: int | None = None
+    flow: int | None = None  # M0, M1, M2, M30
+    spindle: int | None = None  # M3, M4, M5
+    coolant: int | None = None  # M8, M9
+    coord_mode: int | None = None  # M20, M21
+    unlock: bool = False  # M50
+    words: dict[str, float] = field(default_factory=dict)
+
+
+def scan(line: str, profile: str) -> GBlock | int:
+    """The words of ``line``, or the GRBL status of the first scanning error."""
+    g = GBlock()
+    groups: set[str] = set()
+    i = 0
+    n = len(line)
+    while i < n:
+        letter = line[i]
+        if not "A" <= letter <= "Z":
+            return c.EXPECTED_COMMAND_LETTER
+        parsed = read_float(line, i + 1)
+        if parsed is None:
+            return c.BAD_NUMBER_FORMAT
+        value, i = parsed
+        int_value = uint8(value)
+        mantissa = c_round(100.0 * (value - int_value)) % 65536
+        if letter == "G":
+            status = _g_word(g, int_value, mantissa, groups, profile)
+        elif letter == "M":
+            status = _m_word(g, int_value, mantissa, groups)
+        else:
+            status = _value_word(g, letter, value)
+        if status:
+            return status
+    return g
+
+
+def _m_word(g: GBlock, code: int, mantissa: int, groups: set[str]) -> int:
+    if mantissa:
+        return c.COMMAND_VALUE_NOT_INTEGER
+    if code in (0, 1, 2, 30):
+        group = "M4"
+        g.flow = code
+    elif code in (3, 4, 5):
+        group = "M7"
+        g.spindle = code
+    elif code in (8, 9):
+        group = "M8"
+        g.coolant = code
+    elif code in (20, 21):
+        group = "M20"
+        g.coord_mode = code
+    elif code == 50:
+        group = "M50"
+        g.unlock = True
+    else:
+        return c.UNSUPPORTED_COMMAND
+    if group in groups:
+        return c.MODAL_GROUP_VIOLATION
+    groups.add(group)
+    return 0
+
+
+def _value_word(g: GBlock, letter: str, value: float) -> int:
+    if letter not in _VALUE_WORDS:
+        return c.UNSUPPORTED_COMMAND
+    if letter in g.words:
+        return c.WORD_REPEATED
+    if letter in _NON_NEGATIVE_WORDS and value < 0:
+        return c.NEGATIVE_VALUE
+    g.words[letter] = value
+    return 0
+
+
+def _g_word(g: GBlock, code: int, mantissa: int, groups: set[str], profile: str) -> int:
+    if code in (10, 28, 30, 38, 43, 49, 92):
+        return c.UNSUPPORTED_COMMAND  # not modelled (see the package docstring)
+    if code in (4, 53):
+        group = "G0"
+        g.nonmodal = code
+    elif code in (0, 1, 2, 3, 5, 80):
+        if code in (2, 3, 5) and profile == "classic":
+            return c.UNSUPPORTED_COMMAND
+        if code != 80:
+            if g.axis_command:
+                return c.AXIS_COMMAND_CONFLICT
+            g.axis_command = True
+        group = "G1"
+        g.motion = code
+    elif code in (17, 18, 19):
+        group = "G2"
+        g.plane = code
+    elif code in (90, 91):
+        if mantissa == 0:
+            group = "G3"
+            g.distance = code
+        else:
+            group = "G4"
+            if mantissa != 10 or code == 90:
+                return c.UNSUPPORTED_COMMAND
+            mantissa = 0
+    elif code in (93, 94):
+        group = "G5"
+        g.feed_mode = code
+    elif code in (20, 21):
+        group = "G6"
+        g.units = code
+    elif code == 40:
+        group = "G7"
+    elif 54 <= code <= 59:
+        group = "G12"
+        g.coord_select = code
+    elif code == 61:
+        group = "G13"
+        if mantissa:
+            return c.UNSUPPORTED_COMMAND
+    else:
+        return c.UNSUPPORTED_COMMAND
+    if mantissa:
+        return c.COMMAND_VALUE_NOT_INTEGER
+    if group in groups:
+        return c.MODAL_GROUP_VIOLATION
+    groups.add(group)
+    return 0

@@ -1,0 +1,259 @@
+"""The ``$`` system commands: help, settings, ``$G``, ``$#``, ``$I``, ``$N``, ``$C``, ``$X``,
+``$RST``, homing (``$H`` and variants) and the 2021 ``$M``."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Final
+
+from .. import motion
+from .. import settings as cfg
+from . import codes as c
+from .geometry import vec7
+from .machine import N_STARTUP_LINE, Machine, Pending
+from .reports import ngc_parameters
+from .scanner import read_float, uint8
+
+HOMING_RAIL_FACTOR: Final = 1.5
+"""ASSUMED: ``$H0`` (arm and rail) searches this many times ``homing_seconds``."""
+
+HOMING_SINGLE_AXIS_FACTOR: Final = 0.4
+"""ASSUMED: ``$H1..$H7`` (a single axis) search this fraction of ``homing_seconds``."""
+
+FREE_MEMORY: Final = 2036
+"""The number of the classic ``Free memory:`` line (any number, PROTOCOL 4.3)."""
+
+
+class SystemCommands:
+    """Executes a line starting with ``$``; ``reset`` is the soft reset (``$C`` off, ``$RST``)."""
+
+    def __init__(self, machine: Machine, reset: Callable[[], None]) -> None:
+        self.m = machine
+        self.reset = reset
+
+    def _idle_or_alarm(self) -> bool:
+        return self.m.state in ("Idle", "Alarm")
+
+    def execute(self, line: str) -> None:
+        m = self.m
+        if len(line) == 1:
+            m.emit_lines(c.HELP)
+            m.emit("ok")
+            return
+        kind = line[1]
+        if kind in "$GCX":
+            self._simple(line, kind)
+            return
+        if not self._idle_or_alarm():
+            m.error(c.IDLE_ERROR)
+            return
+        if kind == "#":
+            if len(line) != 2:
+                m.error(c.INVALID_STATEMENT)
+                return
+            m.emit_lines(ngc_parameters())
+            m.emit("ok")
+        elif kind == "H":
+            self._home(line)
+        elif kind == "I":
+            self._build_info(line)
+        elif kind == "R":
+            self._restore(line)
+        elif kind == "N" and len(line) == 2:
+            for n, text in enumerate(m.startup_lines):
+                m.emit(f"$N{n}={text}")
+            m.emit("ok")
+        elif kind == "N":
+            self._store_startup_line(line)
+        elif kind == "M" and m.profile == "2021":
+            self._zero_move(line)
+        else:
+            self._store_setting(line)
+
+    def _simple(self, line: str, kind: str) -> None:
+        """``$$``, ``$G``, ``$C``, ``$X`` (allowed in any state but a few)."""
+        m = self.m
+        if len(line) > 2 and line[2] != "H":
+            m.error(c.INVALID_STATEMENT)
+            return
+        if kind == "$":
+            if m.state in ("Run", "Hold"):
+                m.error(c.IDLE_ERROR)
+                return
+            m.emit_lines(cfg.format_dump(m.settings, m.profile))
+        elif kind == "G":
+            m.emit(m.modal.report())
+        elif kind == "C":
+            if m.check:
+                m.emit("[Disabled]")
+                m.emit("ok")
+                self.reset()
+                return
+            if m.state != "Idle":
+                m.error(c.IDLE_ERROR)
+                return
+            m.check = True
+            m.check_q = m.planner.planned_position
+            m.emit("[Enabled]")
+        elif m.alarm:  # $X
+            m.emit(c.FEEDBACK_UNLOCKED)
+            m.alarm = False
+        m.emit("ok")
+
+    def _build_info(self, line: str) -> None:
+        m = self.m
+        if len(line) == 2:
+            m.emit(f"[{c.GRBL_VERSION}.{c.BUILD_DATES[m.profile]}:{m.build_info}]")
+        elif line[2] != "=":
+            m.error(c.INVALID_STATEMENT)
+            return
+        else:
+            m.build_info = line[3:]
+        m.emit("ok")
+
+    def _restore(self, line: str) -> None:
+        m = self.m
+        if len(line) != 6 or line[2:5] != "ST=" or line[5] not in "$#*":
+            m.error(c.INVALID_STATEMENT)
+            return
+        if line[5] in "$*":
+            m.settings.clear()  # in place: holders of ``settings`` see the change
+            m.settings.update(cfg.default_settings(m.profile))
+        if line[5] == "*":
+            m.startup_lines = [""] * N_STARTUP_LINE
+            m.build_info = ""
+        m.emit("[Restoring defaults]")
+        m.emit("ok")
+        self.reset()
+
+    def _store_startup_line(self, line: str) -> None:
+        m = self.m
+        parsed = read_float(line, 2)
+        if parsed is None:
+            m.error(c.BAD_NUMBER_FORMAT)
+            return
+        number, i = parsed
+        if i >= len(line) or line[i] != "=":
+            m.error(c.INVALID_STATEMENT)
+            return
+        if m.state != "Idle":
+            m.error(c.IDLE_ERROR)
+            return
+        n = math.trunc(number)
+        if not 0 <= n < N_STARTUP_LINE:
+            m.error(c.INVALID_STATEMENT)
+            return
+        m.startup_lines[n] = line[i + 1 :]
+        m.emit("ok")
+
+    def _store_setting(self, line: str) -> None:
+        m = self.m
+        parsed = read_float(line, 1)
+        if parsed is None:
+            m.error(c.BAD_NUMBER_FORMAT)
+            return
+        parameter, i = parsed
+        if i >= len(line) or line[i] != "=":
+            m.error(c.INVALID_STATEMENT)
+            return
+        parsed = read_float(line, i + 1)
+        if parsed is None:
+            m.error(c.BAD_NUMBER_FORMAT)
+            return
+        value, i = parsed
+        if i != len(line) or parameter > 255:
+            m.error(c.INVALID_STATEMENT)
+            return
+        m.reply(self._set_setting(uint8(parameter), value))
+
+    def _set_setting(self, number: int, value: float) -> int:
+        """Store setting ``number``; the GRBL status (0 = ok)."""
+        m = self.m
+        if value < 0 and not (m.profile == "2021" and number in cfg.SIGNED_2021):
+            return c.NEGATIVE_VALUE
+        spec = cfg.spec(m.profile, number)
+        if spec is None:
+            return c.INVALID_STATEMENT
+        if spec.kind != "float":
+            ivalue = math.trunc(value)
+            if number == 0 and ivalue % 256 < 3:
+                return c.SETTING_STEP_PULSE_MIN
+            if number in (20, 21, 22):
+                ivalue = 1 if ivalue % 256 else 0
+            value = float(ivalue % 65536 if number == 26 else ivalue % 256)
+        if number == 20 and value and not m.settings[22]:
+            return c.SOFT_LIMIT_ERROR
+        m.settings[number] = value
+        if number == 22 and not value:
+            m.settings[20] = 0.0  # GRBL: disabling homing disables soft limits
+        return 0
+
+    # homing and $M -------------------------------------------------------------------------
+
+    def _home(self, line: str) -> None:
+        m = self.m
+        if not m.settings[22]:
+            m.error(c.SETTING_DISABLED)
+            return
+        suffix = line[2:]
+        seconds = m.homing_seconds
+        sequential = suffix[:1] == "H"
+        order: tuple[tuple[int, ...], ...] | None = None
+        axes: tuple[int, ...] = motion.ARM_AXES
+        home_rail = False
+        if m.profile == "2021" and not sequential:
+            if suffix == "E":
+                sequential = True
+                order = ((1, 2), (0, 3, 4))
+            elif suffix == "0":
+                home_rail = True
+                seconds *= HOMING_RAIL_FACTOR
+            elif len(suffix) == 1 and "1" <= suffix <= "7":
+                axis = int(suffix) - 1
+                seconds *= HOMING_SINGLE_AXIS_FACTOR
+                if axis == motion.RAIL:
+                    axes = ()
+                    home_rail = True
+                else:
+                    axes = (axis,)
+        blocks = motion.homing_blocks(
+            m.planner.planned_position,
+            seconds,
+            m.geometry.limits(),
+            sequential,
+            order=order,
+            axes=axes,
+            home_rail=home_rail,
+        )
+        m.alarm = False
+        if m.profile == "classic":
+            m.emit_lines(["", f"Free memory: {FREE_MEMORY}"])
+
+        def finish() -> list[str]:
+            m.locked = False
+            m.parser_init(feed=0.0)
+            return [c.TEXT_HOMED[m.profile]]
+
+        m.wait(Pending(blocks, "searched", finish))
+
+    def _zero_move(self, line: str) -> None:
+        """2021 ``$M``: rapid move of J1..J6 to zero (ASSUMED details in the package doc)."""
+        m = self.m
+        if line != "$M":
+            m.error(c.INVALID_STATEMENT)
+            return
+        if m.alarm:
+            m.error(c.ALARM_LOCK)
+            return
+        if m.locked:
+            m.emit_lines([*c.refusal_lines(c.TEXT_LOCKED), "ok"])
+            return
+        start = m.planner.planned_position
+        target = vec7((0.0, 0.0, 0.0, 0.0, 0.0, 0.0, start[6]))
+        block = motion.joint_block(start, target, None, m.geometry.limits())
+        m.modal.cart = m.geometry.fk(target)
+        if block.length == 0.0:
+            m.emit("ok")
+            return
+        m.wait(Pending([block], "queued", lambda: ["ok"]))

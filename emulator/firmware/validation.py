@@ -1,0 +1,183 @@
+"""STEP 3 of GRBL 0.9j's parser: a scanned line checked against the modal state, its target
+computed; the result (:class:`CheckedLine`) or the GRBL status of the first error."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Final
+
+from ..motion import Vec7
+from . import codes as c
+from .geometry import Geometry, vec7
+from .modal import ModalState
+from .moves import Arc
+from .scanner import AXIS_WORDS, GBlock
+
+ARC_ANGULAR_TRAVEL_EPSILON: Final = 5e-7  # GRBL 0.9j config.h
+MAX_LINE_NUMBER: Final = 9999999  # GRBL 0.9j gcode.c
+MM_PER_INCH: Final = 25.4
+
+
+@dataclass
+class CheckedLine:
+    """A valid line: the modal values it sets and where its motion goes."""
+
+    block: GBlock
+    cart: bool
+    motion_mode: int
+    distance: int
+    units: int
+    feed_mode: int
+    feed: float
+    pump: float
+    valve: float
+    base: tuple[float, ...]
+    """Where the target is measured from: joints, or the commanded pose and the rail."""
+    target: Vec7
+    axis_command: bool
+    arc: Arc | None
+
+
+def check_line(g: GBlock, modal: ModalState, q0: Vec7, geometry: Geometry) -> CheckedLine | int:
+    """GRBL's error checks of ``g`` in the order of its parser; ``q0`` the parser's joints."""
+    words = g.words
+    cart = modal.cart_mode if g.coord_mode is None else g.coord_mode == 20
+    motion_mode = modal.motion if g.motion is None else g.motion
+    distance = modal.distance if g.distance is None else g.distance
+    units = modal.units if g.units is None else g.units
+    feed_mode = modal.feed_mode if g.feed_mode is None else g.feed_mode
+    axis_letters = [letter for letter in AXIS_WORDS if letter in words]
+    axis_command = g.axis_command or bool(axis_letters)
+    used = set("NFSTE")
+
+    # [non-specific] line number
+    if "N" in words and words["N"] > MAX_LINE_NUMBER:
+        return c.INVALID_LINE_NUMBER
+    # [2, 3] feed rate mode and feed rate
+    if feed_mode == 93:
+        if axis_command and "F" not in words:
+            return c.UNDEFINED_FEED_RATE
+        feed = words.get("F", 0.0)
+    elif modal.feed_mode == 94:
+        scale_f = MM_PER_INCH if units == 20 else 1.0
+        feed = words["F"] * scale_f if "F" in words else modal.feed
+    else:
+        feed = words.get("F", 0.0)
+    pump = words.get("S", modal.pump_pwm)
+    valve = words.get("E", modal.valve_pwm)
+    # [10] dwell
+    if g.nonmodal == 4:
+        if "P" not in words:
+            return c.VALUE_WORD_MISSING
+        used.add("P")
+    # [12] units; [19] target
+    scale = MM_PER_INCH if units == 20 else 1.0
+    base: tuple[float, ...]
+    if cart:
+        fresh = g.coord_mode == 20 or not modal.cart_mode
+        base_pose = geometry.fk(q0) if fresh else modal.cart
+        base = (*base_pose, q0[6])
+        offset: tuple[float, ...] = (*geometry.base_offset(), 0.0, 0.0, 0.0, 0.0)
+    else:
+        base = q0
+        offset = (0.0,) * 7
+    target_list = list(base)
+    for k, letter in enumerate(AXIS_WORDS):
+        if letter in words:
+            value = words[letter] * scale
+            if distance == 90:
+                target_list[k] = value + offset[k]
+            else:
+                target_list[k] = value + base[k]
+    target = vec7(target_list)
+    # [19] G53
+    if g.nonmodal == 53 and motion_mode not in (0, 1):
+        return c.G53_INVALID_MOTION_MODE
+    # [20] motion modes
+    arc: Arc | None = None
+    if motion_mode == 80:
+        if axis_letters:
+            return c.AXIS_WORDS_EXIST
+    elif axis_command:
+        if motion_mode in (2, 3, 5) and not cart:
+            return c.UNSUPPORTED_COMMAND  # ASSUMED: no arcs / gates in joint mode
+        if motion_mode == 0:
+            axis_command = bool(axis_letters)
+        else:
+            if feed == 0.0:
+                return c.UNDEFINED_FEED_RATE
+            if motion_mode in (1, 5):
+                axis_command = bool(axis_letters)
+            else:
+                result = check_arc(motion_mode, words, axis_letters, base, target, scale)
+                if isinstance(result, int):
+                    return result
+                arc, arc_words = result
+                used |= arc_words
+    if axis_command:
+        used |= set(AXIS_WORDS)
+    if set(words) - used:
+        return c.UNUSED_WORDS
+    return CheckedLine(
+        g, cart, motion_mode, distance, units, feed_mode, feed, pump, valve,
+        base, target, axis_command, arc,
+    )  # fmt: skip
+
+
+def check_arc(
+    motion_mode: int,
+    words: dict[str, float],
+    axis_letters: list[str],
+    base: Sequence[float],
+    target: Vec7,
+    scale: float,
+) -> tuple[Arc, set[str]] | int:
+    """GRBL's G2/G3 checks in the XY plane of the commanded pose; the arc or a status."""
+    if not axis_letters:
+        return c.NO_AXIS_WORDS
+    if "X" not in words and "Y" not in words:
+        return c.NO_AXIS_WORDS_IN_PLANE
+    x0, y0 = base[0], base[1]
+    x = target[0] - x0
+    y = target[1] - y0
+    if "R" in words:
+        if x == 0.0 and y == 0.0:
+            return c.INVALID_TARGET
+        r = words["R"] * scale
+        h2 = 4.0 * r * r - x * x - y * y
+        if h2 < 0:
+            return c.ARC_RADIUS_ERROR
+        h_x2_div_d = -math.sqrt(h2) / math.hypot(x, y)
+        if motion_mode == 3:
+            h_x2_div_d = -h_x2_div_d
+        if r < 0:
+            h_x2_div_d = -h_x2_div_d
+            r = -r
+        i_off = 0.5 * (x - y * h_x2_div_d)
+        j_off = 0.5 * (y + x * h_x2_div_d)
+        used = {"R"}
+    else:
+        if "I" not in words and "J" not in words:
+            return c.NO_OFFSETS_IN_PLANE
+        i_off = words.get("I", 0.0) * scale
+        j_off = words.get("J", 0.0) * scale
+        target_r = math.hypot(x - i_off, y - j_off)
+        r = math.hypot(i_off, j_off)
+        delta_r = abs(target_r - r)
+        if delta_r > 0.005 and (delta_r > 0.5 or delta_r > 0.001 * r):
+            return c.INVALID_TARGET
+        if r == 0.0:
+            return c.INVALID_TARGET
+        used = {"I", "J", "K"} & set(words)
+    rx0, ry0 = -i_off, -j_off  # centre -> start
+    rtx, rty = x - i_off, y - j_off  # centre -> end
+    travel = math.atan2(rx0 * rty - ry0 * rtx, rx0 * rtx + ry0 * rty)
+    if motion_mode == 2:
+        if travel >= -ARC_ANGULAR_TRAVEL_EPSILON:
+            travel -= 2.0 * math.pi
+    elif travel <= ARC_ANGULAR_TRAVEL_EPSILON:
+        travel += 2.0 * math.pi
+    arc = Arc(x0 + i_off, y0 + j_off, r, math.atan2(ry0, rx0), travel)
+    return arc, used
