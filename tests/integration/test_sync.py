@@ -5,6 +5,7 @@ Jupyter), interrupted by the caller, and leaving no thread behind."""
 from __future__ import annotations
 
 import asyncio
+import signal
 import subprocess
 import sys
 import textwrap
@@ -165,3 +166,41 @@ def test_an_interrupt_during_a_stream_stops_sending() -> None:
         arm.reset()
         assert arm.status().state in (State.IDLE, State.ALARM)
     assert not loop_threads()
+
+
+CTRL_C_SCRIPT = """
+    import sys, threading
+    from mirobot_async.sync import Mirobot
+
+    arm = Mirobot.connect(sys.argv[1])
+    arm.unlock()
+    lines = [f"M21 G91 G01 X{1 if i % 2 else -1} F100" for i in range(200)]
+    try:
+        arm.stream(lines, on_progress=lambda r: print("line", r.number, flush=True))
+    except KeyboardInterrupt:
+        print("interrupted", arm.stats.lines_sent, arm.hold().state.value, flush=True)
+    arm.close()
+    print("threads", [t.name for t in threading.enumerate()], flush=True)
+"""
+
+
+def test_ctrl_c_in_a_script_interrupts_a_blocking_call(tmp_path: Path) -> None:
+    script = tmp_path / "ctrl_c.py"
+    script.write_text(textwrap.dedent(CTRL_C_SCRIPT))
+    with run_emulator("2021", 1.0) as emu:
+        process = subprocess.Popen(
+            [sys.executable, str(script), emu.url], stdout=subprocess.PIPE, text=True
+        )
+        try:
+            assert process.stdout is not None
+            assert process.stdout.readline().strip() == "line 1"
+            process.send_signal(signal.SIGINT)
+            out, _ = process.communicate(timeout=20)
+        finally:
+            if process.poll() is None:
+                process.kill()
+                process.communicate()
+    assert process.returncode == 0
+    words = out.splitlines()[0].split()
+    assert words[0] == "interrupted" and int(words[1]) < 100 and words[2] == "Hold", out
+    assert out.splitlines()[-1] == "threads ['MainThread']"
