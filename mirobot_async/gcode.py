@@ -6,21 +6,41 @@ written by :func:`fmt_number` (never exponent notation, never ``-0``). A bad arg
 :class:`~mirobot_async.errors.MirobotUsageError` (a ``ValueError``) whose message names the
 argument and the allowed range, so nothing malformed can reach the robot.
 
-:func:`check_line` / :func:`check_program` look at raw lines the way the firmware's parser would
-(PROTOCOL.md sections 2, 6 and 7) and return human-readable problems; ``mirobot check FILE`` uses
-them. This module is pure: no I/O, no asyncio, no serial.
+The offline checker (:func:`check_line`, :func:`check_program`, :class:`ModalState`) lives in
+:mod:`mirobot_async.validation`, the settings table in :mod:`mirobot_async.settings`, the one parse
+of a raw line in :mod:`mirobot_async.line`; their names stay importable from here. Pure module.
 """
 
 from __future__ import annotations
 
 import math
 import numbers
-import re
-from collections.abc import Iterable
-from dataclasses import dataclass
-from typing import Final, Literal
 
 from mirobot_async.errors import MirobotUsageError
+from mirobot_async.line import normalize_line, parse_line
+from mirobot_async.settings import SETTINGS, SettingInfo, setting_problem
+from mirobot_async.validation import ModalState, check_line, check_program, parse_words
+from mirobot_async.values import (
+    FIRMWARE_PROFILES,
+    GRIPPER_CLOSE,
+    GRIPPER_OPEN,
+    JOINT_NAMES,
+    JOINT_RANGES,
+    MAX_LINE_LENGTH,
+    PUMP_BLOW,
+    PUMP_OFF,
+    PUMP_SUCK,
+    PWM_MAX,
+    PWM_MIN,
+    RAIL_RANGES,
+    VALVE_GRIPPER_CLOSE,
+    VALVE_GRIPPER_OPEN,
+    check_decimals,
+    check_firmware,
+    fmt_number,
+    real_number,
+    show_number,
+)
 
 __all__ = [
     "FIRMWARE_PROFILES",
@@ -70,116 +90,29 @@ __all__ = [
     "zero_pose",
 ]
 
-# --------------------------------------------------------------------------------------------
-# Constants
-# --------------------------------------------------------------------------------------------
 
-FIRMWARE_PROFILES: Final = ("2021", "classic")
-"""The two firmware generations (PROTOCOL.md section 1)."""
-
-MAX_LINE_LENGTH: Final = 80
-"""Longest line the firmware accepts after dropping spaces and comments (``Line overflow``)."""
-
-PWM_MIN: Final = 0
-PWM_MAX: Final = 1000
-
-PUMP_OFF: Final = 0
-PUMP_BLOW: Final = 500
-PUMP_SUCK: Final = 1000
-GRIPPER_OPEN: Final = 40
-"""Servo gripper on PWM 1 (``M3 S40``), from the 2021 manual section 2.2.2."""
-GRIPPER_CLOSE: Final = 60
-"""Servo gripper on PWM 1 (``M3 S60``), from the 2021 manual section 2.2.2."""
-VALVE_GRIPPER_OPEN: Final = 65
-"""Older gripper on PWM 2 (``M4 E65``), from the V1.1 manual command 14."""
-VALVE_GRIPPER_CLOSE: Final = 40
-"""Older gripper on PWM 2 (``M4 E40``), from the V1.1 manual command 14."""
-
-JOINT_NAMES: Final = ("J1", "J2", "J3", "J4", "J5", "J6")
-
-JOINT_RANGES: Final[dict[str, tuple[float, float]]] = {
-    "J1": (-100.0, 160.0),
-    "J2": (-30.0, 70.0),
-    "J3": (-170.0, 60.0),
-    "J4": (-350.0, 350.0),
-    "J5": (-205.0, 36.0),
-    "J6": (-360.0, 360.0),
-}
-"""Joint soft-limit ranges in degrees (PROTOCOL.md section 7, the default ``$130..$146``)."""
-
-RAIL_RANGES: Final[dict[str, tuple[float, float]]] = {
-    "2021": (0.0, 500.0),
-    "classic": (-1000.0, 1000.0),
-}
-"""Rail (D axis) range in mm per firmware profile."""
-
-_JOINT_LETTERS: Final = ("X", "Y", "Z", "A", "B", "C")
-_POSE_LETTERS: Final = ("X", "Y", "Z", "A", "B", "C")
-
-# --------------------------------------------------------------------------------------------
-# Number formatting and argument validation
-# --------------------------------------------------------------------------------------------
+_POSE_LETTERS = ("X", "Y", "Z", "A", "B", "C")
 
 
 def _usage(message: str) -> MirobotUsageError:
     return MirobotUsageError(message)
 
 
-def _show(value: float) -> str:
-    """A number for an error message: short, exact enough, never exponent notation."""
-    if not math.isfinite(value):
-        return repr(value)
-    return fmt_number(value, 6)
-
-
-def _check_firmware(firmware: object) -> str:
-    if firmware not in FIRMWARE_PROFILES:
-        raise _usage(f"firmware={firmware!r} is not one of {', '.join(FIRMWARE_PROFILES)}")
-    return str(firmware)
-
-
-def _check_decimals(decimals: object) -> int:
-    if isinstance(decimals, bool) or not isinstance(decimals, int) or not 0 <= decimals <= 9:
-        raise _usage(f"decimals={decimals!r} must be an integer 0..9")
-    return decimals
-
-
-def _real(value: object, name: str) -> float:
-    """``value`` as a finite float, or MirobotUsageError naming ``name``."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise _usage(f"{name}={value!r} must be a number")
-    result = float(value)
-    if not math.isfinite(result):
-        raise _usage(f"{name}={result!r} must be a finite number")
-    return result
-
-
-def fmt_number(value: float, decimals: int = 3, *, name: str = "value") -> str:
-    """Write ``value`` rounded to ``decimals`` places as compactly as possible.
-
-    Trailing zeros and a trailing dot are removed, exponent notation is never used
-    (``1e-05`` -> ``"0"``) and negative zero is written ``"0"``. NaN and infinities raise
-    MirobotUsageError naming ``name``: the firmware would read them as garbage.
-    """
-    number = _real(value, name)
-    places = _check_decimals(decimals)
-    text = f"{number:.{places}f}"
-    if "." in text:
-        text = text.rstrip("0").rstrip(".")
-    if text == "-0":
-        text = "0"
-    return text
+_show = show_number
+_check_firmware = check_firmware
+_check_decimals = check_decimals
+_real = real_number
 
 
 def _positive(value: object, name: str, decimals: int, what: str) -> str:
     """A strictly positive number, as written on the wire (it must stay > 0 after rounding)."""
-    number = _real(value, name)
+    number = real_number(value, name)
     text = fmt_number(number, decimals, name=name)
     if number <= 0:
-        raise _usage(f"{name}={_show(number)} must be > 0 ({what})")
+        raise MirobotUsageError(f"{name}={show_number(number)} must be > 0 ({what})")
     if float(text) <= 0:
-        raise _usage(
-            f"{name}={_show(number)} must be > 0 ({what}); with {decimals} decimals it is 0"
+        raise MirobotUsageError(
+            f"{name}={show_number(number)} must be > 0 ({what}); with {decimals} decimals it is 0"
         )
     return text
 
@@ -188,19 +121,21 @@ def _pwm(value: object, name: str) -> int:
     """An integer PWM value 0..1000."""
     allowed = f"an integer {PWM_MIN}..{PWM_MAX}"
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise _usage(f"{name}={value!r} must be {allowed}")
+        raise MirobotUsageError(f"{name}={value!r} must be {allowed}")
     number = float(value)
     if not math.isfinite(number) or not number.is_integer():
-        raise _usage(f"{name}={value!r} must be {allowed}")
+        raise MirobotUsageError(f"{name}={value!r} must be {allowed}")
     if not PWM_MIN <= number <= PWM_MAX:
-        raise _usage(f"{name}={int(number)} is outside {PWM_MIN}..{PWM_MAX} (must be {allowed})")
+        raise MirobotUsageError(
+            f"{name}={int(number)} is outside {PWM_MIN}..{PWM_MAX} (must be {allowed})"
+        )
     return int(number)
 
 
 def _flag(value: object, name: str) -> int:
     if value is True or value is False or value in (0, 1):
         return 1 if value else 0
-    raise _usage(f"{name}={value!r} must be True/False (or 1/0)")
+    raise MirobotUsageError(f"{name}={value!r} must be True/False (or 1/0)")
 
 
 def _finish(words: list[str]) -> bytes:
@@ -208,10 +143,16 @@ def _finish(words: list[str]) -> bytes:
     text = " ".join(words)
     compact = len(text) - text.count(" ")
     if compact > MAX_LINE_LENGTH:
-        raise _usage(
+        raise MirobotUsageError(
             f"the line {text!r} is {compact} bytes without spaces; the firmware accepts at most "
             f"{MAX_LINE_LENGTH} ('Line overflow'): use fewer decimals or split the command"
         )
+    for word in parse_line(text).words:
+        if word.lossy:
+            raise MirobotUsageError(
+                f"{word} in {text!r} has more than 8 digits: the firmware keeps only 8 "
+                f"(leading zeros count) and would read {show_number(word.value)}"
+            )
     return text.encode("ascii") + b"\n"
 
 
@@ -474,143 +415,6 @@ def settings_dump() -> bytes:
     return b"$$\n"
 
 
-# --------------------------------------------------------------------------------------------
-# Settings
-# --------------------------------------------------------------------------------------------
-
-SettingKind = Literal["bool", "int", "float"]
-
-
-@dataclass(frozen=True, slots=True)
-class SettingInfo:
-    """What one ``$N`` setting means and which values it takes."""
-
-    number: int
-    description: str
-    unit: str = ""
-    kind: SettingKind = "float"
-    minimum: float | None = None
-    maximum: float | None = None
-
-
-# Axis settings are grouped by the firmware's axis letters a..g = J4, J5, J6, D, J1, J2, J3.
-_SETTING_AXES: Final = (
-    ("J4", "deg"),
-    ("J5", "deg"),
-    ("J6", "deg"),
-    ("rail D", "mm"),
-    ("J1", "deg"),
-    ("J2", "deg"),
-    ("J3", "deg"),
-)
-
-
-def _build_settings(profile: str) -> dict[int, SettingInfo]:
-    """The known settings of one firmware profile (PROTOCOL.md section 7, GRBL 0.9j, manuals)."""
-    s: list[SettingInfo] = [
-        SettingInfo(0, "step pulse time", "us", "int", 3, 255),
-        SettingInfo(1, "step idle delay", "ms", "int", 0, 255),
-        SettingInfo(2, "step port invert mask", "", "int", 0, 255),
-        SettingInfo(3, "direction port invert mask", "", "int", 0, 255),
-        SettingInfo(4, "step enable invert", "", "bool"),
-        SettingInfo(5, "limit pins invert", "", "bool"),
-        SettingInfo(6, "probe pin invert", "", "bool"),
-        SettingInfo(10, "status report mask", "", "int", 0, 255),
-        SettingInfo(11, "junction deviation", "mm", "float", 0),
-        SettingInfo(12, "arc tolerance", "mm", "float", 0),
-        SettingInfo(13, "report in inches", "", "bool"),
-        SettingInfo(20, "soft limits", "", "bool"),
-        SettingInfo(21, "hard limits (switches on J1..J3)", "", "bool"),
-        SettingInfo(22, "homing cycle enabled", "", "bool"),
-        SettingInfo(23, "homing direction invert mask", "", "int", 0, 255),
-        SettingInfo(24, "homing feed (slow, locating the switch)", "deg/min", "float", 0),
-        SettingInfo(25, "homing seek (fast, finding the switch)", "deg/min", "float", 0),
-        SettingInfo(26, "homing switch debounce", "ms", "int", 0, 65535),
-        SettingInfo(27, "homing pull-off", "deg", "float", 0),
-    ]
-    if profile == "2021":
-        s += [
-            SettingInfo(28, "direction of motion after homing (axis mask)", "", "int", 0, 255),
-            SettingInfo(29, "DH length D1", "mm"),
-            SettingInfo(30, "DH length A1", "mm"),
-            SettingInfo(31, "DH length A2", "mm"),
-            SettingInfo(32, "DH length A3", "mm"),
-            SettingInfo(33, "DH length D4", "mm"),
-            SettingInfo(34, "DH length L (D6, flange offset)", "mm"),
-            SettingInfo(35, "G1 linear interpolation enabled", "", "bool"),
-            SettingInfo(36, "G1 interpolation points", "", "int", 1),
-            SettingInfo(41, "base origin offset X", "mm"),
-            SettingInfo(42, "base origin offset Y", "mm"),
-            SettingInfo(43, "base origin offset Z", "mm"),
-            SettingInfo(46, "tool offset X (flange frame)", "mm"),
-            SettingInfo(47, "tool offset Y (flange frame)", "mm"),
-            SettingInfo(48, "tool offset Z (flange frame)", "mm"),
-            SettingInfo(49, "G05 lift height", "mm", "float", 0),
-            SettingInfo(
-                50, "tool type (0 none, 1 suction cup, 2 gripper, 3 soft gripper)", "", "int", 0, 3
-            ),
-        ]
-    groups = (
-        (100, "steps per {u}", "steps/{u}"),
-        (110, "max rate", "{u}/min"),
-        (120, "acceleration", "{u}/s^2"),
-        (130, "max travel, positive side", "{u}"),
-        (140, "max travel, magnitude of the negative side", "{u}"),
-    )
-    for base, what, unit in groups:
-        for offset, (axis, axis_unit) in enumerate(_SETTING_AXES):
-            s.append(
-                SettingInfo(
-                    base + offset,
-                    f"{what.format(u=axis_unit)} {axis}",
-                    unit.format(u=axis_unit),
-                    "float",
-                    0,
-                )
-            )
-    if profile == "2021":
-        # The 2021 manual lists $150 twice: J4 calibration (3.9) and backlash switch (3.10).
-        for offset, (axis, axis_unit) in enumerate(_SETTING_AXES):
-            s.append(SettingInfo(150 + offset, f"calibration position {axis}", axis_unit))
-        for offset, (axis, axis_unit) in enumerate(_SETTING_AXES):
-            s.append(SettingInfo(160 + offset, f"backlash compensation {axis}", axis_unit))
-    return {info.number: info for info in s}
-
-
-SETTINGS: Final[dict[str, dict[int, SettingInfo]]] = {
-    profile: _build_settings(profile) for profile in FIRMWARE_PROFILES
-}
-"""Known ``$N`` settings per firmware profile: ``SETTINGS["2021"][110].description``."""
-
-
-def _setting_problem(number: int, value: float, profile: str, *, in_line: bool) -> str | None:
-    """Why ``$number=value`` is bad on ``profile``, or None.
-
-    Messages name the builder's arguments (``number=``, ``value=``) or, with ``in_line``, the
-    words of the line (``$20=2``).
-    """
-    info = SETTINGS[profile].get(number)
-    if info is None:
-        subject = f"${number}" if in_line else f"number={number}"
-        return f"{subject} is not a known $ setting of the {profile!r} firmware"
-    if in_line:
-        subject = f"${number}={_show(value)} ({info.description})"
-    else:
-        subject = f"value={_show(value)} for ${number} ({info.description})"
-    if profile == "classic" and value < 0:
-        return f"{subject}: classic firmware rejects negative values: 'Value < 0'"
-    if info.kind == "bool":
-        return None if value in (0, 1) else f"{subject} must be 0 or 1"
-    if info.kind == "int" and not value.is_integer():
-        return f"{subject} must be an integer"
-    low, high = info.minimum, info.maximum
-    if (low is not None and value < low) or (high is not None and value > high):
-        low_text = "" if low is None else _show(low)
-        high_text = "" if high is None else _show(high)
-        return f"{subject} is outside {low_text}..{high_text}"
-    return None
-
-
 def set_setting(number: int, value: float, *, firmware: str = "2021") -> bytes:
     """Write setting ``$<number>=<value>`` after checking it against :data:`SETTINGS`.
 
@@ -622,7 +426,7 @@ def set_setting(number: int, value: float, *, firmware: str = "2021") -> bytes:
     if isinstance(value, bool):
         value = int(value)
     number_value = _real(value, "value")
-    problem = _setting_problem(number, number_value, profile, in_line=False)
+    problem = setting_problem(number, number_value, profile, in_line=False)
     if problem is not None:
         raise _usage(problem)
     return _finish([f"${number}={fmt_number(number_value, 3, name='value')}"])
@@ -665,330 +469,3 @@ def set_gripper(closed: bool, *, legacy: bool = False) -> bytes:
     if legacy:
         return set_valve(VALVE_GRIPPER_CLOSE if shut else VALVE_GRIPPER_OPEN)
     return set_pump(GRIPPER_CLOSE if shut else GRIPPER_OPEN)
-
-
-# --------------------------------------------------------------------------------------------
-# Offline checking of raw lines
-# --------------------------------------------------------------------------------------------
-
-_NUMBER_RE: Final = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)")
-_KNOWN_LETTERS: Final = frozenset("GMXYZABCDFPSER")
-_AXIS_LETTERS: Final = frozenset("XYZABCD")
-_G_CODES: Final[dict[str, frozenset[int]]] = {
-    "classic": frozenset({0, 1, 4, 90, 91}),
-    "2021": frozenset({0, 1, 2, 3, 4, 5, 90, 91}),
-}
-_M_CODES: Final = frozenset({2, 3, 4, 5, 20, 21, 30, 50})
-_G_GROUPS: Final[dict[int, str]] = {
-    0: "motion",
-    1: "motion",
-    2: "motion",
-    3: "motion",
-    5: "motion",
-    4: "dwell",
-    90: "distance",
-    91: "distance",
-}
-_M_GROUPS: Final[dict[int, str]] = {
-    20: "coordinate mode",
-    21: "coordinate mode",
-    2: "program end",
-    30: "program end",
-    3: "PWM 1",
-    4: "PWM 2",
-    5: "PWM 1",
-    50: "unlock",
-}
-_REALTIME: Final[dict[str, str]] = {
-    "?": "a status request",
-    "!": "a feed hold",
-    "~": "a cycle start",
-    "%": "a soft reset of the robot",
-}
-_DOLLAR_SIMPLE: Final = frozenset({"$", "$$", "$#", "$G", "$I", "$N", "$C", "$X", "$H", "$HH"})
-_DOLLAR_2021: Final = frozenset({*(f"$H{n}" for n in range(8)), "$HE", "$M"})
-_DOLLAR_HOMING: Final = frozenset({"$H", "$HH", "$HE", *(f"$H{n}" for n in range(8))})
-_SETTING_RE: Final = re.compile(r"\$(\d+)=(.*)")
-
-
-@dataclass(slots=True)
-class ModalState:
-    """Parser state that persists between lines (modal words), as after power-on or reset.
-
-    :func:`check_line` updates it in place so that consecutive lines are judged in context.
-    """
-
-    cartesian: bool = False
-    """``M20`` in effect (else ``M21``, the power-on default)."""
-    relative: bool = False
-    """``G91`` in effect (else ``G90``, the power-on default)."""
-
-
-def normalize_line(line: str | bytes) -> str:
-    """The line as the firmware's parser sees it: bytes <= 0x20 and ``/`` dropped, letters upper
-    case, ``( ... )`` and ``; ...`` comments removed. Realtime bytes (``? ! ~ %``) are removed too.
-    """
-    text = line.decode("latin-1") if isinstance(line, bytes) else line
-    return _normalize(text)[0]
-
-
-def _normalize(text: str) -> tuple[str, bool]:
-    """(normalized text, True if a ``(`` comment was left open)."""
-    out: list[str] = []
-    in_comment = False
-    for char in text:
-        if char in _REALTIME:
-            continue
-        if in_comment:
-            if char == ")":
-                in_comment = False
-            continue
-        if char == ";":
-            break
-        if char == "(":
-            in_comment = True
-        elif ord(char) <= 0x20 or char == "/":
-            continue
-        elif "a" <= char <= "z":
-            out.append(char.upper())
-        else:
-            out.append(char)
-    return "".join(out), in_comment
-
-
-def _tokenize(norm: str) -> tuple[list[tuple[str, float, str]], str | None]:
-    """Split a normalized G-code line into (letter, value, number text); stop at the first error."""
-    words: list[tuple[str, float, str]] = []
-    pos = 0
-    while pos < len(norm):
-        letter = norm[pos]
-        if not "A" <= letter <= "Z":
-            return words, (
-                f"expected a command letter at {norm[pos : pos + 8]!r} ('Expected command letter')"
-            )
-        match = _NUMBER_RE.match(norm, pos + 1)
-        if match is None:
-            return words, (f"the letter {letter} is not followed by a number ('Bad number format')")
-        words.append((letter, float(match.group()), match.group()))
-        pos = match.end()
-    return words, None
-
-
-def parse_words(line: str | bytes) -> list[tuple[str, float]]:
-    """The G-code words of a line as (letter, value) pairs, in order: ``"G1X10 f200"`` ->
-    ``[("G", 1.0), ("X", 10.0), ("F", 200.0)]``. Raises MirobotUsageError on syntax errors
-    and on ``$`` commands (which are not words)."""
-    norm = normalize_line(line)
-    if norm.startswith("$"):
-        raise _usage(f"line={norm!r} is a $ command, not G-code words")
-    words, error = _tokenize(norm)
-    if error is not None:
-        raise _usage(f"line={norm!r}: {error}")
-    return [(letter, value) for letter, value, _ in words]
-
-
-def _range_text(low: float, high: float) -> str:
-    return f"{_show(low)}..{_show(high)}"
-
-
-def _check_dollar(norm: str, profile: str, state: ModalState, problems: list[str]) -> None:
-    if norm in _DOLLAR_SIMPLE or norm in _DOLLAR_2021:
-        if norm in _DOLLAR_2021 and profile != "2021":
-            problems.append(f"{norm} needs the 2021 firmware")
-            return
-        if norm in _DOLLAR_HOMING:
-            state.cartesian = False
-            state.relative = False
-        return
-    if norm.startswith(("$N0=", "$N1=")) or norm in ("$RST=$", "$RST=#", "$RST=*"):
-        return
-    match = _SETTING_RE.fullmatch(norm)
-    if match is None:
-        if re.fullmatch(r"\$\d+", norm):
-            problems.append(f"{norm} has no '=value' ('Invalid statement')")
-        else:
-            problems.append(f"unknown $ command {norm!r} ('Invalid statement')")
-        return
-    number = int(match.group(1))
-    value_text = match.group(2)
-    if _NUMBER_RE.fullmatch(value_text) is None:
-        problems.append(f"${number}={value_text}: the value is not a number ('Bad number format')")
-        return
-    problem = _setting_problem(number, float(value_text), profile, in_line=True)
-    if problem is not None:
-        problems.append(problem)
-
-
-def _check_gcode(norm: str, profile: str, state: ModalState, problems: list[str]) -> None:
-    words, error = _tokenize(norm)
-    if error is not None:
-        problems.append(error)
-        return
-    groups: dict[str, str] = {}
-    values: dict[str, float] = {}
-    motion: int | None = None
-    dwell_seen = False
-    new_cartesian: bool | None = None
-    new_relative: bool | None = None
-    for letter, value, text in words:
-        word = letter + text
-        if letter not in _KNOWN_LETTERS:
-            problems.append(f"{word}: the letter {letter} is not supported ('Unsupported command')")
-            continue
-        if letter in "GM":
-            code = int(value)
-            known = _G_CODES[profile] if letter == "G" else _M_CODES
-            if not value.is_integer() or code not in known:
-                needs_2021 = letter == "G" and value.is_integer() and code in _G_CODES["2021"]
-                problems.append(
-                    f"{word} needs the 2021 firmware"
-                    if needs_2021
-                    else f"{word} is not a Mirobot command ('Unsupported command')"
-                )
-                continue
-            group = (_G_GROUPS if letter == "G" else _M_GROUPS)[code]
-            canonical = f"{letter}{code}"
-            if group in groups:
-                problems.append(
-                    f"{groups[group]} and {canonical} are in the same modal group "
-                    "('Modal group violation')"
-                )
-                continue
-            groups[group] = canonical
-            if letter == "G":
-                if group == "motion":
-                    motion = code
-                elif code == 4:
-                    dwell_seen = True
-                else:
-                    new_relative = code == 91
-            elif code in (20, 21):
-                new_cartesian = code == 20
-            continue
-        if letter in values:
-            problems.append(f"the word {letter} appears twice in the line (repeated word)")
-            continue
-        values[letter] = value
-        if letter in "FPS" and value < 0:
-            problems.append(f"{word} is negative ('Value < 0')")
-        elif letter in "SE" and (not value.is_integer() or not PWM_MIN <= value <= PWM_MAX):
-            problems.append(f"{word}: PWM must be an integer {PWM_MIN}..{PWM_MAX}")
-
-    cartesian = state.cartesian if new_cartesian is None else new_cartesian
-    is_relative = state.relative if new_relative is None else new_relative
-
-    if "F" in values and values["F"] == 0 and motion in (1, 2, 3):
-        problems.append(f"G{motion} with F0 ('Undefined feed rate')")
-    if dwell_seen and "P" not in values:
-        problems.append("G4 needs P<seconds>")
-    if "P" in values and not dwell_seen:
-        problems.append("P is only used by G4 (unused word)")
-    if motion in (2, 3):
-        _check_arc(motion, values, cartesian, is_relative, problems)
-    elif "R" in values:
-        problems.append("R is only used by G2/G3 arcs (unused word)")
-
-    if not cartesian and not is_relative and not dwell_seen:
-        for letter, joint in zip(_JOINT_LETTERS, JOINT_NAMES, strict=True):
-            if letter in values:
-                low, high = JOINT_RANGES[joint]
-                if not low <= values[letter] <= high:
-                    problems.append(
-                        f"{joint}={_show(values[letter])} is outside {_range_text(low, high)}"
-                    )
-        if "D" in values:
-            low, high = RAIL_RANGES[profile]
-            if not low <= values["D"] <= high:
-                problems.append(f"rail D={_show(values['D'])} is outside {_range_text(low, high)}")
-
-    if new_cartesian is not None:
-        state.cartesian = new_cartesian
-    if new_relative is not None:
-        state.relative = new_relative
-
-
-def _check_arc(
-    motion: int, values: dict[str, float], cartesian: bool, is_relative: bool, problems: list[str]
-) -> None:
-    name = f"G{motion}"
-    if not cartesian:
-        problems.append(f"{name} is an arc in the XY plane: it needs Cartesian mode (M20)")
-    if "R" not in values:
-        problems.append(f"{name} needs R<radius>")
-        return
-    radius = values["R"]
-    if radius <= 0:
-        problems.append(f"{name} R{_show(radius)}: the radius must be > 0 ('Arc radius error')")
-        return
-    if "X" not in values and "Y" not in values:
-        problems.append(f"{name} needs X and/or Y (the end point)")
-        return
-    if is_relative:
-        chord = math.hypot(values.get("X", 0.0), values.get("Y", 0.0))
-        if chord == 0:
-            problems.append(f"{name} with a zero chord: a full circle is impossible with R")
-        elif chord > 2 * radius + 1e-9:
-            problems.append(
-                f"{name}: the chord {_show(chord)} mm is longer than 2R = {_show(2 * radius)} "
-                "('Arc radius error')"
-            )
-
-
-def check_line(
-    line: str | bytes, *, firmware: str = "2021", state: ModalState | None = None
-) -> list[str]:
-    """Problems the firmware would have with one raw line, as human-readable messages.
-
-    The line is judged like the firmware's parser does (filtering, comments, 80-byte limit,
-    words, modal groups, settings) plus joint/rail ranges of absolute ``M21`` moves. ``state`` is
-    the modal state before the line (power-on defaults when omitted) and is updated in place.
-    Feed-rate state is not checked: ``G1`` without ``F`` depends on what ran before.
-    An empty list means no problem found.
-    """
-    profile = _check_firmware(firmware)
-    if state is None:
-        state = ModalState()
-    text = line.decode("latin-1") if isinstance(line, bytes) else line
-    text = text.rstrip("\r\n")
-    problems: list[str] = []
-    if "\n" in text or "\r" in text:
-        problems.append("contains a line break: the firmware would see several lines")
-    odd = sorted({char for char in text if ord(char) > 0x7E})
-    if odd:
-        problems.append(f"contains characters outside printable ASCII: {''.join(odd)!r}")
-    for char in sorted({char for char in text if char in _REALTIME}):
-        problems.append(
-            f"contains {char!r}, which the firmware takes at once as {_REALTIME[char]} "
-            "and removes from the line"
-        )
-    norm, open_comment = _normalize(text)
-    if open_comment:
-        problems.append("a '(' comment is not closed: the rest of the line is ignored")
-    if len(norm) > MAX_LINE_LENGTH:
-        problems.append(
-            f"the line is {len(norm)} bytes after removing spaces and comments; "
-            f"the firmware limit is {MAX_LINE_LENGTH} ('Line overflow')"
-        )
-        return problems
-    if not norm:
-        return problems
-    if norm.startswith("$"):
-        _check_dollar(norm, profile, state, problems)
-    else:
-        _check_gcode(norm, profile, state, problems)
-    return problems
-
-
-def check_program(lines: Iterable[str | bytes], *, firmware: str = "2021") -> list[tuple[int, str]]:
-    """Check the lines of a G-code file in order, from power-on state.
-
-    Returns (1-based line number, problem) pairs; modal words carry over between lines.
-    """
-    profile = _check_firmware(firmware)
-    state = ModalState()
-    found: list[tuple[int, str]] = []
-    for number, line in enumerate(lines, start=1):
-        found.extend(
-            (number, problem) for problem in check_line(line, firmware=profile, state=state)
-        )
-    return found
