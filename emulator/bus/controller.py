@@ -81,9 +81,11 @@ def _ends(data: bytes) -> int:
 class Controller:
     """A controller at ``address`` with ``arm`` behind it, configured by ``options``."""
 
-    def __init__(self, address: int, arm: Firmware, options: BusOptions) -> None:
+    def __init__(
+        self, address: int, arm: Firmware, options: BusOptions, *, baud_code: int = 2
+    ) -> None:
         self.address = address
-        self.baud_code = 2
+        self.baud_code = baud_code
         """``O141`` code of the baud the controller listens at (2 = 38400)."""
         self.arm = arm
         self.options = options
@@ -100,6 +102,7 @@ class Controller:
         self._run: _Run | None = None
         self._download: str | None = None
         self._answering = True
+        self._baud_after_reply: int | None = None
         banner = arm.read_output()
         match = _ARM_VERSION.search(banner.decode("ascii", "replace"))
         self.arm_version = match.group(1) if match else "unknown"
@@ -119,9 +122,15 @@ class Controller:
         return self._run.name if self._run is not None else None
 
     def take_output(self) -> bytes:
-        """The bytes the controller has to transmit (whole lines), emptied."""
+        """The bytes the controller has to transmit (whole lines), emptied.
+
+        Transmitted at :attr:`baud` as it was before this call (an ``O141`` change applies after
+        its ``ok``).
+        """
         out = bytes(self._out)
         self._out.clear()
+        if self._baud_after_reply is not None:
+            self.baud_code, self._baud_after_reply = self._baud_after_reply, None
         return out
 
     def hear(self, body: bytes, *, answer: bool = True) -> None:
@@ -283,8 +292,8 @@ class Controller:
         elif number == 141:
             if not (argument.isdigit() and int(argument) in BAUD_CODES):
                 return False
-            reply += b"ok\r\n"  # sent at the old baud; the controller listens at the new one
-            self.baud_code = int(argument)
+            reply += b"ok\r\n"  # sent at the old baud; the new one applies after it
+            self._baud_after_reply = int(argument)
         elif number == 150:
             if not argument or not argument.isascii():
                 return False

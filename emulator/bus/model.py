@@ -13,7 +13,7 @@ from collections.abc import Sequence
 
 from ..firmware import Firmware
 from .controller import Controller
-from .options import DEFAULT_BUS_BAUD, BusOptions
+from .options import BAUD_CODES, DEFAULT_BUS_BAUD, BusOptions
 
 __all__ = ["MAX_LINE", "Bus"]
 
@@ -37,7 +37,8 @@ class _Segment:
 
 class Bus:
     """``nodes`` controllers at addresses 1..N, each with an arm of ``profile`` (one profile for
-    all, or one per node), on a bus at ``baud`` (8N1: a byte takes ``10 / baud`` seconds).
+    all, or one per node), on a bus at ``baud`` (8N1: a byte takes ``10 / baud`` seconds; one of
+    the ``O141`` rates, every controller set to it).
 
     Host bytes (:meth:`receive`) travel at the bus baud; a controller acts on a line when its
     last byte has arrived and answers after ``options.turnaround`` seconds, at the bus baud;
@@ -61,13 +62,19 @@ class Bus:
         profiles = [profile] * nodes if isinstance(profile, str) else list(profile)
         if len(profiles) != nodes:
             raise ValueError(f"{len(profiles)} profiles for {nodes} nodes")
-        if baud <= 0:
-            raise ValueError(f"baud={baud} must be positive")
+        codes = {rate: code for code, rate in BAUD_CODES.items()}
+        if baud not in codes:
+            raise ValueError(f"baud={baud}: a controller runs at one of {sorted(codes)}")
         self.options = options if options is not None else BusOptions()
         self.baud = baud
         self.byte_time = 10.0 / baud
         self.nodes: tuple[Controller, ...] = tuple(
-            Controller(i + 1, Firmware(p, homing_seconds=homing_seconds), self.options)
+            Controller(
+                i + 1,
+                Firmware(p, homing_seconds=homing_seconds),
+                self.options,
+                baud_code=codes[baud],
+            )
             for i, p in enumerate(profiles)
         )
         """The controllers in bus order (their addresses may change by ``O140``)."""
@@ -240,8 +247,9 @@ class Bus:
         """Route every arm's output; put what the controllers transmit on the wire."""
         for node in self.nodes:
             node.collect()
+            heard = node.baud == self.baud  # at another baud: noise the host cannot read
             data = node.take_output()
-            if data and node.baud == self.baud:  # at another baud: noise the host cannot read
+            if data and heard:
                 self._transmit(node, data, when)
 
     def _transmit(self, node: Controller, data: bytes, when: float) -> None:
