@@ -45,6 +45,12 @@ START_TOLERANCE: Final = 1e-6
 HOLDABLE_KINDS: Final = frozenset({"move", "line", "arc", "dwell"})
 """Blocks a feed hold acts on (homing ignores it)."""
 
+HOLD_LATENCY: Final = 0.055
+"""Seconds a feed hold keeps the planned motion before it decelerates: GRBL's stepper has
+already prepared that much (its segment buffer). Measured on the oracle: a hold sent at
+cruise speed stops 55-70 ms of travel further than braking at once would (host latency
+included); ASSUMED 55 ms."""
+
 REVERSAL_COS: Final = 0.999999
 """GRBL's cut-offs: a junction this close to a reversal stops; this close to straight is
 treated as straight (no division by zero)."""
@@ -86,10 +92,26 @@ class Planner:
     times it ran empty at all.
     """
 
-    CAPACITY: ClassVar[int] = 18
+    CAPACITY: ClassVar[int] = 17
+    """Blocks the planner holds: GRBL's ring of ``BLOCK_BUFFER_SIZE`` = 18 keeps one slot empty
+    (the oracle acknowledges 17 motion lines, the 18th waits for the first block to finish)."""
 
-    def __init__(self, position: Vec7) -> None:
+    def __init__(
+        self,
+        position: Vec7,
+        *,
+        deferred_start: bool = False,
+        hold_latency: float = HOLD_LATENCY,
+    ) -> None:
+        """``deferred_start``: blocks pushed onto an empty planner wait (state ``idle``) until
+        :meth:`cycle_start`, as GRBL's auto cycle start does (see :meth:`cycle_start`); without
+        it they start at once. ``hold_latency``: see ``HOLD_LATENCY`` (0: brake at once)."""
+        if not (math.isfinite(hold_latency) and hold_latency >= 0.0):
+            raise ValueError(f"hold_latency must be finite and >= 0: {hold_latency}")
         self._position = finite_vec7(position, "position")
+        self._hold_latency = hold_latency
+        self._deferred = deferred_start
+        self._started = True
         self._queue: deque[Block] = deque()
         self._junction: deque[float] = deque()  # max squared entry speed of each queued block
         self._entry: list[float] = []  # planned squared entry speeds (index 0: the head)
@@ -109,8 +131,14 @@ class Planner:
 
     @property
     def running(self) -> Block | None:
-        """The block at the head of the queue (running, or stopped by a hold)."""
-        return self._queue[0] if self._queue else None
+        """The block at the head of the queue (running, or stopped by a hold); None when idle
+        or while the queued blocks wait for :meth:`cycle_start`."""
+        return self._queue[0] if self._queue and self._started else None
+
+    @property
+    def started(self) -> bool:
+        """False while queued blocks wait for :meth:`cycle_start` (deferred start)."""
+        return self._started
 
     @property
     def blocks(self) -> tuple[Block, ...]:
@@ -131,7 +159,7 @@ class Planner:
 
     @property
     def state(self) -> str:
-        if not self._queue:
+        if not self._queue or not self._started:
             return "idle"
         if self._held:
             return "hold"
@@ -176,7 +204,7 @@ class Planner:
 
         None when idle, and when stopped by a hold (nothing changes until :meth:`resume`).
         """
-        if not self._queue:
+        if not self._queue or not self._started:
             return None
         left = max(self._profile.duration - self._t, 0.0)
         if self._held and left <= SNAP_SECONDS:
@@ -217,6 +245,7 @@ class Planner:
             raise ValueError(f"block starts at {block.start}, planner ends at {planned}")
         was_empty = not self._queue
         if was_empty:
+            self._started = not self._deferred
             self._tail_direction = None
             if self._ran_out_at is not None:
                 self.starvations += 1
@@ -235,7 +264,7 @@ class Planner:
         if not dt >= 0.0:
             raise ValueError(f"dt must be >= 0, got {dt}")
         remaining = dt
-        while self._queue:
+        while self._queue and self._started:
             profile = self._profile
             left = profile.duration - self._t
             if remaining < left - SNAP_SECONDS:
@@ -257,12 +286,19 @@ class Planner:
 
         Ignored when idle, already held, or homing.
         """
-        if not self._queue or self._held or self._queue[0].kind not in HOLDABLE_KINDS:
+        if self.running is None or self._held or self._queue[0].kind not in HOLDABLE_KINDS:
             return
         block = self._queue[0]
-        s = self._profile.s_at(self._t)
-        v = self._profile.v_at(self._t) if not block.timed else 0.0
-        self._profile = block.stop_profile(s, v)
+        profile, t = self._profile, self._t
+        s = profile.s_at(t)
+        if block.timed:
+            self._profile = block.stop_profile(s, 0.0)
+        else:
+            # the prepared motion runs on for the latency (within this block), then brakes
+            t_brake = min(t + self._hold_latency, profile.duration)
+            brake = block.stop_profile(profile.s_at(t_brake), profile.v_at(t_brake))
+            phases = profile.window(t, t_brake) + brake.phases()
+            self._profile = Profile(s, profile.v_at(t), phases, brake.s_end, brake.v_end)
         self._t = 0.0
         self._held = True
 
@@ -281,6 +317,16 @@ class Planner:
             self._t = 0.0
             return
         self._replan(s, self._profile.v_at(self._t))
+
+    def cycle_start(self) -> None:
+        """Start the queued blocks (GRBL's auto cycle start). A firmware with
+        ``deferred_start`` calls this when a block does not fit (the planner is full), when
+        its receive buffer has run dry, and before it waits for the planner to empty (``G4``,
+        ``M2``, ``$`` commands); no effect when already started or empty."""
+        if self._started or not self._queue:
+            return
+        self._started = True
+        self._replan(0.0, 0.0)
 
     def abort(self) -> None:
         """Soft reset: stop at once where the arm is, clear every block and the hold."""

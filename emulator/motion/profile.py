@@ -71,6 +71,23 @@ class Profile:
         s = s0 + v0 * dt + 0.5 * a * dt * dt
         return self.s_end if s > self.s_end else s
 
+    def phases(self) -> list[tuple[float, float]]:
+        """The ``(duration, acceleration)`` pairs, in order."""
+        table = list(reversed(self._phases))
+        ends = [row[0] for row in table[1:]] + [self.duration]
+        return [(end - row[0], row[3]) for row, end in zip(table, ends, strict=True)]
+
+    def window(self, t_from: float, t_to: float) -> list[tuple[float, float]]:
+        """The phases between ``t_from`` and ``t_to`` (clipped to the profile), in order."""
+        out: list[tuple[float, float]] = []
+        t = 0.0
+        for dt, a in self.phases():
+            lo, hi = max(t, t_from), min(t + dt, t_to)
+            if hi > lo:
+                out.append((hi - lo, a))
+            t += dt
+        return out
+
     def v_at(self, t: float) -> float:
         """The speed along ``s`` at time ``t`` (``v_end`` from the end on)."""
         if t >= self.duration:

@@ -1,4 +1,10 @@
-"""Unit tests of mirobot_emulator.motion: trapezoidal timing, coordination, the 18-block planner."""
+"""Unit tests of mirobot_emulator.motion: trapezoidal timing, coordination, the 17-block planner
+(GRBL's 18-slot ring keeps one slot free; the oracle acknowledges 17 motion lines, then waits).
+
+These limits have no ``$11`` and no steps: blocks stop at every junction and positions are
+exact, so the from-rest timing is checked by hand here; look-ahead, steps and blending are in
+test_planner_lookahead.py.
+"""
 
 from __future__ import annotations
 
@@ -332,13 +338,13 @@ def chain(n: int, step: float = 10.0, feed: float | None = None) -> list[Block]:
 
 def test_planner_capacity_free_slots_and_order() -> None:
     planner = Planner(ZERO)
-    assert Planner.CAPACITY == 18
-    assert (planner.state, planner.busy, planner.free, planner.running) == ("idle", False, 18, None)
+    assert Planner.CAPACITY == 17
+    assert (planner.state, planner.busy, planner.free, planner.running) == ("idle", False, 17, None)
     assert planner.time_to_next_change() is None
-    blocks = chain(18)
+    blocks = chain(17)
     for k, block in enumerate(blocks):
         planner.push(block)
-        assert planner.free == 17 - k
+        assert planner.free == 16 - k
     assert planner.planned_position == blocks[-1].end
     with pytest.raises(PlannerFull):
         planner.push(joint_block(blocks[-1].end, ZERO, None, LIMITS_2021))
@@ -351,7 +357,7 @@ def test_planner_capacity_free_slots_and_order() -> None:
         assert planner.time_to_next_change() == pytest.approx(block.duration / 2, abs=1e-12)
         planner.advance(planner.time_to_next_change() or 0.0)
         assert planner.position == block.end
-        assert planner.free == 18 - (17 - k)
+        assert planner.free == 17 - (16 - k)
     assert (planner.state, planner.busy, planner.running) == ("idle", False, None)
     assert planner.time_to_next_change() is None
 
@@ -367,7 +373,7 @@ def test_push_must_start_where_the_planner_ends() -> None:
 
 def test_remaining_time_and_next_change_loop_finish_everything() -> None:
     planner = Planner(ZERO)
-    blocks = chain(18, feed=900.0)
+    blocks = chain(17, feed=900.0)
     for block in blocks:
         planner.push(block)
     total = math.fsum(b.duration for b in blocks)
@@ -376,19 +382,19 @@ def test_remaining_time_and_next_change_loop_finish_everything() -> None:
     while (step := planner.time_to_next_change()) is not None:
         planner.advance(step)
         changes += 1
-        assert changes <= 18
-    assert changes == 18
+        assert changes <= 17
+    assert changes == 17
     assert planner.position == blocks[-1].end
 
 
 @pytest.mark.parametrize("dt", [math.inf, 1e12])
 def test_huge_dt_finishes_everything(dt: float) -> None:
     planner = Planner(ZERO)
-    blocks = chain(18)
+    blocks = chain(17)
     for block in blocks:
         planner.push(block)
     planner.advance(dt)
-    assert (planner.state, planner.free, planner.position) == ("idle", 18, blocks[-1].end)
+    assert (planner.state, planner.free, planner.position) == ("idle", 17, blocks[-1].end)
 
 
 def test_zero_and_tiny_dt() -> None:
@@ -459,7 +465,7 @@ def test_positions_move_monotonically_toward_the_target() -> None:
 
 
 def test_hold_decelerates_freezes_and_resume_reaches_the_target() -> None:
-    planner = Planner(ZERO)
+    planner = Planner(ZERO, hold_latency=0.0)  # brake at once: numbers by hand
     planner.push(joint_block(ZERO, vec(90), None, LIMITS_2021))
     planner.push(joint_block(vec(90), vec(80), None, LIMITS_2021))
     planner.advance(1.0)  # cruising at 30 deg/s, at 9 + 0.4 * 30 = 21 deg
@@ -476,7 +482,7 @@ def test_hold_decelerates_freezes_and_resume_reaches_the_target() -> None:
     assert planner.time_to_next_change() is None
     planner.advance(100.0)
     assert planner.position == stopped
-    assert (planner.state, planner.free) == ("hold", 16)
+    assert (planner.state, planner.free) == ("hold", 15)
     planner.hold()  # no effect while held
     planner.resume()
     assert planner.state == "run"
@@ -488,7 +494,7 @@ def test_hold_decelerates_freezes_and_resume_reaches_the_target() -> None:
 
 
 def test_resume_while_still_decelerating_is_continuous() -> None:
-    planner = Planner(ZERO)
+    planner = Planner(ZERO, hold_latency=0.0)  # brake at once: numbers by hand
     planner.push(joint_block(ZERO, vec(90), None, LIMITS_2021))
     planner.advance(1.0)
     planner.hold()
@@ -547,7 +553,7 @@ def test_abort_stops_at_once_and_clears() -> None:
     here = planner.position
     planner.hold()
     planner.abort()
-    assert (planner.state, planner.busy, planner.free) == ("idle", False, 18)
+    assert (planner.state, planner.busy, planner.free) == ("idle", False, 17)
     assert planner.position == here
     assert planner.planned_position == here
     planner.advance(5.0)
