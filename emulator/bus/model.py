@@ -187,12 +187,17 @@ class Bus:
         return min(times) if times else None
 
     def _next_output(self) -> float | None:
-        """When the next reply line (or the current segment's end) has reached the host."""
+        """When the host next gets something: the first byte of the next reply line, else the
+        end of the line being transmitted (two wake-ups per line for a server)."""
         for segment in self._outbound:
-            if segment.sent >= len(segment.data):
+            sent = segment.sent
+            if sent >= len(segment.data):
                 continue
-            newline = segment.data.find(b"\n", segment.sent)
-            last = newline if newline >= 0 else len(segment.data) - 1
+            if sent == 0 or segment.data[sent - 1] == 0x0A:
+                last = sent
+            else:
+                newline = segment.data.find(b"\n", sent)
+                last = newline if newline >= 0 else len(segment.data) - 1
             return segment.start + (last + 1) * self.byte_time
         return None
 

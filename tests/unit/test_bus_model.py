@@ -378,3 +378,19 @@ def test_constructor_and_option_validation() -> None:
         BusOptions.parse(["nonsense=1"])
     with pytest.raises(ValueError):
         BusOptions.parse(["unprefixed=one"])
+
+
+@pytest.mark.parametrize(
+    "name", ["receive", "advance", "read_output", "next_deadline", "reset", "trigger_hard_limit"]
+)
+def test_the_bus_takes_the_firmwares_place(name: str) -> None:
+    import inspect
+
+    firmware = inspect.signature(getattr(Firmware, name))
+    bus = inspect.signature(getattr(Bus, name))
+    for parameter in firmware.parameters.values():  # every call a server makes still works
+        assert bus.parameters[parameter.name].kind == parameter.kind
+        assert bus.parameters[parameter.name].default == parameter.default
+    extra = [p for p in bus.parameters.values() if p.name not in firmware.parameters]
+    assert all(p.default is not inspect.Parameter.empty for p in extra)
+    assert isinstance(Bus(1).now, float)
