@@ -1,0 +1,428 @@
+"""Differential harness: the vendor's firmware (the oracle, in an AVR simulator) and our emulator's
+``--firmware classic`` profile, both driven as processes over their ptys, exactly as users do.
+
+A :class:`Pair` starts both on a fresh power-on, sends the same bytes to both and records what
+each answers (:class:`Exchange`). :meth:`Pair.check` compares the two transcripts byte for byte
+after one normalisation only: :mod:`tests.oracle.allowlist` (texts of the field binaries that
+differ from the source revision, each cited). Status lines taken while the arm moves are the one
+other exception, because two processes cannot be sampled at the same simulated instant: in
+exchanges marked ``moving=True`` the numbers inside status lines are compared by format, not by
+value (state word, field names and digit counts stay exact).
+
+The oracle is located by ``MIROBOT_ORACLE_SOURCE`` (default ``../shared/firmware-oracle`` next to
+the repository) and its build by ``MIROBOT_ORACLE_DIR`` (default
+``~/.cache/mirobot-firmware-oracle``), as ``run.sh`` does.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import selectors
+import signal
+import subprocess
+import sys
+import termios
+import time
+import tty
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .allowlist import normalise_ours
+
+REPO = Path(__file__).resolve().parents[2]
+ORACLE_SOURCE = Path(
+    os.environ.get("MIROBOT_ORACLE_SOURCE", str(REPO.parent / "shared" / "firmware-oracle"))
+)
+ORACLE_BUILD = Path(
+    os.environ.get(
+        "MIROBOT_ORACLE_DIR",
+        str(Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "mirobot-firmware-oracle"),
+    )
+)
+BUILD_FILES = ("fwsim", "grbl.elf", "eeprom.bin", "sys_addr")
+ENABLE_HINT = (
+    "firmware oracle not built: run ../shared/firmware-oracle/build.sh "
+    "(or set MIROBOT_ORACLE_DIR / MIROBOT_ORACLE_SOURCE) to enable tests/oracle"
+)
+
+EMULATOR_TIME_SCALE = 5.0  # close to the oracle's free-running speed (about 5-7x real time)
+BANNER_END = b"Using reset pos!\r\n"
+START_TIMEOUT = 20.0
+STOP_TIMEOUT = 5.0
+
+
+def oracle_missing() -> str | None:
+    """Why the oracle cannot run here (``None`` when it can)."""
+    if not (ORACLE_SOURCE / "run.sh").is_file():
+        return f"{ENABLE_HINT} [no {ORACLE_SOURCE}/run.sh]"
+    missing = [f for f in BUILD_FILES if not (ORACLE_BUILD / f).is_file()]
+    if missing:
+        return f"{ENABLE_HINT} [{ORACLE_BUILD} lacks {', '.join(missing)}]"
+    return None
+
+
+# --------------------------------------------------------------------------------------------
+# Reply structure
+
+
+def lines_of(data: bytes) -> list[bytes]:
+    """Complete lines of ``data`` (without their ``\\r\\n``)."""
+    return [line.rstrip(b"\r") for line in data.split(b"\n")[:-1]]
+
+
+def is_terminal(line: bytes) -> bool:
+    """A line that ends the reply to one input line: ``ok`` (also glued to a message, as in
+    ``in homeing moving...ok``) or ``error...``."""
+    return line.endswith(b"ok") or line.startswith(b"error")
+
+
+def is_status(line: bytes) -> bool:
+    return line.startswith(b"<") and line.endswith(b">")
+
+
+@dataclass(frozen=True)
+class Until:
+    """When the reply to one exchange is complete: at least ``terminals`` ok/error lines,
+    ``statuses`` status lines and the text ``text``; then ``quiet`` more wall seconds are read."""
+
+    terminals: int = 0
+    statuses: int = 0
+    text: bytes | None = None
+    quiet: float = 0.0
+
+    def met(self, data: bytes) -> bool:
+        lines = lines_of(data)
+        return (
+            sum(map(is_terminal, lines)) >= self.terminals
+            and sum(map(is_status, lines)) >= self.statuses
+            and (self.text is None or self.text in data)
+        )
+
+
+def line_ends(data: bytes) -> int:
+    """How many lines the firmware sees in ``data``: GRBL ends a line at ``\\r`` and ``\\n``."""
+    return data.count(b"\n") + data.count(b"\r")
+
+
+# --------------------------------------------------------------------------------------------
+# One device
+
+
+class Device:
+    """A firmware process serving a pty: the oracle (``run.sh``) or our emulator."""
+
+    def __init__(self, name: str, argv: Sequence[str], workdir: Path) -> None:
+        self.name = name
+        self.argv = list(argv)
+        self.stderr_path = workdir / f"{name}.stderr"
+        with open(self.stderr_path, "wb") as err:
+            self.proc = subprocess.Popen(
+                self.argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=err
+            )
+        self.fd = -1
+        self.received = bytearray()
+        self.mark = 0
+        self.arrivals: list[tuple[float, int]] = []  # (wall time, len(received) after the read)
+
+    def connect(self) -> None:
+        """Open the pty (the oracle's MCU powers on now) and wait for the power-on banner."""
+        assert self.proc.stdout is not None
+        path = self._stdout_line(START_TIMEOUT)
+        if not path.startswith("/"):
+            raise RuntimeError(f"{self.name}: no pty path on stdout ({path!r}); see {self.stderr_path}")
+        self.fd = os.open(path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+        tty.setraw(self.fd, termios.TCSANOW)  # TCSANOW: no flush, the banner stays readable
+        if not self.read_until(lambda d: BANNER_END in d, START_TIMEOUT):
+            raise RuntimeError(f"{self.name}: no power-on banner: {bytes(self.received)!r}")
+
+    def _stdout_line(self, timeout: float) -> str:
+        assert self.proc.stdout is not None
+        sel = selectors.DefaultSelector()
+        sel.register(self.proc.stdout, selectors.EVENT_READ)
+        try:
+            if not sel.select(timeout):
+                raise RuntimeError(f"{self.name}: silent for {timeout} s; see {self.stderr_path}")
+        finally:
+            sel.close()
+        return self.proc.stdout.readline().decode("utf-8", "replace").strip()
+
+    def control(self, command: str, timeout: float = 5.0) -> str:
+        """A control-channel command of our emulator; returns its ``ack`` line."""
+        assert self.proc.stdin is not None
+        self.proc.stdin.write(command.encode() + b"\n")
+        self.proc.stdin.flush()
+        deadline = time.monotonic() + timeout
+        while True:
+            line = self._stdout_line(max(0.0, deadline - time.monotonic()))
+            if line.startswith(("ack", "error")):
+                if not line.startswith("ack"):
+                    raise RuntimeError(f"{self.name} refused {command!r}: {line}")
+                return line
+
+    def write(self, data: bytes) -> None:
+        view = memoryview(data)
+        while view:
+            try:
+                n = os.write(self.fd, view)
+            except BlockingIOError:
+                self.pump(0.01)
+                continue
+            view = view[n:]
+
+    def pump(self, timeout: float) -> bool:
+        """Read what is available within ``timeout`` seconds; True if anything came."""
+        sel = selectors.DefaultSelector()
+        sel.register(self.fd, selectors.EVENT_READ)
+        try:
+            if not sel.select(timeout):
+                return False
+        finally:
+            sel.close()
+        try:
+            chunk = os.read(self.fd, 65536)
+        except (BlockingIOError, OSError):
+            return False
+        self.received += chunk
+        self.arrivals.append((time.monotonic(), len(self.received)))
+        return bool(chunk)
+
+    def pending(self) -> bytes:
+        return bytes(self.received[self.mark :])
+
+    def take(self) -> bytes:
+        data = self.pending()
+        self.mark = len(self.received)
+        return data
+
+    def read_until(self, done: Callable[[bytes], bool], timeout: float) -> bool:
+        deadline = time.monotonic() + timeout
+        while not done(self.pending()):
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return False
+            self.pump(min(left, 0.05))
+        return True
+
+    def read_quiet(self, seconds: float) -> None:
+        while self.pump(seconds):
+            pass
+
+    def close(self) -> None:
+        if self.fd >= 0:
+            os.close(self.fd)
+            self.fd = -1
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+            try:
+                self.proc.wait(STOP_TIMEOUT)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+        for stream in (self.proc.stdin, self.proc.stdout):
+            if stream is not None:
+                stream.close()
+
+
+def spawn_oracle(workdir: Path, *flags: str) -> Device:
+    env_dir = str(ORACLE_BUILD)
+    argv = ["env", f"MIROBOT_ORACLE_DIR={env_dir}", str(ORACLE_SOURCE / "run.sh"), "-s", "0"]
+    argv += ["-l", str(workdir / "oracle.log"), *flags]
+    return Device("oracle", argv, workdir)
+
+
+def spawn_emulator(workdir: Path, *flags: str, time_scale: float = EMULATOR_TIME_SCALE) -> Device:
+    argv = [sys.executable, "-m", "mirobot_emulator", "--firmware", "classic"]
+    argv += ["--time-scale", repr(time_scale), *flags]
+    return Device("ours", argv, workdir)
+
+
+# --------------------------------------------------------------------------------------------
+# The pair
+
+
+@dataclass
+class Exchange:
+    """What was sent in one step and what each side answered to it."""
+
+    sent: bytes
+    oracle: bytes
+    ours: bytes
+    moving: bool = False
+    note: str = ""
+
+
+_NUMBER = re.compile(rb"-?\d+(\.\d+)?")
+
+
+def mask_status_numbers(data: bytes) -> bytes:
+    """Status lines with every number replaced by its format (``-12.345`` -> ``#.###``): sign
+    and value depend on the sampled instant, the number of decimals does not."""
+
+    def mask_line(line: bytes) -> bytes:
+        if not is_status(line.rstrip(b"\r")):
+            return line
+        return _NUMBER.sub(
+            lambda m: b"#" + (b"." + b"#" * (len(m.group(1)) - 1) if m.group(1) else b""), line
+        )
+
+    return b"\n".join(mask_line(line) for line in data.split(b"\n"))
+
+
+@dataclass
+class Pair:
+    """The oracle and our emulator, powered on together and fed the same bytes."""
+
+    oracle: Device
+    ours: Device
+    exchanges: list[Exchange] = field(default_factory=list)
+    banner: Exchange | None = None
+
+    @classmethod
+    def spawn(cls, workdir: Path, oracle_flags: Sequence[str] = (), our_flags: Sequence[str] = (),
+              time_scale: float = EMULATOR_TIME_SCALE) -> Pair:
+        """Start both processes (without waiting); :meth:`connect` powers them on."""
+        workdir.mkdir(parents=True, exist_ok=True)
+        oracle = spawn_oracle(workdir, *oracle_flags)
+        try:
+            ours = spawn_emulator(workdir, *our_flags, time_scale=time_scale)
+        except BaseException:
+            oracle.close()
+            raise
+        return cls(oracle, ours)
+
+    def connect(self) -> Pair:
+        try:
+            self.oracle.connect()
+            self.ours.connect()
+        except BaseException:
+            self.close()
+            raise
+        self.banner = Exchange(b"", self.oracle.take(), self.ours.take(), note="power-on")
+        self.exchanges.append(self.banner)
+        return self
+
+    def close(self) -> None:
+        for device in (self.oracle, self.ours):
+            device.close()
+
+    # --------------------------------------------------------------- sending
+    def send(self, data: bytes | str, until: Until | None = None, *, moving: bool = False,
+             timeout: float = 20.0, note: str = "") -> Exchange:
+        """Send ``data`` to both; read until ``until`` (default: one ok/error per line end)."""
+        raw = data.encode() if isinstance(data, str) else data
+        until = until or Until(terminals=line_ends(raw))
+        for device in (self.oracle, self.ours):
+            device.write(raw)
+        start = time.monotonic()
+        if not self.oracle.read_until(until.met, timeout):
+            raise AssertionError(
+                f"harness: the oracle did not complete {until} after {raw!r} within {timeout} s; "
+                f"it said {self.oracle.pending()!r}"
+            )
+        spent = time.monotonic() - start
+        self.ours.read_until(until.met, 2.0 + 2 * spent)
+        if until.quiet:
+            self.oracle.read_quiet(until.quiet)
+            self.ours.read_quiet(until.quiet)
+        exchange = Exchange(raw, self.oracle.take(), self.ours.take(), moving, note)
+        self.exchanges.append(exchange)
+        return exchange
+
+    def lines(self, *lines: str, moving: bool = False) -> list[Exchange]:
+        """Send each line (``\\n`` added) and wait for its reply before the next."""
+        return [self.send(line + "\n", moving=moving) for line in lines]
+
+    def settle(self) -> Exchange:
+        """``G4 P0``: its ``ok`` comes once the planner is empty (GRBL synchronises dwells)."""
+        return self.send("G4 P0\n", note="settle")
+
+    def status(self, *, moving: bool = False) -> Exchange:
+        return self.send(b"?", Until(statuses=1), moving=moving)
+
+    def reset(self) -> Exchange:
+        """``%``: the banner, and what follows it (the unlock hint after an alarm)."""
+        return self.send(b"%", Until(text=BANNER_END, quiet=0.1))
+
+    def finish(self, quiet: float = 0.3) -> Exchange:
+        """Collect whatever either side still prints (``quiet`` wall seconds of silence)."""
+        return self.send(b"", Until(quiet=quiet), note="trailing output")
+
+    def stream(self, lines: Sequence[str], window: int = 127, timeout: float = 60.0) -> Exchange:
+        """Character-counting streaming of ``lines`` to both at once (at most ``window`` bytes
+        unacknowledged per side), until every line is answered."""
+        payloads = [(line + "\n").encode() for line in lines]
+        state = {d.name: [0, 0, [], 0] for d in (self.oracle, self.ours)}  # next, seen, sizes, base
+        deadline = time.monotonic() + timeout
+        devices = (self.oracle, self.ours)
+        for d in devices:
+            state[d.name][3] = len(d.received)
+        while time.monotonic() < deadline:
+            busy = False
+            for d in devices:
+                nxt, seen, sizes, base = state[d.name]
+                done = sum(map(is_terminal, lines_of(bytes(d.received[base:]))))
+                while len(sizes) > 0 and seen < done:
+                    sizes.pop(0)
+                    seen += 1
+                while nxt < len(payloads) and sum(sizes) + len(payloads[nxt]) <= window:
+                    d.write(payloads[nxt])
+                    sizes.append(len(payloads[nxt]))
+                    nxt += 1
+                state[d.name][:3] = [nxt, seen, sizes]
+                if seen < len(payloads):
+                    busy = True
+                    d.pump(0.002)
+            if not busy:
+                break
+        raw = b"".join(payloads)
+        exchange = Exchange(raw, self.oracle.take(), self.ours.take(), note="streamed")
+        self.exchanges.append(exchange)
+        return exchange
+
+    # --------------------------------------------------------------- comparing
+    def differences(self) -> list[str]:
+        """Every exchange whose replies differ after normalisation, described."""
+        out = []
+        for i, ex in enumerate(self.exchanges):
+            oracle, ours = ex.oracle, normalise_ours(ex.ours)
+            if ex.moving:
+                oracle, ours = mask_status_numbers(oracle), mask_status_numbers(ours)
+            if oracle != ours:
+                what = f"{ex.note}: " if ex.note else ""
+                out.append(
+                    f"#{i} {what}sent {_short(ex.sent)}\n    oracle: {oracle!r}\n    ours:   {ours!r}"
+                )
+        return out
+
+    def check(self) -> None:
+        """Fail with every difference found (all exchanges, not just the first)."""
+        self.finish()
+        diffs = self.differences()
+        if diffs:
+            raise AssertionError("oracle and emulator differ:\n" + "\n".join(diffs))
+
+
+def _short(data: bytes, limit: int = 300) -> str:
+    text = repr(data)
+    return text if len(text) <= limit else text[:limit] + f"...({len(data)} bytes)"
+
+
+# --------------------------------------------------------------------------------------------
+# Simulated time
+
+
+def oracle_log(workdir: Path) -> list[tuple[float, str]]:
+    """The oracle's ``-l`` log: every output line with its simulated time in seconds."""
+    entries = []
+    for raw in (workdir / "oracle.log").read_text("latin-1").splitlines():
+        stamp, _, text = raw.partition(" ")
+        entries.append((float(stamp), text))
+    return entries
+
+
+def motion_ends(device: Device) -> list[float]:
+    """Our emulator's ends of motion (wall instants mapped exactly from its simulated clock)."""
+    words = device.control("motion-ends").split()
+    return [float(w) for w in words[2:]]

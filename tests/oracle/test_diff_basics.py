@@ -1,0 +1,59 @@
+"""Banners, status at rest, system commands and settings: byte for byte."""
+
+from __future__ import annotations
+
+import pytest
+
+from .harness import BANNER_END, Pair, Until
+
+
+def test_power_on_banner(pair: Pair) -> None:
+    pair.check()  # the power-on exchange is the first one compared
+
+
+def test_reset_banner_and_status(pair: Pair) -> None:
+    pair.status()
+    pair.reset()
+    pair.status()
+    pair.reset()
+    pair.check()
+
+
+@pytest.mark.parametrize("command", ["$", "$$", "$I", "$G", "$#", "$N", "$X", "$Z", "$H1", "$$$"])
+def test_system_command(pair: Pair, command: str) -> None:
+    pair.send(command + "\n")
+    pair.status()
+    pair.check()
+
+
+def test_check_mode(pair: Pair) -> None:
+    """``$C`` on, lines parsed but not run, ``?`` says Check, ``$C`` off resets (banner)."""
+    pair.lines("$C", "M50", "M21 G90 X10 F2000", "G4 P0")
+    pair.status()
+    pair.send("$C\n", Until(terminals=1, text=BANNER_END))
+    pair.status()
+    pair.check()
+
+
+SETTINGS: dict[str, list[str]] = {
+    "stepper": ["$0=20", "$1=25", "$2=3", "$3=7", "$4=1", "$5=1", "$6=1"],
+    "report": ["$10=3", "$11=0.020", "$12=0.005", "$13=1"],
+    "limits": ["$20=0", "$21=0", "$22=0", "$23=3", "$24=900", "$25=1000.5", "$26=100", "$27=5",
+               "$28=1"],
+    "steps": [f"$10{i}=12.5" for i in range(7)],
+    "rates": [f"$11{i}=1000" for i in range(7)],
+    "accels": [f"$12{i}=20.25" for i in range(7)],
+    "max-travel": [f"$13{i}=100" for i in range(7)],
+    "min-travel": [f"$14{i}=100" for i in range(7)],
+    "reset-distance": [f"$15{i}=10" for i in range(7)],
+    "invalid": ["$0=-1", "$7=1", "$29=1", "$99=1", "$107=1", "$157=1", "$1000=1", "$10=abc",
+                "$10=", "$=1", "$11=1e2", "$20=2", "$0=3.7"],
+}
+
+
+@pytest.mark.parametrize("group", SETTINGS)
+def test_setting_writes(pair: Pair, group: str) -> None:
+    """Every setting written (each answered), then ``$$`` shows what was stored."""
+    pair.lines(*SETTINGS[group])
+    pair.send("$$\n")
+    pair.check()

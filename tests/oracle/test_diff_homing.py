@@ -1,0 +1,42 @@
+"""Homing: ``$H``, ``$HH`` and the single-axis forms, with ``?`` during each phase."""
+
+from __future__ import annotations
+
+import pytest
+
+from .harness import Pair, Until
+
+
+@pytest.mark.parametrize("command", ["$H", "$HH", "$H0", "$H1", "$H4"])
+def test_homing_phases(pair: Pair, command: str) -> None:
+    """``?`` during the switch search (answered only when it ends, on the oracle), ``?`` during
+    the return to zero (``Run``), then at rest; the parser state after homing."""
+    pair.send(command + "\n", Until(quiet=0.2), note="homing starts")
+    pair.send(b"?", Until(terminals=1), note="? during the switch search, until the ok")
+    pair.status(moving=True)
+    pair.settle()
+    pair.status()
+    pair.send("$G\n")
+    pair.lines("M21 G90 G1 X10", "M21 G90 X5 F2000")
+    pair.settle()
+    pair.status()
+    pair.check()
+
+
+def test_homing_unlocks_after_reset(pair: Pair) -> None:
+    pair.send("$H\n", Until(terminals=1))
+    pair.settle()
+    pair.reset()
+    pair.lines("M21 G90 X5 F2000")
+    pair.settle()
+    pair.status()
+    pair.check()
+
+
+def test_reset_during_homing(pair: Pair) -> None:
+    pair.send("$H\n", Until(quiet=0.3))
+    pair.reset()
+    pair.status()
+    pair.lines("M21 G90 X5 F2000", "$X")
+    pair.status()
+    pair.check()

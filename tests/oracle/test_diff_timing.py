@@ -1,0 +1,87 @@
+"""Motion timing in simulated time: the oracle's ``-l`` log against our emulator's clock.
+
+Each program is streamed (character counting) after the arm has settled, followed by ``G4 P0``,
+whose ``ok`` comes once the planner is empty. Its time runs from the ``ok`` of its first line
+(the first block is planned and starts) to the end of motion. On the oracle both instants come
+from its simulated-time log (the end: the dwell's ``ok``). On ours the end is its last
+``motion-ends`` instant (mapped exactly from its simulated clock) and the start is the wall time
+at which that first ``ok`` was read, both times the time scale; the reading latency (well under
+a millisecond, times the time scale) is the only inexactness. The replies are compared
+byte for byte too.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+
+from .harness import Pair, is_terminal, lines_of, motion_ends, oracle_log
+
+
+def circle(n: int, radius: float = 20.0) -> list[str]:
+    """``n`` short straight Cartesian segments around a circle near the start pose."""
+    out = ["M20 G90 G1 X202 Y0 Z160 A0 B0 C0 F2000"]
+    for i in range(1, n + 1):
+        a = 2 * math.pi * i / n
+        out.append(f"M20 G90 G1 X{182 + radius * math.cos(a):.3f} Y{radius * math.sin(a):.3f}"
+                   " Z160")
+    return out
+
+
+PROGRAMS: dict[str, tuple[list[str], float, float, float]] = {
+    # name: (lines, relative tolerance, absolute tolerance in seconds, our time scale). Single
+    # moves run slowly on ours (2x) so that the read latency of the first ok stays near 1 ms
+    # simulated; long programs faster (the tolerance is then 100 ms or more).
+    "joint-single": (["M21 G90 X30 F2000"], 0.01, 0.010, 2.0),
+    "joint-six-axes": (["M21 G90 X10 Y-10 Z15 A-20 B-25 C30 F2000"], 0.01, 0.010, 2.0),
+    "joint-short-segments": (
+        [f"M21 G90 X{i * 0.5:g} F2000" for i in range(1, 61)], 0.02, 0.0, 4.0),
+    "cart-g0": (["M20 G90 G0 X180 Y20 Z120 A0 B0 C0 F2000"], 0.02, 0.0, 2.0),
+    "cart-g1": (["M20 G90 G1 X180 Y20 Z120 A0 B0 C0 F2000"], 0.02, 0.0, 2.0),
+    "cart-g1-200-segments": (circle(200), 0.02, 0.0, 8.0),
+}
+
+
+def first_ok_wall(exchange_start: int, pair: Pair) -> float:
+    """Wall time at which our emulator's first ``ok`` after offset ``exchange_start`` was read."""
+    data = bytes(pair.ours.received)
+    at = data.index(b"ok\r\n", exchange_start) + 4
+    return next(wall for wall, size in pair.ours.arrivals if size >= at)
+
+
+def program_times(
+    pair: Pair, workdir: Path, program: list[str], scale: float
+) -> tuple[float, float]:
+    """(oracle, ours) simulated seconds of ``program``, measured as the module docstring says."""
+    pair.lines("M50")
+    pair.settle()
+    logged_before = pair.oracle.received.count(b"\n")
+    ours_start = len(pair.ours.received)
+    exchange = pair.stream([*program, "G4 P0"])
+    assert sum(map(is_terminal, lines_of(exchange.oracle))) == len(program) + 1, exchange.oracle
+    log = oracle_log(workdir)[logged_before:]
+    oks = [stamp for stamp, text in log if is_terminal(text.encode())]
+    oracle = oks[-1] - oks[0]
+    ends = motion_ends(pair.ours)
+    start = first_ok_wall(ours_start, pair)
+    assert ends and ends[-1] > start, f"no end of motion after the program's start: {ends}"
+    return oracle, (ends[-1] - start) * scale
+
+
+@pytest.mark.parametrize("name", PROGRAMS)
+def test_program_time(tmp_path: Path, name: str) -> None:
+    program, relative, absolute, scale = PROGRAMS[name]
+    pair = Pair.spawn(tmp_path, time_scale=scale).connect()
+    try:
+        oracle, ours = program_times(pair, tmp_path, program, scale)
+        pair.status()
+        allowed = max(relative * oracle, absolute)
+        assert abs(ours - oracle) <= allowed, (
+            f"{name}: oracle {oracle:.3f} s, ours {ours:.3f} s simulated "
+            f"({(ours / oracle - 1) * 100:+.1f} %, allowed {allowed * 1000:.0f} ms)"
+        )
+        pair.check()
+    finally:
+        pair.close()
