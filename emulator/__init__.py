@@ -2,7 +2,7 @@
 
 - :class:`Firmware` (:mod:`mirobot_emulator.firmware`): the pure firmware model, bytes in and out
   with an explicit clock.
-- :func:`run_server`, :class:`EmulatorServer`, :class:`ServerOptions`, :class:`VirtualMirobot`
+- :class:`EmulatorServer`, :class:`ServerOptions`, :class:`VirtualMirobot`
   (:mod:`mirobot_emulator.server`): the model on a pseudo-terminal, as a process
   (``mirobot-emulator``) or in a background thread.
 - :mod:`mirobot_emulator.faults`: fault injection, deterministic by seed.
@@ -17,16 +17,15 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from .firmware import Firmware
-    from .server import EmulatorServer, ServerOptions, VirtualMirobot, run_server
+    from .server import EmulatorServer, ServerOptions, VirtualMirobot
 
-__all__ = ["EmulatorServer", "Firmware", "ServerOptions", "VirtualMirobot", "run_server"]
+__all__ = ["EmulatorServer", "Firmware", "ServerOptions", "VirtualMirobot"]
 
 _LAZY = {
     "Firmware": ".firmware",
     "EmulatorServer": ".server",
     "ServerOptions": ".server",
     "VirtualMirobot": ".server",
-    "run_server": ".server",
 }
 
 

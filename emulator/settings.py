@@ -14,11 +14,13 @@ J3: ``$110`` is the max rate of J4, ``$114`` the one of J1.
 
 * ``$0..$6``, ``$11..$13``, ``$23``, ``$26``, ``$28`` and the classic ``$100..$106`` defaults are
   the open firmware's; the 2021 ``$100..$106`` are the 2021 manual's.
-* The classic profile (firmware 20191228_2) has GRBL's settings plus the five axis groups
-  ``$100..$146``; the DH lengths are not settings there (PROTOCOL 7).
-* The 2021 profile adds ``$28``, ``$29..$36``, ``$41..$43``, ``$46..$50``, ``$150..$156``
-  (calibration, "reset distance" in the open firmware) and ``$160..$166`` (backlash) with the
-  2021 manual's defaults; the open firmware's ``$37..$40`` are not in the 2021 manual and absent.
+* The classic profile (firmware 20191228_2) has GRBL's settings, ``$28``, the axis groups
+  ``$100..$156``; the DH lengths are not settings there (PROTOCOL 7).
+* Both profiles have ``$28`` and ``$150..$156`` (calibration, "reset distance"); the classic
+  lines are the ones the classic firmware prints (checked against it).
+* The 2021 profile adds ``$29..$36``, ``$41..$43``, ``$46..$50`` and ``$160..$166`` (backlash)
+  with the 2021 manual's defaults (also for ``$150..$156``); the open firmware's ``$37..$40`` are
+  not in the 2021 manual and absent.
 * The open firmware prints a ``Settings for robot:`` header line inside ``$$``; it is left out so
   that every dump line is ``$N=value (description)`` (PROTOCOL 7).
 * Descriptions of settings the open firmware does not have (``$46..$50``, ``$140..$146``,
@@ -94,7 +96,6 @@ _GRBL_BASICS: Final = (
 # Mirobot robot settings of the 2021 profile (descriptions of $28..$43 as the open firmware
 # prints them; defaults from the 2021 manual).
 _ROBOT_2021: Final = (
-    _s(28, 65, "homing pos dir invert mask", "mask"),
     _s(29, 127.0, "D1 Link length"),
     _s(30, 29.69, "A1 Link length"),
     _s(31, 108.0, "A2 Link length"),
@@ -125,11 +126,16 @@ _AXIS_GROUPS: Final = (
      (350, 205, 360, 0, 100, 30, 170)),
 )  # fmt: skip
 
-# 2021 only: calibration ("reset distance" in the open firmware) and backlash compensation.
-_AXIS_GROUPS_2021: Final = (
-    (150, " reset distance", (73, 30, 0, 0, 100, 32, 57)),
-    (160, " backlash, mm", (0,) * 7),
+# Calibration ("reset distance" in the open firmware; the classic defaults and lines as the
+# classic firmware prints them in ``$$``) and the 2021 backlash compensation: (base, suffix,
+# classic defaults or None when the classic firmware lacks the group, 2021 defaults).
+_AXIS_GROUPS_EXTRA: Final = (
+    (150, " reset distance", (45, 45, 0, 0, 45, 45, 45), (73, 30, 0, 0, 100, 32, 57)),
+    (160, " backlash, mm", None, (0,) * 7),
 )
+
+_HOMING_POS_DIR: Final = _s(28, 65, "homing pos dir invert mask", "mask")
+"""``$28`` on both profiles (the classic ``$$`` lists it too)."""
 
 SIGNED_2021: Final = frozenset({34, 41, 42, 43, 46, 47, 48})
 """ASSUMED: the 2021 settings that accept a negative value (L, base offsets, tool offsets)."""
@@ -137,16 +143,19 @@ SIGNED_2021: Final = frozenset({34, 41, 42, 43, 46, 47, 48})
 
 def _build(profile: str) -> dict[int, SettingSpec]:
     table: dict[int, SettingSpec] = {s.number: s for s in _GRBL_BASICS}
+    table[_HOMING_POS_DIR.number] = _HOMING_POS_DIR
     if profile == "2021":
         table.update({s.number: s for s in _ROBOT_2021})
     for base, suffix, classic, modern in _AXIS_GROUPS:
         values = classic if profile == "classic" else modern
         for k, letter in enumerate(AXIS_LETTERS):
             table[base + k] = _s(base + k, values[k], f"{letter}{suffix}")
-    if profile == "2021":
-        for base, suffix, values in _AXIS_GROUPS_2021:
-            for k, letter in enumerate(AXIS_LETTERS):
-                table[base + k] = _s(base + k, values[k], f"{letter}{suffix}")
+    for base, suffix, classic_extra, modern_extra in _AXIS_GROUPS_EXTRA:
+        extra = classic_extra if profile == "classic" else modern_extra
+        if extra is None:
+            continue
+        for k, letter in enumerate(AXIS_LETTERS):
+            table[base + k] = _s(base + k, extra[k], f"{letter}{suffix}")
     return dict(sorted(table.items()))
 
 

@@ -32,7 +32,7 @@ What is modelled
 
 Not modelled
 ------------
-GRBL's look-ahead and step quantisation (see :mod:`mirobot_emulator.motion`); work coordinate
+GRBL's look-ahead (see :mod:`mirobot_emulator.motion`); work coordinate
 systems, ``G10``/``G28``/``G30``/``G92``, tool length offsets (``G43.1``/``G49``) and probing
 (``G38.x``): they answer ``Unsupported command`` (GRBL would accept them; no Mirobot client sends
 them); ``G54..G59`` are accepted with all offsets zero; stored startup lines (``$N0=``) are kept
@@ -54,9 +54,11 @@ ASSUMED points implemented (each in one constant or function, named here)
 * ``_refusal``: the four "ok but dropped" texts (locked, soft limit, out of workspace, angle out of
   limit) are printed as an empty line then the text (as the open firmware's ``"\\r\\n..."``), then
   ``ok``.
-* ``_power_on_condition``: after power-on **and after every** ``%`` the axes are locked
-  (PROTOCOL 6.1); the 2021 profile is then also in ``Alarm`` (its power-on state), the classic
-  profile only when the reset interrupted motion.
+* ``Machine.reset_condition``: only power-on locks the axes (oracle; PROTOCOL 6.1 said every
+  ``%`` too); after a reset the 2021 profile is in ``Alarm`` (ASSUMED, its power-on state), the
+  classic profile only when the reset interrupted motion.
+* ``reports.step_position``: status angles are whole motor steps (``$100..$106`` per degree or
+  mm, rounded half away from zero) and the pose is the FK of those angles (oracle).
 * ``_m50_allowed_in_alarm``: on 2021 a bare ``M50`` line is accepted in ``Alarm`` and clears it
   (the 2021 manual unlocks with ``M50`` right after power-on, when the arm is in ``Alarm``);
   on classic ``M50`` in ``Alarm`` gets ``error: Alarm lock`` like any G-code.

@@ -58,7 +58,7 @@ class Firmware:
         self.settings: dict[int, float] = self._m.settings
         self._system = SystemCommands(self._m, self.reset)
         self._gcode = GcodeExecutor(self._m)
-        self._m.power_on_condition(interrupted=False)
+        self._m.reset_condition(interrupted=False)
         self._m.parser_init(feed=200.0)
         self._m.emit_lines(banner(self._m))
 
@@ -142,7 +142,7 @@ class Firmware:
         m.hold = False
         m.check = False
         m.critical = False
-        m.power_on_condition(interrupted=interrupted)
+        m.reset_condition(interrupted=interrupted)
         m.parser_init(feed=200.0)
         m.emit_lines(banner(m))
 

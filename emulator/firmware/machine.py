@@ -107,9 +107,9 @@ class Machine:
             return "Run"
         return "Idle"
 
-    def power_on_condition(self, *, interrupted: bool) -> None:
-        """ASSUMED: locked after power-on and every reset; 2021 then in Alarm too."""
-        self.locked = True
+    def reset_condition(self, *, interrupted: bool) -> None:
+        """Alarm after a reset that interrupted motion; ASSUMED: on 2021 always (its power-on
+        state). The axis lock is not touched: only power-on sets it (oracle)."""
         self.alarm = interrupted or self.profile == "2021"
 
     def parser_init(self, *, feed: float) -> None:

@@ -11,7 +11,7 @@ from typing import Final
 import numpy as np
 
 from .. import motion
-from ..motion import Block, Vec7
+from ..motion import AxisLimits, Block, Vec7
 from . import codes as c
 from .geometry import Geometry, Pose, Refusal, lerp, pose6, vec7
 
@@ -28,7 +28,8 @@ MIN_FEED: Final = 1e-9
 """Clamps for G93 inverse-time feeds that overflow or vanish (units/min)."""
 
 SNAP_TOLERANCE: Final = 1e-4
-"""Largest joint gap (deg) between the arm and the IK of its pose that needs no snap move."""
+"""Largest joint gap (deg) between the arm and the IK of its pose that needs no snap move
+(without motor steps; with steps, a gap that rounds to no step needs none)."""
 
 PathAt = Callable[[float], tuple[Pose, float]]
 Segment = tuple[PathAt, float, int]
@@ -90,6 +91,13 @@ def arc_segment(arc: Arc, p0: Pose, p1: Pose, rail0: float, rail1: float) -> Seg
         return pose6((x, y, *rest)), rail0 + (rail1 - rail0) * u
 
     return at, length, n
+
+
+def _needs_snap(current: Vec7, ideal: Vec7, limits: AxisLimits) -> bool:
+    """Whether the arm at ``current`` must first move to the IK ``ideal`` of its pose."""
+    if limits.steps is not None:
+        return limits.quantise(ideal) != current
+    return max(abs(a - b) for a, b in zip(ideal, current, strict=True)) > SNAP_TOLERANCE
 
 
 class MoveBuilder:
@@ -207,10 +215,9 @@ class MoveBuilder:
         blocks: list[Block] = []
         current = start
         for at, length, refs in checked:
-            gap = max(abs(a - b) for a, b in zip(refs[0], current, strict=True))
-            if gap > SNAP_TOLERANCE:
+            if _needs_snap(current, refs[0], limits):
                 blocks.append(motion.joint_block(current, refs[0], None, limits))
-                current = refs[0]
+                current = blocks[-1].end
             poses = self._poses_function(at, refs, current)
             still = max(abs(a - b) for a, b in zip(refs[-1], current, strict=True)) == 0.0
             if length == 0.0 and still:

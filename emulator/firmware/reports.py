@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 
 from .. import motion
 from .. import settings as cfg
+from ..motion import Vec7
 from . import codes as c
+from .geometry import vec7
 from .machine import Machine
-from .scanner import uint8
+from .scanner import c_round, uint8
 
 
 def fmt(value: float) -> str:
@@ -17,11 +20,25 @@ def fmt(value: float) -> str:
     return "0.000" if text == "-0.000" else text
 
 
+def step_position(q: Vec7, settings: Mapping[int, float]) -> Vec7:
+    """``q`` in whole motor steps, as the firmware counts and reports it: each axis rounded
+    (half away from zero) to its ``$100..$106`` steps per degree (mm for the rail).
+
+    The one place where the report quantises; it goes when the planner tracks steps itself.
+    """
+    out = list(q)
+    for k, joint in enumerate(motion.LETTER_TO_JOINT):
+        per_unit = settings[100 + k]
+        if per_unit > 0.0:
+            out[joint] = c_round(q[joint] * per_unit) / per_unit
+    return vec7(out)
+
+
 def status_line(m: Machine) -> str:
     """The status report at this instant, without its ``\\r\\n`` (PROTOCOL 5)."""
     mask = uint8(m.settings[10])
     parts = ["<", m.state]
-    q = m.planner.position
+    q = step_position(m.planner.position, m.settings)
     if mask & 1:
         wire = (q[3], q[4], q[5], q[6], q[0], q[1], q[2])
         parts.append(",Angle(ABCDXYZ):")

@@ -104,7 +104,8 @@ class SystemCommands:
     def _build_info(self, line: str) -> None:
         m = self.m
         if len(line) == 2:
-            m.emit(f"[{c.GRBL_VERSION}.{c.BUILD_DATES[m.profile]}:{m.build_info}]")
+            suffix = c.BUILD_INFO_SUFFIX[m.profile]
+            m.emit(f"[{c.GRBL_VERSION}.{c.GRBL_BUILD}:{m.build_info}{suffix}]")
         elif line[2] != "=":
             m.error(c.INVALID_STATEMENT)
             return

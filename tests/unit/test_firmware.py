@@ -19,6 +19,7 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 from mirobot_emulator.firmware import RX_BUFFER_SIZE, Firmware
+from mirobot_emulator.motion import Planner
 
 from mirobot_async import kinematics as kin
 
@@ -28,6 +29,24 @@ DH = {"classic": kin.DH_CLASSIC, "2021": kin.DH_2021}
 
 # ----------------------------------------------------------------------------------------------
 # helpers
+
+
+STEP_TOLERANCE = 0.1
+"""Status angles are whole motor steps (oracle: ``X10`` reports ``9.995``): a commanded angle is
+reported within one step of the coarsest axis (J6, 11.11 steps per degree)."""
+
+POSE_TOLERANCE = 0.1
+"""The status pose is the FK of those whole-step angles: within this of the commanded pose."""
+
+
+def stepped(expected: object) -> object:
+    """``expected`` angle(s) as a status reports them, up to the motor-step rounding."""
+    return pytest.approx(expected, abs=STEP_TOLERANCE)
+
+
+def posed(expected: object) -> object:
+    """``expected`` pose values as a status reports them (FK of whole-step angles)."""
+    return pytest.approx(expected, abs=POSE_TOLERANCE)
 
 
 def lines_of(data: bytes) -> list[str]:
@@ -275,7 +294,7 @@ def test_filtering_spaces_case_and_comments() -> None:
     messy = b"m21(angle mode)g90 g1\tx1(ten)0 y-5 f1000;trailing comment X99\n"
     assert send(b, messy, math.inf) == ["ok"]
     assert status(a) == status(b)
-    assert status(a).joints[:2] == (10.0, -5.0)
+    assert status(a).joints[:2] == stepped((10.0, -5.0))
 
 
 def test_line_length_limit_is_80_filtered_bytes() -> None:
@@ -296,14 +315,14 @@ def test_realtime_bytes_in_the_middle_of_a_line(profile: str) -> None:
     assert len([line for line in out if line.startswith("<")]) == 2
     assert out[-1] == "ok"
     fw.advance(math.inf)
-    assert status(fw).joints[0] == 10.0
+    assert status(fw).joints[0] == stepped(10.0)
     # feed hold and resume inside a line: the line is not broken, it waits for the ~
     out = send(fw, b"M21 G90 G1 X2!0 F600\n")
     assert out == [] and fw.state == "Hold"
     out = send(fw, b"~")
     assert out[-1] == "ok"
     fw.advance(math.inf)
-    assert status(fw).joints[0] == 20.0
+    assert status(fw).joints[0] == stepped(20.0)
 
 
 def test_soft_reset_mid_line_drops_the_partial_line() -> None:
@@ -312,7 +331,7 @@ def test_soft_reset_mid_line_drops_the_partial_line() -> None:
     assert out[0] == "" and out[1] == "Grbl 0.9j ['$' for help]"
     # "0 F2000" after the reset is a new (bad) line
     assert out[-1] == "error: Expected command letter"
-    assert fw.locked
+    assert not fw.locked  # only power-on locks (oracle: moves run after %)
 
 
 def test_ctrl_x_is_an_ordinary_dropped_byte() -> None:
@@ -340,25 +359,33 @@ def test_receive_ring_overflow_loses_bytes() -> None:
 
 def test_planner_back_pressure_delays_oks() -> None:
     fw = boot("classic", unlocked=True)
-    for i in range(18):
-        assert send(fw, "M21 G91 G1 X1 F600\n") == ["ok"], i
+    line = b"G91 G1 X1 F600\n"  # no M21: it would resync to the machine position
+    for i in range(Planner.CAPACITY):
+        assert send(fw, line) == ["ok"], i
     assert fw.rx_free == RX_BUFFER_SIZE
-    # the 19th line waits (it has left the ring, as in GRBL's line buffer)
-    assert send(fw, b"M21 G91 G1 X1 F600\n") == []
+    # the next line waits (it has left the ring, as in GRBL's line buffer)
+    assert send(fw, line) == []
     assert fw.parser_blocked
     # more lines wait in the ring
-    assert send(fw, b"M21 G91 G1 X1 F600\nM21 G91 G1 X1 F600\n") == []
-    assert fw.rx_free == RX_BUFFER_SIZE - 2 * 19
-    first_block = trapezoid(1.0, 10.0, 50.0)
-    assert send(fw, b"", first_block * 0.99) == []
-    assert send(fw, b"", first_block * 0.02) == ["ok"]  # one block done: one line queued
-    assert fw.rx_free == RX_BUFFER_SIZE - 19
-    assert send(fw, b"", first_block) == ["ok"]
-    assert fw.rx_free == RX_BUFFER_SIZE
-    assert send(fw, b"", first_block) == ["ok"]
-    assert not fw.parser_blocked
+    assert send(fw, line + line) == []
+    assert fw.rx_free == RX_BUFFER_SIZE - 2 * len(line)
+    for waiting in (1, 0):  # a block done: one line queued, the next one leaves the ring
+        out: list[str] = []
+        while not out:
+            deadline = fw.next_deadline()
+            assert deadline is not None
+            fw.advance(deadline - fw.now)
+            out = lines_of(fw.read_output())
+        assert out == ["ok"] and fw.rx_free == RX_BUFFER_SIZE - waiting * len(line)
+    out = []
+    while not out:
+        deadline = fw.next_deadline()
+        assert deadline is not None
+        fw.advance(deadline - fw.now)
+        out = lines_of(fw.read_output())
+    assert out == ["ok"] and not fw.parser_blocked
     fw.advance(math.inf)
-    assert status(fw).joints[0] == pytest.approx(21.0)
+    assert status(fw).joints[0] == stepped(Planner.CAPACITY + 3.0)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -377,7 +404,7 @@ def test_status_moves_monotonically_and_ends_idle_at_target(profile: str) -> Non
         for j in range(6):
             assert abs(target[j] - cur.joints[j]) <= abs(target[j] - prev.joints[j]) + 1e-9
         assert abs(5.0 - cur.rail) <= abs(5.0 - prev.rail) + 1e-9
-    assert samples[-1].joints == target and samples[-1].rail == 5.0
+    assert samples[-1].joints == stepped(target) and samples[-1].rail == stepped(5.0)
 
 
 @pytest.mark.parametrize(
@@ -430,7 +457,7 @@ def test_fk_of_reported_joints_is_the_reported_pose(profile: str) -> None:
         fw.advance(0.1)
         st_ = status(fw)
         pose = kin.forward(st_.joints, DH[profile])
-        assert st_.pose == pytest.approx(pose, abs=0.01)
+        assert st_.pose == posed(pose)
     assert st_.state == "Idle"
 
 
@@ -440,8 +467,8 @@ def test_device_log_pose_reproduced_2021() -> None:
     j = vector["joints"]
     send(fw, f"M21 G90 G0 X{j[0]} Y{j[1]} Z{j[2]} A{j[3]} B{j[4]} C{j[5]}\n", math.inf)
     st_ = status(fw)
-    assert st_.joints == tuple(j)
-    assert st_.pose == pytest.approx(vector["pose"], abs=0.002)
+    assert st_.joints == stepped(tuple(j))
+    assert st_.pose == posed(vector["pose"])
 
 
 def test_device_status_line_reproduced_classic() -> None:
@@ -458,7 +485,7 @@ def test_device_status_line_reproduced_classic() -> None:
         expected.rail,
         expected.mode,
     )
-    assert st_.pose == pytest.approx(expected.pose, abs=0.002)
+    assert st_.pose == posed(expected.pose)
 
 
 @pytest.mark.parametrize("vector", VECTORS["ik_firmware_branch"][:3])
@@ -468,8 +495,8 @@ def test_cartesian_g0_uses_the_firmware_ik_branch(vector: dict[str, list[float]]
     out = send(fw, f"M20 G90 G0 X{x} Y{y} Z{z} A{a} B{b} C{c}\n", math.inf)
     assert out == [*INFO_M20, "ok"]
     st_ = status(fw)
-    assert st_.joints == pytest.approx(vector["joints"], abs=0.0011)
-    assert st_.pose == pytest.approx(vector["pose"], abs=0.0011)
+    assert st_.joints == stepped(vector["joints"])
+    assert st_.pose == posed(vector["pose"])
     assert st_.mode == 1
 
 
@@ -478,7 +505,7 @@ def test_cartesian_line_stays_on_its_line(profile: str) -> None:
     fw = boot(profile, unlocked=True)
     send(fw, "M20 G90 G0 X180 Y-60 Z120 A0 B0 C0\n", math.inf)
     p0 = status(fw).pose
-    assert p0[:3] == pytest.approx((180.0, -60.0, 120.0), abs=0.001)
+    assert p0[:3] == posed((180.0, -60.0, 120.0))
     p1 = (230.0, 70.0, 180.0)
     send(fw, f"M20 G90 G1 X{p1[0]} Y{p1[1]} Z{p1[2]} F1500\n")
     samples, _ = poll_until_idle(fw, period=0.01)
@@ -489,10 +516,10 @@ def test_cartesian_line_stays_on_its_line(profile: str) -> None:
         v = [c - a for a, c in zip(p0[:3], st_.pose[:3], strict=True)]
         t = sum(a * b for a, b in zip(v, d, strict=True)) / norm
         off = math.sqrt(max(sum(a * a for a in v) - t * t, 0.0))
-        assert off <= 0.05, st_
+        assert off <= POSE_TOLERANCE, st_
         assert -0.001 <= t <= norm + 0.001
-        assert st_.pose[3:] == pytest.approx((0.0, 0.0, 0.0), abs=0.002)
-    assert samples[-1].pose[:3] == pytest.approx(p1, abs=0.001)
+        assert st_.pose[3:] == posed((0.0, 0.0, 0.0))
+    assert samples[-1].pose[:3] == posed(p1)
 
 
 def test_cartesian_line_speed_is_the_feed() -> None:
@@ -508,7 +535,7 @@ def test_incremental_cartesian_moves_add_to_the_commanded_pose() -> None:
     send(fw, "M20 G91 G0 X-10 Y5 C10\n", math.inf)
     send(fw, "G91 G1 Z-20 A5 F2000\n", math.inf)
     st_ = status(fw)
-    assert st_.pose == pytest.approx((190.0, 5.0, 130.0, 5.0, 0.0, 10.0), abs=0.002)
+    assert st_.pose == posed((190.0, 5.0, 130.0, 5.0, 0.0, 10.0))
 
 
 def test_orientation_passes_180_continuously() -> None:
@@ -518,8 +545,8 @@ def test_orientation_passes_180_continuously() -> None:
     samples, duration = poll_until_idle(fw, period=0.05)
     j6 = [st_.joints[5] for st_ in samples]
     assert all(b >= a - 1e-9 and b - a < 1.0 for a, b in itertools.pairwise(j6))
-    assert j6[-1] == 190.0  # J6 went on past 180 instead of spinning back
-    assert samples[-1].pose[5] == -170.0
+    assert j6[-1] == stepped(190.0)  # J6 went on past 180 instead of spinning back
+    assert samples[-1].pose[5] == posed(-170.0)
     assert duration == pytest.approx(trapezoid(20.0, 5.0, 50.0), abs=0.06)
 
 
@@ -531,7 +558,7 @@ def test_inverse_time_and_inch_modes() -> None:
     )
     assert send(fw, "G1 X20\n") == ["error: Undefined feed rate"]  # G93 needs F every time
     assert send(fw, "G94 G20 G0 X1\n", math.inf) == ["ok"]
-    assert status(fw).joints[0] == pytest.approx(25.4)
+    assert status(fw).joints[0] == stepped(25.4)
 
 
 def test_base_and_tool_offsets_2021() -> None:
@@ -540,25 +567,25 @@ def test_base_and_tool_offsets_2021() -> None:
     send(fw, "M20 G90 G0 X190 Y0 Z150 A0 B0 C0\n", math.inf)
     st_ = status(fw)
     # the commanded X is shifted by the base offset; the status reports the tool point
-    assert st_.pose == pytest.approx((200.0, 0.0, 150.0, 0.0, 0.0, 0.0), abs=0.002)
+    assert st_.pose == posed((200.0, 0.0, 150.0, 0.0, 0.0, 0.0))
     flange = kin.forward(st_.joints, kin.DH_2021)
-    assert flange[2] == pytest.approx(150.0 - 20.0, abs=0.002)  # the tool points down
+    assert flange[2] == posed(150.0 - 20.0)  # the tool points down
 
 
 def test_rail_moves_in_both_modes() -> None:
     fw = boot("2021", unlocked=True)
     send(fw, "M21 G90 G0 D100\n", math.inf)
-    assert status(fw).rail == 100.0
+    assert status(fw).rail == stepped(100.0)
     send(fw, "M20 G91 G1 X5 D-40 F1000\n", math.inf)
     st_ = status(fw)
-    assert st_.rail == 60.0
-    assert st_.pose[0] == pytest.approx(198.67 + 5.0, abs=0.002)
+    assert st_.rail == stepped(60.0)
+    assert st_.pose[0] == posed(198.67 + 5.0)
 
 
 def test_other_system_commands() -> None:
     fw = boot("classic")
-    assert send(fw, "$I\n") == ["[0.9j.20191228:]", "ok"]
-    assert send(fw, "$I=MYARM\n$I\n") == ["ok", "[0.9j.20191228:MYARM]", "ok"]
+    assert send(fw, "$I\n") == ["[0.9j.20160303:--ZDX&LEAH(201306)]", "ok"]  # oracle
+    assert send(fw, "$I=MYARM\n$I\n") == ["ok", "[0.9j.20160303:MYARM--ZDX&LEAH(201306)]", "ok"]
     assert send(fw, "$N\n") == ["$N0=", "$N1=", "ok"]
     assert send(fw, "$N0=G90\n$N\n") == ["ok", "$N0=G90", "$N1=", "ok"]
     params = send(fw, "$#\n")
@@ -575,9 +602,9 @@ def test_missing_axis_words_stay() -> None:
     fw = boot("classic", unlocked=True)
     send(fw, "M21 G90 G0 X10 Y20 Z-5 A4 B-6 C7\n", math.inf)
     send(fw, "M21 G90 G0 Y0\n", math.inf)
-    assert status(fw).joints == (10.0, 0.0, -5.0, 4.0, -6.0, 7.0)
+    assert status(fw).joints == stepped((10.0, 0.0, -5.0, 4.0, -6.0, 7.0))
     send(fw, "G91 X-3 B6\n", math.inf)
-    assert status(fw).joints == (7.0, 0.0, -5.0, 4.0, 0.0, 7.0)
+    assert status(fw).joints == stepped((7.0, 0.0, -5.0, 4.0, 0.0, 7.0))
 
 
 def test_arc_2021_stays_on_its_circle() -> None:
@@ -589,9 +616,9 @@ def test_arc_2021_stays_on_its_circle() -> None:
     assert len(samples) > 10
     for st_ in samples:
         r = math.hypot(st_.pose[0] - 200.0, st_.pose[1] - 30.0)
-        assert r == pytest.approx(30.0, abs=0.05)
+        assert r == pytest.approx(30.0, abs=POSE_TOLERANCE)
         assert st_.pose[1] >= -0.002
-    assert samples[-1].pose[:3] == pytest.approx((230.0, 30.0, 150.0), abs=0.002)
+    assert samples[-1].pose[:3] == posed((230.0, 30.0, 150.0))
 
 
 def test_arc_radius_error_and_classic_has_no_arcs() -> None:
@@ -609,8 +636,8 @@ def test_gate_move_2021() -> None:
     assert send(fw, "M20 G90 G05 X200 Y40 Z120 F3000\n") == [*INFO_M20, "ok"]
     samples, _ = poll_until_idle(fw, period=0.02)
     top = max(st_.pose[2] for st_ in samples)
-    assert top == pytest.approx(120.0 + fw.settings[49], abs=0.01)
-    assert samples[-1].pose[:3] == pytest.approx((200.0, 40.0, 120.0), abs=0.002)
+    assert top == posed(120.0 + fw.settings[49])
+    assert samples[-1].pose[:3] == posed((200.0, 40.0, 120.0))
 
 
 def test_zero_move_2021() -> None:
@@ -618,7 +645,7 @@ def test_zero_move_2021() -> None:
     send(fw, "M21 G90 G0 X20 Y10 D30\n", math.inf)
     assert send(fw, "$M\n", math.inf) == ["ok"]
     st_ = status(fw)
-    assert st_.joints == (0.0,) * 6 and st_.rail == 30.0
+    assert st_.joints == stepped((0.0,) * 6) and st_.rail == stepped(30.0)
     assert send(boot("classic", unlocked=True), "$M\n") == ["error: Bad number format"]
 
 
@@ -643,7 +670,7 @@ def test_feed_hold_and_resume() -> None:
     send(fw, "~")
     samples, _ = poll_until_idle(fw)
     assert samples[1].state == "Run"
-    assert samples[-1].joints[0] == 50.0
+    assert samples[-1].joints[0] == stepped(50.0)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -692,13 +719,13 @@ def test_homing_variants_2021() -> None:
     send(fw, "M21 G90 G0 X10 Y10 D40\n", math.inf)
     assert send(fw, "$H2\n", math.inf) == ["Info, in homing moving...ok"]
     st_ = status(fw)
-    assert st_.joints[:2] == (10.0, 0.0) and st_.rail == 40.0
+    assert st_.joints[:2] == stepped((10.0, 0.0)) and st_.rail == stepped(40.0)
     assert send(fw, "$H7\n", math.inf) == ["Info, in homing moving...ok"]
-    assert status(fw).rail == 0.0
+    assert status(fw).rail == stepped(0.0)
     send(fw, "M21 G90 G0 X10 D40\n", math.inf)
     assert send(fw, "$H0\n", math.inf) == ["Info, in homing moving...ok"]
     st_ = status(fw)
-    assert st_.joints == (0.0,) * 6 and st_.rail == 0.0
+    assert st_.joints == stepped((0.0,) * 6) and st_.rail == stepped(0.0)
     assert send(fw, "$HE\n", math.inf) == ["Info, in homing moving...ok"]
 
 
@@ -734,7 +761,7 @@ def test_lock_alarm_and_unlock(profile: str) -> None:
     unlock = "M50: Unlock each axis." if profile == "classic" else "Info, M50: Unlock each axis."
     assert send(fw, "M50\n") == [unlock, "ok"]
     assert send(fw, "M21 G90 G0 X10\n", math.inf)[-1] == "ok"
-    assert status(fw).joints[0] == 10.0
+    assert status(fw).joints[0] == stepped(10.0)
 
 
 def test_x_does_not_clear_the_power_on_lock_classic() -> None:
@@ -774,17 +801,17 @@ def test_reset_during_motion(profile: str) -> None:
     assert status(fw).joints == before.joints  # the motion was dropped
 
 
-def test_reset_when_idle_classic_keeps_idle_but_locks() -> None:
+def test_reset_when_idle_classic_keeps_idle_and_unlocked() -> None:
     fw = boot("classic", unlocked=True)
     send(fw, "M21 G90 G0 X10\nM3 S300\nG91\n", math.inf)
     out = send(fw, "%")
     assert out == VECTORS["banner_classic"]
     st_ = status(fw)
-    assert st_.state == "Idle" and st_.pump == 0 and st_.joints[0] == 10.0
-    assert fw.locked
+    assert st_.state == "Idle" and st_.pump == 0 and st_.joints[0] == stepped(10.0)
+    assert not fw.locked  # oracle: only power-on locks
     send(fw, "M50\n")
     send(fw, "M21 X20\n", math.inf)  # G90 again after the reset
-    assert status(fw).joints[0] == 20.0
+    assert status(fw).joints[0] == stepped(20.0)
     assert send(fw, "G1 X10\n") == ["ok"]  # reset restores feed 200
 
 
@@ -811,10 +838,10 @@ def test_soft_limits(profile: str) -> None:
     assert status(fw).joints == (0.0,) * 6
     # a move back into range after going out of range with soft limits off
     send(fw, "$21=0\n$20=0\nM21 G90 X165\n", math.inf)
-    assert status(fw).joints[0] == 165.0
+    assert status(fw).joints[0] == stepped(165.0)
     assert send(fw, "$20=1\nM21 G90 X166\n")[-2:] == ["Soft limit triggered:X", "ok"]
     assert send(fw, "M21 G90 X100\n", math.inf)[-1] == "ok"
-    assert status(fw).joints[0] == 100.0
+    assert status(fw).joints[0] == stepped(100.0)
 
 
 def test_soft_limits_need_homing_enabled() -> None:
@@ -841,13 +868,13 @@ def test_hard_limit(profile: str) -> None:
     assert out[0] == "" and out[-1] == "['$H'|'$X' to unlock]"
     st_ = status(fw)
     assert st_.state == "Alarm"
-    assert st_.joints[0] == pytest.approx(160.0)  # stopped on the switch
+    assert st_.joints[0] == stepped(160.0)  # stopped on the switch
 
 
 def test_hard_limit_off_lets_the_arm_pass() -> None:
     fw = boot("classic", unlocked=True)
     assert send(fw, "$20=0\n$21=0\nM21 G90 X170\n", math.inf) == ["ok", "ok", "ok"]
-    assert status(fw).joints[0] == 170.0
+    assert status(fw).joints[0] == stepped(170.0)
 
 
 def test_cartesian_moves_cannot_pass_the_switches() -> None:
@@ -863,7 +890,7 @@ def test_cartesian_moves_cannot_pass_the_switches() -> None:
     for motion_word in ("G1", "G0"):
         out = send(fw, f"{motion_word} X{x:.3f} Y{y:.3f} F3000\n", math.inf)
         assert out == ["", "There is one angle out of limit!!!", "ok"]
-    assert status(fw).joints[0] == pytest.approx(150.0)
+    assert status(fw).joints[0] == stepped(150.0)
 
 
 def test_trigger_hard_limit_fault_injection() -> None:
@@ -955,7 +982,7 @@ def test_error_lines_do_not_change_modes() -> None:
     fw = boot("classic", unlocked=True)
     assert send(fw, "G91 G1 X1 F0\n") == ["error: Undefined feed rate"]
     send(fw, "X10\n", math.inf)  # still G90 G0
-    assert status(fw).joints[0] == 10.0
+    assert status(fw).joints[0] == stepped(10.0)
 
 
 @pytest.mark.parametrize("profile", PROFILES)
@@ -1003,9 +1030,9 @@ def test_settings_while_moving_are_not_idle() -> None:
 def test_dh_and_tool_settings_are_live_2021() -> None:
     fw = boot("2021")
     assert send(fw, "$29=100\n") == ["ok"]
-    assert status(fw).pose[2] == pytest.approx(230.72 - 27.0, abs=0.001)
+    assert status(fw).pose[2] == posed(230.72 - 27.0)
     assert send(fw, "$48=10\n") == ["ok"]  # tool 10 mm along the flange z (points back up)
-    assert status(fw).pose[2] == pytest.approx(230.72 - 27.0 + 10.0, abs=0.001)
+    assert status(fw).pose[2] == posed(230.72 - 27.0 + 10.0)
     banner = send(fw, "%")
     assert "D1: 100" in banner
 
@@ -1077,7 +1104,7 @@ def test_next_deadline_and_zero_time_scale_loop() -> None:
         fw.advance(max(deadline - fw.now, 0.0))
         steps += 1
         assert steps < 100
-    assert fw.state == "Idle" and status(fw).joints[0] == 0.0
+    assert fw.state == "Idle" and status(fw).joints[0] == stepped(0.0)
 
 
 def test_advance_rejects_negative_time() -> None:
