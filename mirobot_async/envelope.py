@@ -47,7 +47,7 @@ from __future__ import annotations
 import math
 import numbers
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Final, TypeAlias
 
@@ -55,7 +55,6 @@ import numpy as np
 import numpy.typing as npt
 
 from .errors import MirobotUsageError
-from .gcode import fmt_number, normalize_line, parse_words
 from .kinematics import (
     DH,
     DH_2021,
@@ -66,8 +65,18 @@ from .kinematics import (
     forward,
     forward_many,
     inverse,
-    sample_line,
 )
+from .line import ParsedLine
+from .modal import LineCheck, MotionModes, update_modes
+from .paths import (
+    MAX_JOINT_PATH_SAMPLES,
+    MAX_PATH_SAMPLES,
+    arc_plan,
+    arc_samples,
+    line_samples,
+    line_samples_needed,
+)
+from .values import fmt_number
 
 __all__ = [
     "Bound",
@@ -77,6 +86,8 @@ __all__ = [
     "update_modes",
 ]
 
+_POWER_ON: Final = MotionModes()
+
 Bound: TypeAlias = tuple[float | None, float | None]
 """``(low, high)``; ``None`` on a side means no bound on that side."""
 FloatArray: TypeAlias = npt.NDArray[np.float64]
@@ -84,11 +95,6 @@ FloatArray: TypeAlias = npt.NDArray[np.float64]
 BOX_TOL: Final = 1e-6
 """Tolerance (mm) of the box test, so that a bound value itself survives rounding."""
 _AXES: Final = ("x", "y", "z")
-_MOTION_CODES: Final = frozenset({0, 1, 2, 3, 5})
-_KNOWN_G: Final = frozenset({0, 1, 2, 3, 4, 5, 90, 91})
-_AXIS_LETTERS: Final = "XYZABCD"
-_OTHER_LETTERS: Final = frozenset("MGFPSER")
-_HOMING: Final = frozenset({"$H", "$HH", "$HE", *(f"$H{n}" for n in range(8))})
 _ZERO_JOINTS: Final[Joints] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
@@ -139,126 +145,6 @@ def _bound(value: object, what: str) -> Bound | None:
     if lo is not None and hi is not None and lo > hi:
         raise MirobotUsageError(f"{what}=({_num(lo)}, {_num(hi)}): low is above high")
     return (lo, hi)
-
-
-# --------------------------------------------------------------------------------------------
-# Modal state of raw lines
-
-
-@dataclass(frozen=True, slots=True)
-class MotionModes:
-    """The modal words that decide what a raw motion line means (power-on defaults).
-
-    ``None`` means unknown (:meth:`unknown`, e.g. when connecting to an arm already in use): a
-    motion line that relies on an unknown mode is refused until the mode is stated again.
-    Reset it (``MotionModes()``) after a ``%`` reset, a reset banner and homing; ``cartesian``
-    may also be taken from a status report's ``Motion_MODE`` (1 = M20).
-    """
-
-    cartesian: bool | None = False
-    """``M20`` in effect (else ``M21``, joint mode)."""
-    relative: bool | None = False
-    """``G91`` in effect (else ``G90``)."""
-    motion: int | None = 0
-    """The motion code in effect: 0, 1, 2, 3 (or 5, the 2021 jump)."""
-
-    @classmethod
-    def unknown(cls) -> MotionModes:
-        """Nothing known: every motion line must state M20/M21, G90/G91 and G0..G3 itself."""
-        return cls(None, None, None)
-
-
-@dataclass(frozen=True, slots=True)
-class _Parsed:
-    modes: MotionModes  # in effect for this line's motion
-    after: MotionModes  # in effect after the line
-    axes: dict[str, float]
-    radius: float | None
-
-
-def _parse(norm: str, modes: MotionModes) -> _Parsed:
-    """Parse a normalized G-code line (not ``$``); refuse what the checker cannot judge."""
-    try:
-        words = parse_words(norm)
-    except MirobotUsageError as exc:
-        raise MirobotUsageError(f"the envelope cannot check this line: {exc}") from None
-    motion: int | None = None
-    relative: bool | None = None
-    cartesian: bool | None = None
-    program_end = False
-    axes: dict[str, float] = {}
-    radius: float | None = None
-    for letter, value in words:
-        if letter == "G":
-            code = int(value)
-            if not value.is_integer() or code not in _KNOWN_G:
-                raise MirobotUsageError(
-                    f"G{fmt_number(value, 3)} is not a code the envelope can check"
-                )
-            if code in _MOTION_CODES:
-                if motion is not None:
-                    raise MirobotUsageError(f"two motion codes (G{motion} and G{code}) in one line")
-                motion = code
-            elif code in (90, 91):
-                if relative is not None:
-                    raise MirobotUsageError("G90 and G91 in one line")
-                relative = code == 91
-        elif letter == "M":
-            if value in (20.0, 21.0):
-                if cartesian is not None:
-                    raise MirobotUsageError("M20 and M21 in one line")
-                cartesian = value == 20.0
-            elif value in (2.0, 30.0):
-                program_end = True
-        elif letter in _AXIS_LETTERS:
-            if letter in axes:
-                raise MirobotUsageError(f"the axis word {letter} appears twice in one line")
-            axes[letter] = value
-        elif letter == "R":
-            radius = value
-        elif letter not in _OTHER_LETTERS:
-            raise MirobotUsageError(f"the letter {letter} is not one the envelope can check")
-    new = MotionModes(
-        modes.cartesian if cartesian is None else cartesian,
-        modes.relative if relative is None else relative,
-        modes.motion if motion is None else motion,
-    )
-    # ASSUMED: GRBL's program end (M2/M30) resets the distance and motion modes; what the
-    # Mirobot firmware does is not documented, so they become unknown.
-    after = replace(new, relative=None, motion=None) if program_end else new
-    return _Parsed(new, after, axes, radius)
-
-
-def update_modes(line: str | bytes, modes: MotionModes) -> MotionModes:
-    """The modes after ``line`` is executed, without any envelope check; never raises.
-
-    For every line the client sends (checked or not). Homing resets the modes; a line that the
-    firmware would reject leaves them as they were.
-    """
-    norm = normalize_line(line)
-    if norm in _HOMING:
-        return MotionModes()
-    if not norm or norm.startswith("$"):
-        return modes
-    try:
-        return _parse(norm, modes).after
-    except MirobotUsageError:
-        return modes
-
-
-@dataclass(frozen=True, slots=True)
-class LineCheck:
-    """The result of :meth:`Envelope.check_line`: the new modes and where the arm ends up.
-
-    ``joints``/``pose``/``rail`` are the target when computable, else the current values passed in
-    (for lines that do not move) or ``None`` (unknown, e.g. after homing).
-    """
-
-    modes: MotionModes
-    moves: bool
-    joints: Joints | None
-    pose: Pose | None
-    rail: float | None
 
 
 # --------------------------------------------------------------------------------------------
@@ -349,7 +235,7 @@ class Envelope:
         """True when at least one side of the Cartesian box is bounded."""
         return any(math.isfinite(v) for v in (*self._lo, *self._hi))
 
-    def _joint_problem(self, q: Sequence[float], what: str, prefix: str = "") -> str | None:
+    def joint_problem(self, q: Sequence[float], what: str, prefix: str = "") -> str | None:
         for i, (value, (lo, hi)) in enumerate(zip(q, self.joint_limits, strict=True)):
             if not lo - LIMIT_TOL <= value <= hi + LIMIT_TOL:
                 return (
@@ -358,7 +244,7 @@ class Envelope:
                 )
         return None
 
-    def _rail_problem(self, rail: float | None, what: str) -> str | None:
+    def rail_problem(self, rail: float | None, what: str) -> str | None:
         if rail is None or self.rail is None:
             return None
         lo, hi = self.rail
@@ -390,9 +276,7 @@ class Envelope:
             where, bound = "above the envelope's maximum", self._hi[side // 2]
         return f"{subject} {axis}={value:.3f} mm is {where} {axis}={_num(bound)} mm ({what})"
 
-    def _box_problem(
-        self, point: Sequence[float], what: str, subject: str = "target"
-    ) -> str | None:
+    def box_problem(self, point: Sequence[float], what: str, subject: str = "target") -> str | None:
         if not self.has_box:
             return None
         excess = self._excess(np.asarray([point[:3]], dtype=np.float64))[0]
@@ -401,7 +285,7 @@ class Envelope:
             return self._box_message(side, point, subject, what)
         return None
 
-    def _path_box_problem(self, points: FloatArray, what: str, kind: str) -> str | None:
+    def path_box_problem(self, points: FloatArray, what: str, kind: str) -> str | None:
         """Samples (row 0 = start) inside the box, or no farther out than the start on any side."""
         if not self.has_box or len(points) == 0:
             return None
@@ -424,15 +308,15 @@ class Envelope:
         values = np.asarray(point, dtype=np.float64)
         if values.ndim != 1 or len(values) not in (3, 6) or not np.isfinite(values).all():
             raise MirobotUsageError(f"a point must be 3 (or 6) finite numbers, got {point!r}")
-        return self._box_problem(values.tolist(), "") is None
+        return self.box_problem(values.tolist(), "") is None
 
     def contains_joints(self, joints: Sequence[float], rail: float | None = None) -> bool:
         """True when the joints are within the limits, the rail in range and the tool in the box."""
         q = _joints6(joints, "joints")
         r = None if rail is None else _real(rail, "rail")
-        if self._joint_problem(q, "") or self._rail_problem(r, ""):
+        if self.joint_problem(q, "") or self.rail_problem(r, ""):
             return False
-        return not self.has_box or self._box_problem(self.tool_point(q), "") is None
+        return not self.has_box or self.box_problem(self.tool_point(q), "") is None
 
     def tool_point(self, joints: Sequence[float]) -> tuple[float, float, float]:
         """The tool point ``(x, y, z)`` of ``joints`` on the envelope's model."""
@@ -457,18 +341,20 @@ class Envelope:
         """
         q = _joints6(target, "target joints")
         r = None if rail is None else _real(rail, "rail")
-        problem = self._joint_problem(q, what) or self._rail_problem(r, what)
+        problem = self.joint_problem(q, what) or self.rail_problem(r, what)
         if problem is None and self.has_box:
-            problem = self._box_problem(self.tool_point(q), what)
+            problem = self.box_problem(self.tool_point(q), what)
         if problem is not None:
             raise MirobotUsageError(problem)
         if start is not None:
             self.check_joint_path(start, q, what=what)
 
     def joint_path_steps(self, start: Sequence[float], target: Sequence[float]) -> int:
-        """Samples needed so the tool point moves at most ``path_step_mm`` between two of them."""
+        """Samples needed so the tool point moves at most ``path_step_mm`` between two of them
+        (at most :data:`~mirobot_async.paths.MAX_JOINT_PATH_SAMPLES`: bounded work)."""
         turn = sum(abs(b - a) for a, b in zip(start, target, strict=True)) * math.pi / 180.0
-        return max(1, math.ceil(turn * self._reach / self.path_step_mm - 1e-9))
+        needed = max(1.0, math.ceil(turn * self._reach / self.path_step_mm - 1e-9))
+        return int(min(needed, MAX_JOINT_PATH_SAMPLES))
 
     def check_joint_path(
         self,
@@ -488,12 +374,13 @@ class Envelope:
         if not self.has_box:
             return
         n = self.joint_path_steps(a.tolist(), b.tolist()) if steps is None else int(steps)
+        n = min(n, MAX_JOINT_PATH_SAMPLES)
         if n < 1:
             raise MirobotUsageError(f"steps={steps!r} must be >= 1")
         t = np.linspace(0.0, 1.0, n + 1)
         samples = a[None, :] + t[:, None] * (b - a)[None, :]
         points = forward_many(samples, self.dh, self.tool)[:, :3]
-        problem = self._path_box_problem(points, what, "joint-space path")
+        problem = self.path_box_problem(points, what, "joint-space path")
         if problem is not None:
             raise MirobotUsageError(problem)
 
@@ -520,11 +407,11 @@ class Envelope:
         self._check_pose(_pose6(pose, "pose"), start, what)
 
     def _check_pose(self, pose: Pose, start: Sequence[float] | None, what: str) -> Joints:
-        problem = self._box_problem(pose, what)
+        problem = self.box_problem(pose, what)
         if problem is not None:
             raise MirobotUsageError(problem)
         q = self._ik(pose, what, "target pose")
-        problem = self._joint_problem(q, what, f"target pose {_fmt(pose)} needs (firmware IK) ")
+        problem = self.joint_problem(q, what, f"target pose {_fmt(pose)} needs (firmware IK) ")
         if problem is not None:
             raise MirobotUsageError(problem)
         if start is not None:
@@ -535,16 +422,25 @@ class Envelope:
         self, start_pose: Sequence[float], end_pose: Sequence[float], *, what: str = "move_linear"
     ) -> None:
         """Check a straight Cartesian move (``M20 G1``): samples at ``path_step_mm`` in the box,
-        each sample's firmware-branch IK reachable and within the joint limits."""
+        each sample's firmware-branch IK reachable and within the joint limits (bounded work)."""
         a = _pose6(start_pose, "start pose")
         b = _pose6(end_pose, "end pose")
-        self._check_pose_samples(sample_line(a, b, self.path_step_mm), what, "straight line")
+        needed = line_samples_needed(a, b, self.path_step_mm)
+        self._check_pose_samples(line_samples(a, b, self._bounded(needed, what)), what, "line")
+
+    def _bounded(self, needed: float, what: str) -> int:
+        if needed > MAX_PATH_SAMPLES:
+            raise MirobotUsageError(
+                f"the path needs {needed:.0f} check samples, more than the {MAX_PATH_SAMPLES} the "
+                f"envelope checks for one move: split it into shorter moves ({what})"
+            )
+        return int(needed)
 
     def _check_pose_samples(self, samples: FloatArray, what: str, kind: str) -> Joints:
         """Box and IK of pose samples (row 0 = start); returns the IK of the last sample."""
         end = (*samples[-1].tolist(),)
         end_pose: Pose = (end[0], end[1], end[2], end[3], end[4], end[5])
-        problem = self._box_problem(end_pose, what) or self._path_box_problem(
+        problem = self.box_problem(end_pose, what) or self.path_box_problem(
             samples[:, :3], what, kind
         )
         if problem is not None:
@@ -570,56 +466,11 @@ class Envelope:
                 allowed = np.maximum(excess, 0.0)
             elif i == len(samples) - 1 or (excess > allowed + LIMIT_TOL).any():
                 prefix = f"{where} {_fmt(pose)} with (firmware IK) "
-                problem = self._joint_problem(q, what, prefix)
+                problem = self.joint_problem(q, what, prefix)
                 if problem is not None:
                     raise MirobotUsageError(problem)
             last = q
         return last
-
-    def _arc_samples(
-        self, start: Pose, end: Pose, radius: float, clockwise: bool, what: str
-    ) -> FloatArray:
-        """Samples of a GRBL ``G2``/``G3`` arc of radius ``R`` (minor arc), plus its extremes."""
-        name = "G2" if clockwise else "G3"
-        if radius <= 0:
-            raise MirobotUsageError(f"{name} R{fmt_number(radius, 3)}: the radius must be > 0")
-        dx, dy = end[0] - start[0], end[1] - start[1]
-        chord = math.hypot(dx, dy)
-        if chord == 0:
-            raise MirobotUsageError(f"{name} with a zero chord: a full circle is impossible with R")
-        disc = 4.0 * radius * radius - chord * chord
-        if disc < -1e-9:
-            raise MirobotUsageError(
-                f"{name}: the chord {chord:.3f} mm is longer than 2R = {2 * radius:.3f} mm "
-                f"(the firmware says 'Arc radius error') ({what})"
-            )
-        h = -math.sqrt(max(0.0, disc)) / chord
-        if not clockwise:
-            h = -h
-        ci, cj = 0.5 * (dx - dy * h), 0.5 * (dy + dx * h)
-        cx, cy = start[0] + ci, start[1] + cj
-        rx, ry = -ci, -cj  # start relative to the centre
-        ex, ey = end[0] - cx, end[1] - cy
-        travel = math.atan2(rx * ey - ry * ex, rx * ex + ry * ey)
-        if clockwise and travel >= -1e-9:
-            travel -= 2 * math.pi
-        elif not clockwise and travel <= 1e-9:
-            travel += 2 * math.pi
-        r = math.hypot(rx, ry)
-        a0 = math.atan2(ry, rx)
-        n = max(1, math.ceil(abs(travel) * r / self.path_step_mm - 1e-9))
-        ts = set(np.linspace(0.0, 1.0, n + 1).tolist())
-        lo, hi = sorted((a0, a0 + travel))
-        for k in range(math.ceil(lo / (math.pi / 2)), math.floor(hi / (math.pi / 2)) + 1):
-            ts.add((k * math.pi / 2 - a0) / travel)  # x/y extremes of the circle
-        t = np.asarray(sorted(v for v in ts if 0.0 <= v <= 1.0))
-        a = np.asarray(start)
-        out: FloatArray = a[None, :] + t[:, None] * (np.asarray(end) - a)[None, :]
-        angle = a0 + t * travel
-        out[:, 0] = cx + r * np.cos(angle)
-        out[:, 1] = cy + r * np.sin(angle)
-        out[0], out[-1] = a, np.asarray(end)
-        return out
 
     def check_arc(
         self,
@@ -636,7 +487,10 @@ class Envelope:
         """
         a = _pose6(start_pose, "start pose")
         b = _pose6(end_pose, "end pose")
-        samples = self._arc_samples(a, b, _real(radius, "radius"), clockwise, what)
+        plan = arc_plan(a, b, _real(radius, "radius"), clockwise, self.path_step_mm)
+        if isinstance(plan, str):
+            raise MirobotUsageError(f"{plan} ({what})")
+        samples = arc_samples(plan, a, b, self._bounded(plan.intervals, what))
         self._check_pose_samples(samples, what, "arc")
 
     # ----------------------------------------------------------------------------------------
@@ -644,155 +498,35 @@ class Envelope:
 
     def check_line(
         self,
-        line: str | bytes,
+        line: str | bytes | ParsedLine,
         current_joints: Sequence[float] | None,
         current_pose: Sequence[float] | None = None,
-        modes: MotionModes = MotionModes(),  # frozen: a safe default
+        modes: MotionModes = _POWER_ON,
         *,
         current_rail: float | None = None,
         what: str | None = None,
+        base_offset: tuple[float, float, float] | None = (0.0, 0.0, 0.0),
+        gate_lift: float | None = None,
+        firmware: str | None = "2021",
     ) -> LineCheck:
         """Check one raw line against the envelope, given the last known position and ``modes``.
 
-        Returns the modes after the line and the target (see :class:`LineCheck`); raises
-        MirobotUsageError when the move leaves the envelope or cannot be judged. ``current_pose``
-        defaults to the forward kinematics of ``current_joints``.
+        Default-deny (:func:`mirobot_async.prediction.predict`): returns the modes after the line
+        and the target (see :class:`LineCheck`); raises MirobotUsageError when the move leaves the
+        envelope or its effect cannot be predicted. ``current_pose`` defaults to the forward
+        kinematics of ``current_joints``; ``base_offset`` is the arm's ``$41..$43`` (``None``:
+        unknown, absolute ``M20`` moves are then refused), ``gate_lift`` its ``$49``.
         """
-        norm = normalize_line(line)
-        if what is None:
-            text = line.decode("latin-1") if isinstance(line, bytes) else line
-            what = f"line {text.strip()!r}"
+        from .prediction import MachineState, Prediction, predict
+
         joints = None if current_joints is None else _joints6(current_joints, "current joints")
         pose = None if current_pose is None else _pose6(current_pose, "current pose")
-        if pose is None and joints is not None:
-            pose = forward(joints, self.dh, self.tool)
         rail = None if current_rail is None else _real(current_rail, "current rail")
-        still = LineCheck(modes, False, joints, pose, rail)
-        if not norm:
-            return still
-        if norm.startswith("$"):
-            if norm in _HOMING:
-                return LineCheck(MotionModes(), True, None, None, None)
-            if norm == "$M":
-                self.check_joints(_ZERO_JOINTS, start=joints, what=what)
-                zero_pose = forward(_ZERO_JOINTS, self.dh, self.tool)
-                return LineCheck(modes, True, _ZERO_JOINTS, zero_pose, rail)
-            if norm.startswith("$J"):
-                raise MirobotUsageError(f"jog lines ($J) are not checked by the envelope ({what})")
-            return still
-        parsed = _parse(norm, modes)
-        new = parsed.modes
-        axes = parsed.axes
-        if not axes:
-            return replace(still, modes=parsed.after)
-        unknown = [
-            name
-            for name, value in (
-                ("coordinate mode (M20/M21)", new.cartesian),
-                ("distance mode (G90/G91)", new.relative),
-                ("motion mode (G0/G1/G2/G3)", new.motion),
-            )
-            if value is None
-        ]
-        if unknown:
-            raise MirobotUsageError(
-                f"the line relies on the {' and '.join(unknown)}, which "
-                f"{'is' if len(unknown) == 1 else 'are'} unknown; "
-                f"state {'it' if len(unknown) == 1 else 'them'} in the line ({what})"
-            )
-        if new.motion == 5:
-            raise MirobotUsageError(
-                f"G5 (jump) moves cannot be checked by the envelope ({what}); "
-                "use check_envelope=False to send it anyway"
-            )
-        relative = new.relative is True  # known here
-        motion = new.motion or 0
-        target_rail = self._rail_target(axes, relative, rail, what)
-        if new.cartesian:
-            return self._cartesian_line(
-                axes, parsed.radius, relative, motion, parsed.after, joints, pose, target_rail, what
-            )
-        if new.motion in (2, 3):
-            raise MirobotUsageError(f"G{new.motion} arcs need Cartesian mode (M20) ({what})")
-        if not any(k in axes for k in "XYZABC"):
-            problem = self._rail_problem(target_rail, what)
-            if problem is not None:
-                raise MirobotUsageError(problem)
-            return LineCheck(parsed.after, True, joints, pose, target_rail)
-        target = self._combine(axes, relative, joints, "current joint angles", what)
-        q = _joints6(target, "target joints")
-        self.check_joints(q, target_rail, start=joints, what=what)
-        return LineCheck(parsed.after, True, q, forward(q, self.dh, self.tool), target_rail)
-
-    def _rail_target(
-        self, axes: Mapping[str, float], relative: bool, rail: float | None, what: str
-    ) -> float | None:
-        if "D" not in axes:
-            return rail
-        if not relative:
-            return axes["D"]
-        if rail is not None:
-            return rail + axes["D"]
-        if self.rail is not None:
-            raise MirobotUsageError(
-                f"a relative rail move needs the current rail position ({what})"
-            )
-        return None
-
-    @staticmethod
-    def _combine(
-        axes: Mapping[str, float],
-        relative: bool,
-        base: Sequence[float] | None,
-        name: str,
-        what: str,
-    ) -> tuple[float, ...]:
-        """Target from axis words X..C: missing words stay, relative words add."""
-        letters = "XYZABC"
-        if base is None:
-            if relative or not all(k in axes for k in letters):
-                kind = "relative move" if relative else "move that leaves out an axis"
-                raise MirobotUsageError(
-                    f"a {kind} needs the {name}, which are unknown; query the status first ({what})"
-                )
-            return tuple(axes[k] for k in letters)
-        return tuple(
-            (b + axes.get(k, 0.0)) if relative else axes.get(k, b)
-            for k, b in zip(letters, base, strict=True)
+        state = MachineState(modes, joints, pose, rail, base_offset, gate_lift, firmware)
+        result = predict(self, line, state, what=what)
+        if not isinstance(result, Prediction):
+            raise result.error()
+        after = result.state
+        return LineCheck(
+            after.modes, result.moves, after.joints, after.pose, after.rail, after.base_offset
         )
-
-    def _cartesian_line(
-        self,
-        axes: Mapping[str, float],
-        radius: float | None,
-        relative: bool,
-        motion: int,
-        after: MotionModes,
-        joints: Joints | None,
-        pose: Pose | None,
-        rail: float | None,
-        what: str,
-    ) -> LineCheck:
-        problem = self._rail_problem(rail, what)
-        if problem is not None:
-            raise MirobotUsageError(problem)
-        if not any(k in axes for k in "XYZABC"):
-            return LineCheck(after, True, joints, pose, rail)
-        target = _pose6(self._combine(axes, relative, pose, "current pose", what), "target")
-        if motion == 0:
-            q = self._check_pose(target, joints, what)
-            return LineCheck(after, True, q, target, rail)
-        if pose is None:
-            raise MirobotUsageError(
-                f"a Cartesian G{motion} path needs the current pose, which is unknown; "
-                f"query the status first ({what})"
-            )
-        if motion == 1:
-            samples = sample_line(pose, target, self.path_step_mm)
-            q = self._check_pose_samples(samples, what, "straight line")
-        else:
-            if radius is None:
-                raise MirobotUsageError(f"G{motion} needs R<radius> ({what})")
-            samples = self._arc_samples(pose, target, radius, motion == 2, what)
-            q = self._check_pose_samples(samples, what, "arc")
-        return LineCheck(after, True, q, target, rail)
