@@ -32,8 +32,15 @@ pytestmark = pytest.mark.timeout(60)
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = ROOT / "examples"
 TRACE_HEADER = ["timestamp", "state", "j1", "j2", "j3", "j4", "j5", "j6", "rail"]
-TRACE_HEADER += ["x", "y", "z", "rx", "ry", "rz", "pump", "valve"]
+TRACE_HEADER += ["x", "y", "z", "rx", "ry", "rz", "pump", "valve", "time_scale"]
 FAST = ("--time-scale", "0")  # every move of the embedded emulator completes at once
+LOCKED = "the arm is locked: run `mirobot home` or pass --home"
+
+
+def emulator_stats(emulator: SyncEmulatorProcess) -> dict[str, int]:
+    """The emulator's wire counters (its ``stats`` control command)."""
+    words = emulator.control("stats").split()
+    return {name: int(value) for name, _, value in (w.partition("=") for w in words if "=" in w)}
 
 
 def mirobot(
@@ -300,7 +307,7 @@ def test_move_pose_on_a_port(port: str) -> None:
 def test_move_refused_while_locked_exits_1() -> None:
     proc = mirobot("move", "joints", "j1=30", "--no-home", *FAST)
     assert proc.returncode == 1
-    assert "Alarm" in error_line(proc)
+    assert error_line(proc) == "mirobot: error: " + LOCKED
 
 
 def test_move_to_an_unreachable_pose_exits_1_with_the_firmware_words() -> None:
@@ -392,14 +399,21 @@ def test_run_stops_at_a_refused_line(tmp_path: Path) -> None:
     assert parse_table(proc.stdout).state == "Idle"  # the final status is still shown
 
 
-def test_run_refused_on_a_port_while_locked(port: str, tmp_path: Path) -> None:
+def test_run_and_move_on_a_locked_arm_send_nothing_and_say_so_once(tmp_path: Path) -> None:
+    """Pre-flight: one line, exit 1, and not a byte of the program on the wire."""
     program = tmp_path / "p.gcode"
-    program.write_text("M21 G90 G0 X10\n")
-    assert mirobot("reset", "--port", port).returncode == 0
-    proc = mirobot("run", str(program), "--port", port)  # a real port: no implicit homing
-    assert proc.returncode == 1
-    assert f"{program}:1: M21 G90 G0 X10: Alarm lock" in proc.stderr
-    assert parse_table(proc.stdout).state == "Alarm"
+    program.write_text("M21 G90 G0 X10\nG0 X20\nG0 X30\n")
+    with SyncEmulatorProcess(time_scale=0) as emulator:  # powers on locked (Alarm)
+        for argv in (["run", str(program)], ["move", "joints", "j1=10"]):
+            before = emulator_stats(emulator)
+            proc = mirobot(*argv, "--port", emulator.url)  # a real port: no implicit homing
+            assert proc.returncode == 1
+            assert error_line(proc) == "mirobot: error: " + LOCKED
+            assert proc.stdout == ""
+            after = emulator_stats(emulator)
+            assert after["lines_in"] == before["lines_in"]  # not one line was sent
+            sent = after["bytes_in"] - before["bytes_in"]
+            assert sent == after["status_requests_in"] - before["status_requests_in"]  # only "?"
 
 
 def test_run_continue_on_error_reports_every_refused_line(tmp_path: Path) -> None:

@@ -10,7 +10,6 @@ from pathlib import Path
 
 import pytest
 
-from mirobot_async import cli
 from mirobot_async.cli import (
     EXIT_FAILED,
     EXIT_OK,
@@ -19,13 +18,20 @@ from mirobot_async.cli import (
     POSE_KEYS,
     CliError,
     ProgressBar,
+    RichProgressBar,
     build_parser,
+    commands,
+    exit_status_for,
     format_status_line,
     format_status_table,
     main,
     parse_assignments,
     read_program,
 )
+from mirobot_async.cli.arguments import DEFAULT_MONITOR_INTERVAL
+from mirobot_async.cli.programs import ProgramLine
+from mirobot_async.cli.rendering import describe_failures, describe_interrupted_run, line_ranges
+from mirobot_async.cli.session import background_jobs
 from mirobot_async.errors import (
     MirobotAlarmError,
     MirobotCommandError,
@@ -107,7 +113,7 @@ def parse(*argv: str) -> argparse.Namespace:
 
 def test_robot_commands_default_to_the_embedded_emulator() -> None:
     args = parse("status")
-    assert args.handler is cli.cmd_status
+    assert args.handler is commands.cmd_status
     assert args.port is None
     assert args.firmware is None  # 2021 for the embedded emulator; detected with --port
     assert args.time_scale is None
@@ -124,17 +130,17 @@ def test_common_options_after_the_subcommand() -> None:
 def test_monitor_options() -> None:
     args = parse("monitor", "--interval", "0.2", "--csv", "out.csv", "--samples", "3")
     assert (args.interval, args.csv, args.samples) == (0.2, "out.csv", 3)
-    assert parse("monitor").interval == cli.DEFAULT_MONITOR_INTERVAL
+    assert parse("monitor").interval == DEFAULT_MONITOR_INTERVAL
 
 
 def test_move_subcommands() -> None:
     args = parse("move", "joints", "j1=10", "j2=-5", "--relative", "--speed", "1000")
-    assert args.handler is cli.cmd_move_joints
+    assert args.handler is commands.cmd_move_joints
     assert args.targets == ["j1=10", "j2=-5"]
     assert args.relative and args.speed == 1000.0
     assert args.prepare is None
     args = parse("move", "pose", "x=200", "--linear", "--home")
-    assert args.handler is cli.cmd_move_pose
+    assert args.handler is commands.cmd_move_pose
     assert args.linear and args.prepare == "home"
     assert parse("move", "pose", "x=1", "--no-home").prepare == "none"
     assert parse("move", "joints", "j1=1", "--unlock").prepare == "unlock"
@@ -213,10 +219,12 @@ def test_bad_targets_exit_2_before_any_robot_is_started(
     capsys: pytest.CaptureFixture[str],
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    def no_robot(args: argparse.Namespace) -> None:
+    def no_emulator(*args: object, **kwargs: object) -> None:
         raise AssertionError("a robot was opened for a bad argument")
 
-    monkeypatch.setattr(cli, "_robot", no_robot)
+    import mirobot_async.testing
+
+    monkeypatch.setattr(mirobot_async.testing, "start_emulator", no_emulator)
     assert main(argv) == EXIT_USAGE
     captured = capsys.readouterr()
     assert captured.out == ""
@@ -227,12 +235,12 @@ def test_bad_targets_exit_2_before_any_robot_is_started(
 
 def test_relative_joint_moves_are_not_range_checked() -> None:
     args = parse("move", "joints", "j1=300", "--relative")
-    assert cli._joint_targets(args) == {"j1": 300.0}
+    assert commands.joint_targets(args) == {"j1": 300.0}
 
 
 def test_linear_pose_moves_get_a_default_speed() -> None:
     args = parse("move", "pose", "x=200", "--linear")
-    cli._pose_targets(args)
+    commands.pose_targets(args)
     assert args.speed == 2000.0
 
 
@@ -291,7 +299,7 @@ def test_help_lists_every_subcommand(capsys: pytest.CaptureFixture[str]) -> None
     ],
 )
 def test_exception_to_exit_status(exc: Exception, status: int) -> None:
-    code, message = cli._failure(exc, 0)
+    code, message = exit_status_for(exc, 0)
     assert code == status
     assert message is not None and "\n" not in message
 
@@ -405,34 +413,34 @@ class FakeClock:
         return self.now
 
 
-def test_progress_bar_on_a_terminal_redraws_in_place() -> None:
-    clock = FakeClock()
-    out = io.StringIO()
-    bar = ProgressBar(40, out, tty=True, clock=clock, width=10)
-    clock.now += 1.0
+class FakeTerminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+async def test_progress_bar_on_a_terminal_is_drawn_by_rich_in_place() -> None:
+    from mirobot_async.cli.rendering import progress_bar
+
+    out = FakeTerminal()
+    bar = progress_bar(40, out)
+    assert isinstance(bar, RichProgressBar)
     bar.update(10)
-    assert out.getvalue() == "\r[##--------] 10/40 lines  25%  elapsed 1.0s  ETA 3.0s"
-    clock.now += 0.01
-    bar.update(11)  # too soon to redraw
-    assert out.getvalue().count("\r") == 1
-    clock.now += 1.0
-    bar.update()  # only the time passed: the elapsed time moves on
-    assert out.getvalue().endswith("11/40 lines  28%  elapsed 2.0s  ETA 5.3s")
+    assert "10/40" in out.getvalue()
+    assert "\r" in out.getvalue() or "\x1b[" in out.getvalue()  # redrawn in place
     bar.update(40)
-    assert out.getvalue().endswith("all sent, the arm is finishing its moves")
-    clock.now += 3.0
-    bar.finish()
-    bar.finish()
+    assert "all sent, the arm is finishing its moves" in out.getvalue()
+    bar.finish("done")
+    bar.finish("again")  # idempotent
     text = out.getvalue()
-    # the shorter final text overwrites the longer one: padded with spaces
-    assert text.endswith("40/40 lines 100%  elapsed 5.0s  done" + " " * 36 + "\n")
-    assert text.count("\n") == 1
+    assert "40/40" in text and "done\n" in text
+    assert "again" not in text
+    assert isinstance(progress_bar(3, io.StringIO()), ProgressBar)  # not a terminal: plain
 
 
 def test_progress_bar_without_a_terminal_prints_occasional_lines() -> None:
     clock = FakeClock()
     out = io.StringIO()
-    bar = ProgressBar(100, out, tty=False, clock=clock, width=10)
+    bar = ProgressBar(100, out, clock=clock, width=10)
     for done in range(1, 101):
         clock.now += 0.5
         bar.update(done)
@@ -449,7 +457,7 @@ def test_progress_bar_without_a_terminal_prints_occasional_lines() -> None:
 def test_progress_bar_without_a_terminal_stays_quiet_when_fast() -> None:
     clock = FakeClock()
     out = io.StringIO()
-    bar = ProgressBar(1000, out, tty=False, clock=clock)
+    bar = ProgressBar(1000, out, clock=clock)
     for done in range(1, 1001):
         clock.now += 0.001
         bar.update(done)
@@ -458,7 +466,7 @@ def test_progress_bar_without_a_terminal_stays_quiet_when_fast() -> None:
 
 
 def test_progress_bar_eta_unknown_before_the_first_line() -> None:
-    bar = ProgressBar(5, io.StringIO(), tty=False, clock=FakeClock())
+    bar = ProgressBar(5, io.StringIO(), clock=FakeClock())
     assert "ETA ?" in bar.render()
 
 
@@ -497,12 +505,8 @@ def test_unusable_files_and_ports_exit_2_before_any_robot_is_started(
 def test_stopped_run_says_how_many_lines_had_already_been_sent(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    from mirobot_async.client import LineResult, StreamResult
-
-    program = [cli.ProgramLine(n, f"G0 X{n}") for n in (2, 3, 5, 6, 7)]
-    result = StreamResult(sent=4, acknowledged=1, errors=[LineResult(2, "G0 X3")], stopped=True)
-    args = argparse.Namespace(continue_on_error=False)
-    cli._report_failures(args, program, result)
+    program = [ProgramLine(n, f"G0 X{n}") for n in (2, 3, 5, 6, 7)]
+    describe_failures(program, 4, 1, 2, 1, continue_on_error=False)
     err = capsys.readouterr().err
     assert "1 line was refused; 1 of 5 acknowledged" in err
     assert (
@@ -510,8 +514,22 @@ def test_stopped_run_says_how_many_lines_had_already_been_sent(
         "before the refusal arrived"
     ) in err
     # Nothing in flight after the refused line: nothing to say about it.
-    cli._report_failures(args, program, StreamResult(2, 1, [LineResult(2, "G0 X3")], True))
+    describe_failures(program, 2, 1, 2, 1, continue_on_error=False)
     assert "stopped at" not in capsys.readouterr().err
+
+
+def test_interrupted_run_says_what_was_still_queued() -> None:
+    program = [ProgramLine(n, f"G0 X{n}") for n in (2, 3, 5, 6, 7, 9, 10)]
+    assert describe_interrupted_run("p.gcode", program, 5, 2) == [
+        "3 line(s) sent but not executed (queued in the arm): p.gcode line 5-7",
+        "2 line(s) accepted by the arm (up to line 3); the last moves among them may not "
+        "have finished",
+        "2 line(s) not sent: p.gcode line 9-10",
+    ]
+    assert describe_interrupted_run("p.gcode", program, 0, 0) == [
+        "7 line(s) not sent: p.gcode line 2-3, 5-7, 9-10"
+    ]
+    assert line_ranges([1, 3, 5, 7, 9, 11]) == "1, 3, 5, ..., 11"
 
 
 async def _fail_soon() -> None:
@@ -522,7 +540,7 @@ async def _fail_soon() -> None:
 async def test_background_job_failure_is_a_warning_not_the_result(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    async with cli._background(status_recording=_fail_soon(), nothing=None):
+    async with background_jobs(status_recording=_fail_soon(), nothing=None):
         await asyncio.sleep(0.01)
     assert "warning: status recording failed: OSError: disk full" in capsys.readouterr().err
 
@@ -531,7 +549,7 @@ async def test_background_job_failure_does_not_replace_the_blocks_error(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     with pytest.raises(MirobotLinkLostError):
-        async with cli._background(status_recording=_fail_soon()):
+        async with background_jobs(status_recording=_fail_soon()):
             await asyncio.sleep(0.01)
             raise MirobotLinkLostError("link lost")
     assert "warning" not in capsys.readouterr().err  # most likely the same cause: debug only
@@ -552,7 +570,7 @@ async def test_cancelling_the_caller_during_background_clean_up_propagates() -> 
             job_done = True
 
     async def body() -> str:
-        async with cli._background(job=stubborn()):
+        async with background_jobs(job=stubborn()):
             await asyncio.sleep(0)
         return "finished"
 

@@ -1,0 +1,63 @@
+"""The ``mirobot`` command line (also ``python -m mirobot_async``).
+
+Subcommands that talk to an arm take ``--port URL``; without it they start an embedded virtual
+Mirobot (the emulator, on a fresh pseudo-terminal) for the duration of the command, so every
+command works on a machine with no arm. ``--firmware`` and ``--time-scale`` choose that virtual
+arm's profile and speed; ``-v`` logs the wire traffic to stderr. Exit statuses: see
+:mod:`mirobot_async.cli.exits`.
+
+Layout (a one-way chain, top to bottom):
+
+* :mod:`~mirobot_async.cli.running`: :func:`main`, the event loop, signals, exit statuses;
+* :mod:`~mirobot_async.cli.arguments`: the argparse parser and KEY=VALUE targets;
+* :mod:`~mirobot_async.cli.commands`: one ``cmd_*`` function per subcommand;
+* :mod:`~mirobot_async.cli.session`: opening, preparing and pre-flighting the arm, background
+  jobs, stopping safely on SIGINT/SIGTERM;
+* :mod:`~mirobot_async.cli.rendering`: status tables, progress bar, live monitor, summaries;
+* :mod:`~mirobot_async.cli.programs`: program files (or stdin) and trace files;
+* :mod:`~mirobot_async.cli.exits`: exit statuses, :class:`CliError`, the exception mapping.
+"""
+
+from __future__ import annotations
+
+from mirobot_async.cli.arguments import JOINT_KEYS, POSE_KEYS, build_parser, parse_assignments
+from mirobot_async.cli.exits import (
+    EXIT_FAILED,
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    EXIT_USAGE,
+    CliError,
+    RobotNotReadyError,
+    exit_status_for,
+)
+from mirobot_async.cli.programs import ProgramLine, read_program
+from mirobot_async.cli.rendering import (
+    ProgressBar,
+    RichProgressBar,
+    format_status_line,
+    format_status_table,
+)
+from mirobot_async.cli.running import main
+from mirobot_async.cli.session import DEFAULT_TIME_SCALE
+
+__all__ = [
+    "DEFAULT_TIME_SCALE",
+    "EXIT_FAILED",
+    "EXIT_INTERRUPTED",
+    "EXIT_OK",
+    "EXIT_USAGE",
+    "JOINT_KEYS",
+    "POSE_KEYS",
+    "CliError",
+    "ProgramLine",
+    "ProgressBar",
+    "RichProgressBar",
+    "RobotNotReadyError",
+    "build_parser",
+    "exit_status_for",
+    "format_status_line",
+    "format_status_table",
+    "main",
+    "parse_assignments",
+    "read_program",
+]

@@ -1,0 +1,225 @@
+"""The ``mirobot`` command line stops the arm safely and checks it first (issue 15), reads a
+program from stdin, and draws plots in the robot's time.
+
+Ctrl-C / SIGTERM tests run the CLI as a subprocess against an emulator started separately, and
+read the emulator through second channels the CLI does not use: its control channel (``stats``:
+the bytes it received) while the CLI runs, and the serial port itself once the CLI has exited.
+"""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+import serial
+
+from mirobot_async.plotting import read_trace
+from mirobot_async.replies import State, StatusReport, parse_status
+from mirobot_async.testing import SyncEmulatorProcess
+
+pytestmark = pytest.mark.timeout(60)
+
+ROOT = Path(__file__).resolve().parents[2]
+EXAMPLES = ROOT / "examples"
+FAST = ("--time-scale", "0")
+STOP_WITHIN = 0.5
+"""Seconds from the signal to the stopping byte reaching the emulator (issue 15)."""
+
+
+def mirobot(*args: str, stdin: str | None = None) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "mirobot_async", *args],
+        capture_output=True,
+        text=True,
+        timeout=45,
+        input=stdin,
+        stdin=None if stdin is not None else subprocess.DEVNULL,
+    )
+
+
+def spawn(*args: str) -> subprocess.Popen[str]:
+    return subprocess.Popen(
+        [sys.executable, "-m", "mirobot_async", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        stdin=subprocess.DEVNULL,
+        text=True,
+    )
+
+
+def wait_for(condition: Callable[[], bool], timeout: float, what: str) -> float:
+    """Poll ``condition``; returns the seconds it took."""
+    started = time.monotonic()
+    while not condition():
+        if time.monotonic() - started > timeout:
+            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+        time.sleep(0.005)
+    return time.monotonic() - started
+
+
+def stats(emulator: SyncEmulatorProcess) -> dict[str, int]:
+    words = emulator.control("stats").split()
+    return {name: int(value) for name, _, value in (w.partition("=") for w in words if "=" in w)}
+
+
+def realtime_bytes(before: dict[str, int], after: dict[str, int], kind: str) -> int:
+    """How many ``!`` (kind "hold") or ``%`` (kind "reset") bytes arrived between two stats,
+    when no line was sent in between: every byte that is neither ``?`` nor ``%`` is a ``!``."""
+    assert after["lines_in"] == before["lines_in"], "a line was sent after the signal"
+    resets = after["resets_in"] - before["resets_in"]
+    if kind == "reset":
+        return resets
+    others = after["bytes_in"] - before["bytes_in"]
+    return others - (after["status_requests_in"] - before["status_requests_in"]) - resets
+
+
+def statuses_over_the_port(url: str, count: int, gap: float) -> list[StatusReport]:
+    """``count`` status reports read by opening the port ourselves (the CLI has exited)."""
+    reports = []
+    with serial.Serial(url, timeout=0.05, exclusive=True) as link:
+        for _ in range(count):
+            link.write(b"?")
+            data = b""
+            deadline = time.monotonic() + 5
+            while b">" not in data:
+                assert time.monotonic() < deadline, f"no status reply: {data!r}"
+                data += link.read(512)
+            end = data.index(b">") + 1
+            reports.append(parse_status(data[data.rindex(b"<", 0, end) : end]))
+            time.sleep(gap)  # the measurement window: the arm must not move during it
+    return reports
+
+
+def moving_rows(trace: Path) -> int:
+    if not trace.exists():
+        return 0
+    return sum(1 for line in trace.read_text().splitlines() if ",Run," in line)
+
+
+@pytest.mark.parametrize(
+    ("sig", "mode", "expected_state"),
+    [(signal.SIGINT, "hold", State.HOLD), (signal.SIGTERM, "reset", State.ALARM)],
+)
+def test_a_signal_stops_the_moving_arm_at_once(
+    tmp_path: Path, sig: signal.Signals, mode: str, expected_state: State
+) -> None:
+    trace = tmp_path / "t.csv"
+    with SyncEmulatorProcess(time_scale=1) as emulator:  # dance takes ~20 s at this speed
+        argv = ["run", str(EXAMPLES / "dance.gcode"), "--port", emulator.url, "--unlock"]
+        proc = spawn(*argv, "--trace", str(trace), "--on-interrupt", mode)
+        try:
+            wait_for(lambda: moving_rows(trace) >= 3, 30, "the arm to be moving")
+            before = stats(emulator)
+            proc.send_signal(sig)
+            took = wait_for(
+                lambda: realtime_bytes(before, stats(emulator), mode) >= 1,
+                5,
+                f"the {mode} byte to reach the emulator",
+            )
+            _, err = proc.communicate(timeout=20)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.communicate()
+        assert took < STOP_WITHIN, f"{mode} reached the arm {took:.3f} s after the signal"
+        assert proc.returncode == 130, err
+        assert "Traceback" not in err and "error" not in err, err
+        assert realtime_bytes(before, stats(emulator), mode) == 1  # exactly one stop byte
+        # The second channel: the port itself, once the CLI has let go of it.
+        reports = statuses_over_the_port(emulator.url, 4, 0.1)
+    assert {report.state for report in reports} == {expected_state}
+    assert len({report.joints for report in reports}) == 1  # no further motion
+    last_moving = [line for line in trace.read_text().splitlines() if ",Run," in line][-1]
+    assert reports[0].to_line() != last_moving  # it did stop where it was, not at the end
+    lines = err.splitlines()
+    if mode == "hold":
+        assert any("feed hold sent (!); the arm is Hold after" in line for line in lines), err
+        assert "mirobot: queued moves stay in the arm until `mirobot reset` clears them" in lines
+    else:
+        assert any("soft reset sent (%)" in line for line in lines), err
+    assert any("accepted by the arm" in line or "not sent" in line for line in lines), err
+
+
+def test_a_held_arm_is_refused_by_the_pre_flight_check() -> None:
+    with SyncEmulatorProcess(time_scale=1) as emulator:
+        program = ["M21 G90", "G0 X100"]
+        assert mirobot("unlock", "--port", emulator.url).returncode == 0
+        moving = spawn("move", "joints", "j1=100", "--port", emulator.url, "--speed", "300")
+        try:
+            wait_for(lambda: stats(emulator)["lines_in"] >= 3, 20, "the move to be sent")
+            moving.send_signal(signal.SIGINT)
+            _, err = moving.communicate(timeout=20)
+        finally:
+            if moving.poll() is None:
+                moving.kill()
+                moving.communicate()
+        assert moving.returncode == 130, err
+        assert "the arm is Hold" in err
+        before = stats(emulator)
+        proc = mirobot("run", "-", "--port", emulator.url, stdin="\n".join(program))
+        assert stats(emulator)["lines_in"] == before["lines_in"]  # not a line of it was sent
+    assert proc.returncode == 1
+    assert proc.stderr.splitlines() == [
+        "mirobot: error: the arm is in Hold with moves still queued: `mirobot reset` clears "
+        "them (then `mirobot home`, or pass --home)"
+    ]
+
+
+def test_run_reads_the_program_from_stdin() -> None:
+    proc = mirobot("run", "-", *FAST, stdin="; from a pipe\nM21 G90\nG0 X20 Y10 Z0 A0 B0 C0\n")
+    assert proc.returncode == 0, proc.stderr
+    joints = next(line for line in proc.stdout.splitlines() if line.startswith("joints"))
+    assert [float(v) for v in joints.split()[1:3]] == [20.0, 10.0]
+    proc = mirobot("run", "-", *FAST, stdin="; nothing\n")
+    assert proc.returncode == 2
+    assert proc.stderr.strip() == "mirobot: error: <stdin>: no commands in the input"
+    proc = mirobot("check", "-", stdin="M21 G90\nG0 X500\n")
+    assert proc.returncode == 1
+    assert proc.stdout.splitlines() == ["<stdin>:2: J1=500 is outside -100..160"]
+
+
+def test_version_and_offline_commands_show_no_robot_flags() -> None:
+    from mirobot_async import __version__
+
+    proc = mirobot("--version")
+    assert proc.returncode == 0
+    assert proc.stdout.strip() == f"mirobot {__version__}"
+    for command in ("check", "plot"):
+        text = mirobot(command, "--help").stdout
+        assert "usage: mirobot " + command in text
+        for flag in ("--port", "--time-scale", "--verbose", "--on-interrupt", "--home"):
+            assert flag not in text, (command, flag)
+    for command in (["run"], ["move", "joints"], ["home"], ["gripper"]):
+        text = mirobot(*command, "--help").stdout
+        assert "--port" in text and "--on-interrupt {hold,reset}" in text, command
+
+
+def test_trace_is_in_robot_time_with_events_and_sharp_corners(tmp_path: Path) -> None:
+    trace_file = tmp_path / "pp.csv"
+    program = tmp_path / "p.gcode"
+    square = [line for line in (EXAMPLES / "square.gcode").read_text().splitlines()]
+    program.write_text("\n".join([*square, "M3 S1000", "G4 P0.2", "M3 S0", "M4 E65"]) + "\n")
+    proc = mirobot("run", str(program), "--trace", str(trace_file), "--time-scale", "10")
+    assert proc.returncode == 0, proc.stderr
+    trace = read_trace(trace_file)
+    assert trace.robot_time
+    # The square is drawn at 1500 mm/min (25 mm/s): 4 x 60 mm take >= 9.6 s of robot time,
+    # about 1 s of wall time at time scale 10.
+    assert trace.seconds[-1] > 9.6
+    # Dense in robot time: every corner of the square is in the trace within 1.5 mm.
+    for corner in ((170, -30), (230, -30), (230, 30), (170, 30)):
+        nearest = min(
+            ((x - corner[0]) ** 2 + (y - corner[1]) ** 2) ** 0.5 for x, y, _ in trace.positions
+        )
+        assert nearest < 1.5, (corner, nearest)
+    labels = [event.label for event in trace.events()]
+    assert labels == ["suction on", "pump off", "gripper open (PWM2)"]
+    image = tmp_path / "pp.png"
+    proc = mirobot("plot", str(trace_file), "-o", str(image))
+    assert proc.returncode == 0, proc.stderr
+    assert image.stat().st_size > 20_000
