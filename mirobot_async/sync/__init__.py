@@ -31,6 +31,11 @@ the cancellation behaviour the asyncio method documents (e.g. a cancelled stream
 :meth:`Mirobot.close` (or the end of a ``with`` block) closes the link, stops the loop and joins
 its thread; a forgotten arm is closed when it is garbage collected or the interpreter exits.
 Calls after ``close()`` raise what the asyncio client raises after ``close()``.
+
+An iterable given to ``stream()`` is consumed on the loop thread: a plain list or file is fine;
+a generator that blocks (waits for input) would hold the loop, so feed those lines from a list.
+A callback may call the arm again (``on_progress`` may ask ``arm.status()``); a blocking call
+made on the loop thread itself is refused with :class:`MirobotUsageError`.
 """
 
 from __future__ import annotations

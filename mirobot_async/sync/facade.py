@@ -120,7 +120,11 @@ class BlockingFacade:
         for name in dir(wraps):
             if name.startswith("_") or name in own:
                 continue
-            setattr(cls, name, _facade_member(wraps, name))
+            member = _facade_member(wraps, name)
+            function = getattr(member, "__func__", member)
+            if callable(function) and not isinstance(member, property):
+                function.__qualname__ = f"{cls.__qualname__}.{name}"
+            setattr(cls, name, member)
         init = _make_init(wraps)
         cls.__init__ = init  # type: ignore[method-assign]
 
@@ -213,6 +217,14 @@ class BlockingFacade:
 
     def __exit__(self, *exc_info: object) -> None:
         self.close()
+
+    def __dir__(self) -> list[str]:
+        """The class's names and the asyncio object's attributes (for tab completion)."""
+        target = self.__dict__.get("_target")
+        names = set(super().__dir__())
+        if target is not None:
+            names.update(name for name in vars(target) if not name.startswith("_"))
+        return sorted(names)
 
     def __repr__(self) -> str:
         return f"<blocking {self.__dict__.get('_target')!r}>"
@@ -340,7 +352,6 @@ def _describe(
     if not inspect.iscoroutinefunction(original):
         sig = sig.replace(return_annotation=inspect.Signature.empty)
     method.__name__ = name
-    method.__qualname__ = f"Mirobot.{name}"
     method.__signature__ = sig  # type: ignore[attr-defined]
     kind = "a blocking iterator" if inspect.isasyncgenfunction(original) else "blocking"
     method.__doc__ = f"({kind} form of the asyncio method)\n\n{inspect.getdoc(original) or ''}"

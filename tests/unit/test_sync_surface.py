@@ -229,6 +229,15 @@ def test_callbacks_run_in_the_calling_thread_and_their_errors_end_the_call(toy: 
 
     with pytest.raises(RuntimeError, match="stop at 2"):
         toy.each([1, 2, 3], on_item=refuse)
+    # A callback may call the facade again (it runs in this thread while the loop is free).
+    assert toy.each([1, 2], on_item=lambda i: toy.add(i)) == 2
+    assert toy.value == 3
+
+
+def test_generated_names_and_completion(toy: Any) -> None:
+    assert SyncToy.add.__qualname__ == "SyncToy.add"
+    assert Mirobot.move_joints.__qualname__ == "Mirobot.move_joints"
+    assert {"name", "add", "value", "close"} <= set(dir(toy))
 
 
 def test_an_interrupt_in_the_calling_thread_cancels_the_call_on_the_loop(toy: Any) -> None:
