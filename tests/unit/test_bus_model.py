@@ -139,7 +139,7 @@ def test_a_hard_limit_alarm_is_relayed() -> None:
     bus = Bus(2)
     ask(bus, b"@2M50\r\n")
     bus.trigger_hard_limit(address=2)
-    assert any(line.startswith("ALARM") for line in lines_of(settle(bus)))
+    assert any("ALARM: Hard limit" in line for line in lines_of(settle(bus)))
 
 
 # ---- the controller's own commands --------------------------------------------------------------
