@@ -69,6 +69,9 @@ TEXT_LOCKED: Final = "Locked status of each axis!"
 TEXT_SOFT_LIMIT: Final = "Soft limit triggered:"
 TEXT_UNREACHABLE: Final = "GOAL OUT OF WORKSPACE, THERE IS NO VAILD VALUS FOR  THETA3!"
 TEXT_OUT_OF_LIMIT: Final = "There is one angle out of limit!!!"
+TEXTS_WITHOUT_LINE_END: Final = frozenset({TEXT_UNREACHABLE})
+"""Refusal texts the firmware prints without a line end: the ``ok`` follows on the same line
+(oracle: ``GOAL OUT OF WORKSPACE, ... THETA3!ok``)."""
 TEXT_M50: Final = "M50: Unlock each axis."
 TEXT_M20: Final = "M20: Cartesian mode start."
 TEXT_M21: Final = "M21: Angle mode start."
@@ -109,5 +112,5 @@ def error_line(profile: str, status: int) -> str:
 
 
 def refusal_lines(text: str) -> list[str]:
-    """ASSUMED shape of the "ok but dropped" texts: an empty line, then the text."""
+    """The "ok but dropped" texts: an empty line, then the text (oracle)."""
     return ["", text]

@@ -11,6 +11,7 @@ from .. import motion
 from ..motion import Vec7
 from . import codes as c
 from .gcode import GcodeExecutor
+from .geometry import switch_pins
 from .linebuffer import RX_BUFFER_SIZE
 from .machine import Machine
 from .reports import banner, status_line
@@ -28,7 +29,10 @@ STATUS_DURING_CRITICAL_ALARM: Final = False
 loop does not answer it (its status report there is commented out as a TODO); PROTOCOL 6.1:
 "nothing but ``%`` is processed until reset"."""
 
-_REALTIME: Final = frozenset(b"?!~%")
+SWITCH_SLACK: Final = 0.1
+"""Degrees within which an arm stopped at a switch counts as on it (its position is whole steps)."""
+
+_REALTIME: Final = frozenset(b"?!~%@")
 
 
 class Firmware:
@@ -140,6 +144,7 @@ class Firmware:
         m.pending = None
         m.limit_blocks.clear()
         m.hold = False
+        m.suspended = False
         m.check = False
         m.critical = False
         m.reset_condition(interrupted=interrupted)
@@ -149,12 +154,12 @@ class Firmware:
     def trigger_hard_limit(self, axis: int = 1) -> None:
         """Fault injection: a limit switch (``axis``, informative) closes now.
 
-        Motion stops at once, ``ALARM: Hard limit`` and ``[Reset to continue]`` are printed and
-        nothing but ``%`` is processed until a reset. Ignored while already in that state.
+        ``axis`` is the joint number (1..6, 7 = the rail) whose switch closes. Motion stops at
+        once, ``<pins>ALARM: Hard limit`` and ``[Reset to continue]`` are printed and nothing but
+        ``%`` is processed until a reset. Ignored while already in that state.
         """
-        del axis  # the firmware does not say which switch
         if not self._m.critical:
-            self._m.hard_limit_alarm()
+            self._m.hard_limit_alarm(switch_pins(axis))
 
     def status_line(self) -> str:
         """The status report at this instant, without its ``\\r\\n`` (PROTOCOL 5)."""
@@ -213,9 +218,13 @@ class Firmware:
                 return  # GRBL ignores a feed hold in Alarm, check mode and homing
             m.hold = True
             m.planner.hold()
-        elif byte == 0x7E and m.hold:  # ~
-            m.hold = False
-            m.planner.resume()
+        elif byte == 0x40:  # @ (oracle: lines wait until ~; motion and the state go on)
+            m.suspended = True
+        elif byte == 0x7E and (m.hold or m.suspended):  # ~
+            m.suspended = False
+            if m.hold:
+                m.hold = False
+                m.planner.resume()
             self._service()
 
     # ------------------------------------------------------------------------------------------
@@ -227,7 +236,7 @@ class Firmware:
             queued = m.planner.blocks
             for block in m.limit_blocks:
                 if not any(b is block for b in queued):
-                    m.hard_limit_alarm()
+                    m.hard_limit_alarm(m.geometry.limit_pins(m.planner.position, SWITCH_SLACK))
                     return
         self._service()
 

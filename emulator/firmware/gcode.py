@@ -70,6 +70,7 @@ class GcodeExecutor:
         g = line.block
         q0 = m.parser_q()
         out = self._set_modal(line)
+        ok = "ok"  # the final reply (a refusal text may come first on the same line)
         blocks: list[Block] = []
         hard_limit: Block | None = None
         wait_idle = False
@@ -94,6 +95,8 @@ class GcodeExecutor:
                 )
             except Refusal as refusal:
                 out += c.refusal_lines(refusal.text)
+                if refusal.text in c.TEXTS_WITHOUT_LINE_END:
+                    ok = out.pop() + ok
             else:
                 if m.check:
                     m.check_q = end_q
@@ -109,17 +112,17 @@ class GcodeExecutor:
             if flow in (2, 30):
                 m.modal.program_end()
                 m.emit("[Pgm End]")
-            m.emit("ok")
+            m.emit(ok)
             return
 
         def finish() -> list[str]:
             if flow in (2, 30):
                 m.modal.program_end()
-                return ["[Pgm End]", "ok"]
+                return ["[Pgm End]", ok]
             if flow == 0:
                 m.hold = True
                 return []
-            return ["ok"]
+            return [ok]
 
         then = Pending([], "released", lambda: ["ok"]) if flow == 0 else None
         until = "idle" if wait_idle else "queued"

@@ -20,6 +20,11 @@ Pose = tuple[float, float, float, float, float, float]
 HARD_LIMIT_SWITCHES: Final[tuple[tuple[float, float], ...]] = tuple(kin.JOINT_LIMITS[:3])
 """ASSUMED: positions (deg) of the J1..J3 limit switches: the factory range ends."""
 
+IK_CHECKS_JOINT_RANGES: Final = False
+"""Whether the IK refuses angles outside the factory ranges (``There is one angle out of
+limit!!!``). The oracle does not: a wrist out of range gets ``Soft limit triggered:B`` with
+``$20=1`` and moves with ``$20=0``; J1 beyond 160 runs into the switch."""
+
 FW_LETTERS: Final = "ABCDXYZ"  # soft-limit letters in the firmware's axis order a..g
 
 
@@ -68,6 +73,14 @@ def pose6(values: Sequence[float]) -> Pose:
     )
 
 
+def switch_pins(joint: int) -> int:
+    """The firmware's axis bit (a..g = J4, J5, J6, rail, J1, J2, J3) of joint ``joint`` (1..6,
+    7 = rail); 0 for any other number."""
+    if not 1 <= joint <= motion.AXES:
+        return 0
+    return 1 << motion.LETTER_TO_JOINT.index(joint - 1)
+
+
 class Geometry:
     """FK, IK and limits of one profile, read from the live ``settings`` mapping."""
 
@@ -101,8 +114,11 @@ class Geometry:
     def fk(self, q: Sequence[float]) -> Pose:
         return pose6(kin.forward(tuple(q[:6]), self.dh(), self.tool()))
 
-    def ik(self, pose: Sequence[float], *, check_limits: bool = True) -> tuple[float, ...]:
-        """Firmware-branch IK, raising :class:`Refusal` with the firmware's text."""
+    def ik(
+        self, pose: Sequence[float], *, check_limits: bool = IK_CHECKS_JOINT_RANGES
+    ) -> tuple[float, ...]:
+        """Firmware-branch IK, raising :class:`Refusal` with the firmware's text. The oracle
+        checks no joint range here: the soft limits (``$20``) or the switches do."""
         try:
             return tuple(
                 kin.inverse(
@@ -130,12 +146,12 @@ class Geometry:
         return None
 
     @staticmethod
-    def limit_pins(q: Sequence[float]) -> int:
-        """The ``Lim`` bits of the J1..J3 switches closed at ``q``."""
+    def limit_pins(q: Sequence[float], slack: float = 1e-9) -> int:
+        """The ``Lim`` bits of the J1..J3 switches closed at ``q`` (within ``slack``)."""
         pins = 0
         for j, (lo, hi) in enumerate(HARD_LIMIT_SWITCHES):
-            if q[j] <= lo + 1e-9 or q[j] >= hi - 1e-9:
-                pins |= 1 << (j + 4)  # J1..J3 are the firmware axes e, f, g (bits 4..6)
+            if q[j] <= lo + slack or q[j] >= hi - slack:
+                pins |= switch_pins(j + 1)
         return pins
 
     def switch_crossing(self, start: Sequence[float], end: Sequence[float]) -> Vec7 | None:

@@ -15,7 +15,10 @@ RX_BUFFER_SIZE: Final = 128
 """Receive ring in bytes (ASSUMED: all 128 usable)."""
 
 LINE_BUFFER_SIZE: Final = 80
-"""Longest accepted line after filtering, in bytes (ASSUMED: 80 accepted, 81 overflow)."""
+"""GRBL's line buffer in bytes: a line holds at most ``LINE_BUFFER_SIZE - 1`` = 79 bytes after
+filtering (oracle: 79 accepted, 80 overflow)."""
+
+MAX_LINE_LENGTH: Final = LINE_BUFFER_SIZE - 1
 
 _NO_COMMENT: Final = 0
 _PARENTHESES: Final = 1
@@ -24,7 +27,7 @@ _SEMICOLON: Final = 2
 
 @dataclass(frozen=True, slots=True)
 class ReceivedLine:
-    """A complete filtered line, or an overflowing one (``overflow``: its text is cut)."""
+    """A complete filtered line, or the overflow of one (``overflow``: ``text`` is empty)."""
 
     text: str
     overflow: bool = False
@@ -39,7 +42,6 @@ class LineBuffer:
         self._ring = bytearray()
         self._line = bytearray()
         self._comment = _NO_COMMENT
-        self._overflow = False
 
     def __len__(self) -> int:
         """Bytes waiting in the ring."""
@@ -63,25 +65,32 @@ class LineBuffer:
         self._ring.clear()
         self._line.clear()
         self._comment = _NO_COMMENT
-        self._overflow = False
 
     def take_line(self) -> ReceivedLine | None:
-        """Move bytes from the ring into the line until one line is complete; None if the ring
-        ran dry first (the partial line is kept)."""
+        """Move bytes from the ring into the line until one line is complete or overflows;
+        None if the ring ran dry first (the partial line is kept).
+
+        Overflow (oracle): the byte that would be the 80th is dropped, the line so far is
+        discarded and reported at once, and the bytes after it start a new line (so a long
+        line gets ``Line overflow`` and then the reply of its tail).
+        """
         ring = self._ring
         while ring:
             c = ring[0]
             del ring[0]
             if c in (0x0A, 0x0D):
-                line = ReceivedLine(self._line.decode("latin-1"), self._overflow)
+                line = ReceivedLine(self._line.decode("latin-1"))
                 self._line.clear()
                 self._comment = _NO_COMMENT
-                self._overflow = False
                 return line
-            self._filter(c)
+            if self._filter(c):
+                self._line.clear()
+                self._comment = _NO_COMMENT
+                return ReceivedLine("", overflow=True)
         return None
 
-    def _filter(self, c: int) -> None:
+    def _filter(self, c: int) -> bool:
+        """Add ``c`` to the line as GRBL filters it; True when it overflows the line."""
         if self._comment:
             if c == 0x29 and self._comment == _PARENTHESES:  # ')'
                 self._comment = _NO_COMMENT
@@ -91,9 +100,10 @@ class LineBuffer:
             self._comment = _PARENTHESES
         elif c == 0x3B:  # ';'
             self._comment = _SEMICOLON
-        elif len(self._line) >= LINE_BUFFER_SIZE:
-            self._overflow = True
+        elif len(self._line) >= MAX_LINE_LENGTH:
+            return True
         elif 0x61 <= c <= 0x7A:
             self._line.append(c - 0x20)
         else:
             self._line.append(c)
+        return False

@@ -60,6 +60,8 @@ class Machine:
         """A hard-limit alarm: nothing but ``%`` is processed until reset."""
         self.locked = True
         self.hold = False
+        self.suspended = False
+        """``@`` received: lines wait until ``~`` (the state word does not change)."""
         self.check = False
         self.check_q: Vec7 = motion.ZERO
         """The joints the parser works from in check mode (``$C``)."""
@@ -127,15 +129,18 @@ class Machine:
 
     def blocked(self) -> bool:
         """True while received lines wait (planner full, homing, dwell, hold, alarm)."""
-        return self.pending is not None or self.hold or self.critical
+        return self.pending is not None or self.hold or self.suspended or self.critical
 
     def parser_q(self) -> Vec7:
         """The joints the parser works from (the end of queued motion)."""
         return self.check_q if self.check else self.planner.planned_position
 
-    def hard_limit_alarm(self) -> None:
-        """A limit switch closed: stop, print the alarm, refuse everything but ``%``."""
-        self.emit("ALARM: Hard limit")
+    def hard_limit_alarm(self, pins: int = 0) -> None:
+        """A limit switch closed: stop, print the alarm, refuse everything but ``%``.
+
+        ``pins``: the closed switches by firmware axis bit (a..g = bits 0..6); the oracle prints
+        them as 8 binary digits right before the text (``00010000ALARM: Hard limit``: J1)."""
+        self.emit(f"{pins:08b}ALARM: Hard limit")
         self.emit(c.FEEDBACK_RESET_TO_CONTINUE)
         self.planner.abort()
         self.limit_blocks.clear()

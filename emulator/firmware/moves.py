@@ -93,6 +93,15 @@ def arc_segment(arc: Arc, p0: Pose, p1: Pose, rail0: float, rail1: float) -> Seg
     return at, length, n
 
 
+def _truncated(at: PathAt, fraction: float) -> PathAt:
+    """The first ``fraction`` of the path piece ``at``, as a piece of its own."""
+
+    def cut(u: float) -> tuple[Pose, float]:
+        return at(u * fraction)
+
+    return cut
+
+
 def _needs_snap(current: Vec7, ideal: Vec7, limits: AxisLimits) -> bool:
     """Whether the arm at ``current`` must first move to the IK ``ideal`` of its pose."""
     if limits.steps is not None:
@@ -106,6 +115,11 @@ class MoveBuilder:
     def __init__(self, geometry: Geometry, settings: Mapping[int, float]) -> None:
         self.geometry = geometry
         self.settings = settings
+
+    def linear_lines(self) -> bool:
+        """Whether ``M20 G1`` runs a straight Cartesian line: on 2021 with ``$35=1``; on classic
+        never (oracle: a joint-space move, its F in deg/min along the joint vector)."""
+        return self.geometry.profile == "2021" and self.settings[35] != 0
 
     def plan(
         self,
@@ -128,12 +142,13 @@ class MoveBuilder:
                 raise Refusal(c.TEXT_LOCKED)
             rate = None if motion_mode == 0 else feed
             return self.joint_move(start, target, rate, feed_mode, check=check)
-        if motion_mode == 0:
+        if motion_mode == 0 or (motion_mode == 1 and not self.linear_lines()):
             q = self.geometry.ik(target[:6])
             end = vec7((*q, target[6]))
             if locked:
                 raise Refusal(c.TEXT_LOCKED)
-            return self.joint_move(start, end, None, feed_mode, check=check)
+            rate = None if motion_mode == 0 else feed
+            return self.joint_move(start, end, rate, feed_mode, check=check)
         p0 = cart_start
         rail0 = start[6]
         segments: list[Segment] = []
@@ -193,14 +208,19 @@ class MoveBuilder:
         geometry = self.geometry
         checked: list[tuple[PathAt, float, list[Vec7]]] = []
         prev: Sequence[float] = start
+        hits_switch = False
         for at, length, n in segments:
-            refs: list[Vec7] = []
-            for k in range(n + 1):
-                pose, rail = at(k / n)
-                q = geometry.unwrap(geometry.ik(pose), prev)
-                refs.append(vec7((*q, rail)))
-                prev = refs[-1]
+            refs = self._samples(at, n, prev)
+            cut = self._switch_cut(refs)
+            if cut is not None:  # the path runs into a limit switch: it ends there
+                at = _truncated(at, cut)
+                length *= cut
+                refs = self._samples(at, max(1, math.ceil(n * cut)), prev)
+                hits_switch = True
+            prev = refs[-1]
             checked.append((at, length, refs))
+            if hits_switch:
+                break
         # soft limits on every sample (the IK limits were checked above)
         for _at, _length, refs in checked:
             for q in refs:
@@ -236,7 +256,29 @@ class MoveBuilder:
                 raise Refusal(c.TEXT_UNREACHABLE) from None
             blocks.append(block)
             current = block.end
-        return blocks, None, current
+        return blocks, (blocks[-1] if hits_switch and blocks else None), current
+
+    def _samples(self, at: PathAt, n: int, prev: Sequence[float]) -> list[Vec7]:
+        """The joints at ``n + 1`` even steps of a path piece (IK; J4/J6 kept continuous)."""
+        refs: list[Vec7] = []
+        for k in range(n + 1):
+            pose, rail = at(k / n)
+            q = self.geometry.unwrap(self.geometry.ik(pose), prev)
+            refs.append(vec7((*q, rail)))
+            prev = refs[-1]
+        return refs
+
+    def _switch_cut(self, refs: Sequence[Vec7]) -> float | None:
+        """The fraction of a sampled path where it first runs into a switch, or None."""
+        for k in range(1, len(refs)):
+            cut = self.geometry.switch_crossing(refs[k - 1], refs[k])
+            if cut is None:
+                continue
+            a, b = refs[k - 1], refs[k]
+            span = max(abs(y - x) for x, y in zip(a, b, strict=True))
+            f = max(abs(y - x) for x, y in zip(a, cut, strict=True)) / span if span else 0.0
+            return (k - 1 + f) / (len(refs) - 1)
+        return None
 
     def _poses_function(
         self, at: PathAt, refs: Sequence[Vec7], start: Vec7
