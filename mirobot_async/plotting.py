@@ -13,6 +13,11 @@ real arm, whose time is the wall time). The plot's time axis is the robot's time
 times the time scale (wall time when the virtual arm ran at time scale 0, where moves take no
 time). Files without the ``time_scale`` column (older traces) are read as a real arm's.
 
+Events (pump, valve, gripper, alarm, hold) are marked where the status first showed them. The
+firmware reports an ``M3``/``M4`` output as soon as it reads the line, which can be while moves
+queued ahead of it are still running (the vendor firmware does the same), so a pump event can
+appear before the arm reaches the place where the program switches it.
+
 Reading and writing need only the standard library. :func:`plot_trace` needs matplotlib (the
 ``plot`` extra: ``pip install 'mirobot-async[plot]'``), imported only when it is called; without
 it :class:`PlottingUnavailableError` says how to install it.
@@ -465,7 +470,10 @@ def plot_trace(trace: Trace, output: str | os.PathLike[str], *, title: str | Non
         else "wall time (s): the virtual arm ran at time scale 0, its moves took no time"
     )
     angles.set_ylabel("angle (deg)")
-    angles.set_title("Joint angles (dashed: events, numbered as on the tool path)")
+    angles.set_title(
+        "Joint angles; dashed: events when the status first showed them "
+        "(numbered as on the tool path)"
+    )
     angles.grid(True, alpha=0.3)
     angles.legend(loc="lower right", ncols=6, fontsize="small")
 

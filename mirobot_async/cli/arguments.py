@@ -316,6 +316,12 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="report refused lines and go on (exit status 1 at the end)",
     )
+    run.add_argument(
+        "--no-check",
+        action="store_true",
+        help="do not check the whole program before sending it (as 'mirobot check' does); "
+        "a line the check refuses then stops the run where it is",
+    )
     _add_prepare_options(run, "home")
     _add_interrupt_option(run)
 
@@ -336,6 +342,24 @@ def build_parser() -> argparse.ArgumentParser:
         "-o", "--output", metavar="FILE.png", help="PNG to write (default: TRACE with .png)"
     )
     plot.add_argument("--title", help="title of the figure")
+
+    ports = add(
+        "ports",
+        commands.cmd_ports,
+        "list serial ports and probe each for a Mirobot (sends only ? and $$)",
+        talks=False,
+    )
+    ports.add_argument(
+        "devices", nargs="*", metavar="DEVICE", help="probe these (default: every port found)"
+    )
+    ports.add_argument(
+        "--timeout",
+        type=_positive_float,
+        default=3.0,
+        metavar="S",
+        help="seconds to wait for each port's status reply (default: 3)",
+    )
+    ports.add_argument("--no-probe", action="store_true", help="only list, open nothing")
 
     emulator = commands_parser.add_parser(
         "emulator",

@@ -13,9 +13,9 @@ import sys
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Final
 
-from mirobot_async import gcode
+from mirobot_async import gcode, validation
 from mirobot_async.cli.arguments import JOINT_KEYS, POSE_KEYS, parse_assignments
-from mirobot_async.cli.exits import EXIT_FAILED, EXIT_OK, CliError, note
+from mirobot_async.cli.exits import EXIT_FAILED, EXIT_OK, CliError, RobotNotReadyError, note
 from mirobot_async.cli.programs import (
     ProgramLine,
     open_trace,
@@ -41,6 +41,7 @@ from mirobot_async.cli.session import (
     time_scale_of,
 )
 from mirobot_async.errors import MirobotAlarmError, MirobotCommandError, MirobotError
+from mirobot_async.line import normalize_line
 from mirobot_async.plotting import TraceError, TraceWriter
 from mirobot_async.replies import State
 
@@ -58,6 +59,7 @@ __all__ = [
     "cmd_move_joints",
     "cmd_move_pose",
     "cmd_plot",
+    "cmd_ports",
     "cmd_pump",
     "cmd_reset",
     "cmd_run",
@@ -249,6 +251,8 @@ async def cmd_run(args: argparse.Namespace) -> int:
     scale = time_scale_of(args)
     with open_trace(args.trace, append=False, time_scale=scale) as trace:
         async with open_robot(args) as arm:
+            if not args.no_check:
+                await _check_before_running(arm, args, name, program)
             await prepare(arm, args)
             before = await preflight(arm)
             if trace is not None:
@@ -275,6 +279,33 @@ async def cmd_run(args: argparse.Namespace) -> int:
         )
         return EXIT_FAILED
     return EXIT_OK
+
+
+async def _check_before_running(
+    arm: Mirobot, args: argparse.Namespace, name: str, program: list[ProgramLine]
+) -> None:
+    """The whole program through the validation ``check`` uses (:mod:`mirobot_async.validation`,
+    the arm's firmware profile) before anything is sent: problems as ``FILE:LINE: message`` on
+    stderr and :class:`RobotNotReadyError` (exit 1), so a program never stops half-way through
+    at a line the check would have refused. The firmware profile is asked (``$$``, read-only)
+    only when it is unknown and the profiles disagree about the program."""
+    texts = [line.text for line in program]
+    firmware = args.firmware or arm.firmware
+    if firmware is None:  # a port whose profile is not known yet: ask ($$) only if it matters
+        if not any(validation.check_program(texts, firmware=p) for p in gcode.FIRMWARE_PROFILES):
+            return
+        firmware = await arm.detect_firmware()
+    problems = validation.check_program(texts, firmware=firmware)
+    if not problems:
+        return
+    for index, message in problems:
+        line = program[index - 1]
+        print(f"{name}:{line.number}: {line.text}: {message}", file=sys.stderr)
+    count = len(problems)
+    raise RobotNotReadyError(
+        f"{count} problem{'s' if count != 1 else ''} in {name} (firmware {firmware}): nothing "
+        "was sent (--no-check sends it anyway)"
+    )
 
 
 async def _stream_program(
@@ -320,14 +351,14 @@ def cmd_check(args: argparse.Namespace) -> int:
     """``mirobot check FILE``: offline validation, problems as ``FILE:LINE: message``."""
     name = program_name(args.file)
     lines = read_lines(args.file)
-    problems = gcode.check_program(lines, firmware=args.firmware)
+    problems = validation.check_program(lines, firmware=args.firmware)
     for number, message in problems:
         print(f"{name}:{number}: {message}")
     if problems:
         count = len(problems)
         note(f"{count} problem{'s' if count != 1 else ''} in {name}")
         return EXIT_FAILED
-    commands = sum(1 for line in lines if gcode.normalize_line(line))
+    commands = sum(1 for line in lines if normalize_line(line))
     print(f"OK: {len(lines)} lines ({commands} commands, firmware {args.firmware})")
     return EXIT_OK
 
@@ -347,6 +378,26 @@ def cmd_plot(args: argparse.Namespace) -> int:
     width, height = PLOT_SIZE_PX
     print(f"wrote {output} ({width}x{height} px, {len(trace)} samples)")
     return EXIT_OK
+
+
+def cmd_ports(args: argparse.Namespace) -> int:
+    """``mirobot ports [DEVICE ...]``: serial ports with VID:PID, description and a probe's
+    verdict. Exit status 0 when a Mirobot answered (or with ``--no-probe``), else 1."""
+    from mirobot_async.cli.ports import describe_ports
+
+    found = describe_ports(list(args.devices), probe=not args.no_probe, timeout=args.timeout)
+    if not found:
+        note("no serial ports found (is the arm plugged in? name a device to probe it)")
+        return EXIT_FAILED
+    rows = [("DEVICE", "VID:PID", "DESCRIPTION", "VERDICT")]
+    rows += [(p.device, p.vid_pid, p.description, p.verdict) for p in found]
+    widths = [max(len(row[column]) for row in rows) for column in range(3)]
+    for row in rows:
+        cells = [text.ljust(width) for text, width in zip(row[:3], widths, strict=True)]
+        print("  ".join([*cells, row[3]]))
+    if args.no_probe or any(p.is_mirobot for p in found):
+        return EXIT_OK
+    return EXIT_FAILED
 
 
 def cmd_emulator(args: argparse.Namespace) -> int:

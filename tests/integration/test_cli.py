@@ -391,7 +391,7 @@ def test_run_on_a_classic_port(classic_port: str) -> None:
 def test_run_stops_at_a_refused_line(tmp_path: Path) -> None:
     program = tmp_path / "bad.gcode"
     program.write_text("; a program with a typo\nM21 G90\nG0 X10\n\nG7 X1 ; no such G code\n")
-    proc = mirobot("run", "bad.gcode", *FAST, cwd=tmp_path)
+    proc = mirobot("run", "bad.gcode", "--no-check", *FAST, cwd=tmp_path)
     assert proc.returncode == 1
     assert_clean(proc)
     assert "bad.gcode:5: G7 X1: Unsupported command" in proc.stderr.splitlines()
@@ -416,10 +416,26 @@ def test_run_and_move_on_a_locked_arm_send_nothing_and_say_so_once(tmp_path: Pat
             assert sent == after["status_requests_in"] - before["status_requests_in"]  # only "?"
 
 
+def test_run_checks_the_whole_program_before_sending_anything(tmp_path: Path) -> None:
+    program = tmp_path / "bad.gcode"
+    program.write_text("M21 G90\nG0 X10\nM3 S2000 ; not a PWM value\nG0 X20\n")
+    with SyncEmulatorProcess(time_scale=0) as emulator:
+        before = emulator_stats(emulator)
+        proc = mirobot("run", str(program), "--port", emulator.url, "--home")
+        after = emulator_stats(emulator)
+    assert proc.returncode == 1
+    assert proc.stderr.splitlines() == [
+        f"{program}:3: M3 S2000: S2000: PWM must be an integer 0..1000",
+        f"mirobot: error: 1 problem in {program} (firmware 2021): nothing was sent "
+        "(--no-check sends it anyway)",
+    ]
+    assert after["lines_in"] - before["lines_in"] <= 1  # at most "$$", never the program
+
+
 def test_run_continue_on_error_reports_every_refused_line(tmp_path: Path) -> None:
     program = tmp_path / "bad.gcode"
     program.write_text("M21 G90\nG7\nG0 X20\nG0 X500\nG0 X25\n")
-    proc = mirobot("run", str(program), "--continue-on-error", *FAST)
+    proc = mirobot("run", str(program), "--continue-on-error", "--no-check", *FAST)
     assert proc.returncode == 1
     assert f"{program}:2: G7: Unsupported command" in proc.stderr
     assert f"{program}:4: G0 X500: " in proc.stderr  # refused by the firmware (out of limit)
