@@ -20,7 +20,12 @@ The model, checked against the classic firmware running in an AVR simulator (the
   agrees within 4 ms (``M21 G90 G1 X90 F2000`` 3.370 s, ``F1000`` 5.738 s; ``M20 G90 G1 X180
   Y20 Z120 A0 B0 C0 F2000`` from the start pose 1.655 s).
 * Consecutive blocks blend at GRBL's junction speeds (``$11`` junction deviation, in degrees);
-  see :mod:`.planner`.
+  see :mod:`.planner`. Programs measured in simulated time against the oracle (same bytes,
+  character counting): 200 ``M20 G1`` chords of 3.1 mm at F2000 15.101 s there, 14.969 s here
+  (15.091 s with the oracle's cycle start and line cost, see :meth:`Planner.cycle_start`);
+  400 chords of 0.5 mm at F3000 13.232 / 13.106 s; joint polygons with 8 and 20 degree turns,
+  right angles and zigzags within 0.4 %.
+* The planner holds 17 blocks (GRBL's 18-slot ring keeps one free).
 * Positions are whole motor steps during and after motion (GRBL's Bresenham line).
 * :func:`path_blocks` cuts a Cartesian path into joint blocks that blend; :func:`path_block`
   keeps the one-block path (stops before and after it).
@@ -43,9 +48,12 @@ The model, checked against the classic firmware running in an AVR simulator (the
 
 Not modelled
 ------------
-GRBL's stepper segment buffer and AMASS, jerk, the centripetal joint acceleration on curved
-joint paths, lost steps / stalls, motor load, homing switch physics and feed overrides. Limits
-(soft/hard) and IK reachability are the firmware's business, not this package's.
+GRBL's stepper segment buffer (except as the feed-hold latency) and AMASS: the oracle's
+acceleration ramps run about 10 ms behind the ideal trapezoid and its decelerations about 6 ms
+ahead, so mid-motion positions agree within about 0.35 degrees there (one step at cruise).
+Nor jerk, the centripetal joint acceleration on curved joint paths, lost steps / stalls, motor
+load, homing switch physics and feed overrides. Limits (soft/hard) and IK reachability are the
+firmware's business, not this package's.
 """
 
 from __future__ import annotations

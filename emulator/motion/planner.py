@@ -23,7 +23,9 @@ GRBL's wiki), in JOINT space:
   ends if needed; resume re-plans from the current speed.
 
 Not modelled: GRBL's stepper segment buffer (the few milliseconds of motion already prepared
-when a block arrives), AMASS, and the minimum planner speed.
+when a block arrives; only a feed hold waits for it, ``HOLD_LATENCY``), AMASS, and the minimum
+planner speed. GRBL starts a cycle only when the planner is full or its input has run dry;
+with ``deferred_start`` the firmware reproduces that through :meth:`Planner.cycle_start`.
 """
 
 from __future__ import annotations
