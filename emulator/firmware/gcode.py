@@ -23,7 +23,10 @@ class GcodeExecutor:
         if isinstance(scanned, int):
             m.error(scanned)
             return
-        checked = check_line(scanned, m.modal, m.parser_q(), m.geometry)
+        # oracle: a line with M20 or M21 first sets the parser's position to the machine's
+        # (where the arm is now, not where queued motion ends)
+        origin = m.machine_position() if scanned.coord_mode is not None else m.modal.joints
+        checked = check_line(scanned, m.modal, origin, m.geometry)
         if isinstance(checked, int):
             m.error(checked)
             return
@@ -54,6 +57,8 @@ class GcodeExecutor:
             m.locked = False
             m.alarm = False
             out.append(m.info(c.TEXT_M50))
+        if g.coord_mode is not None:
+            modal.joints = line.origin
         if g.coord_mode == 20:
             modal.cart_mode = True
             modal.cart = pose6(line.base[:6])
@@ -68,7 +73,6 @@ class GcodeExecutor:
     def _run(self, line: CheckedLine) -> None:
         m = self.m
         g = line.block
-        q0 = m.parser_q()
         out = self._set_modal(line)
         ok = "ok"  # the final reply (a refusal text may come first on the same line)
         blocks: list[Block] = []
@@ -79,7 +83,7 @@ class GcodeExecutor:
             # The dwell starts where the queued motion ends; the motion of this line follows.
             blocks.append(motion.dwell_block(g.words["P"], m.planner.planned_position))
         if line.axis_command and line.motion_mode != 80:
-            start = blocks[-1].end if blocks else q0
+            start = blocks[-1].end if blocks else m.planner.planned_position
             try:
                 new_blocks, hard_limit, end_q = m.moves.plan(
                     line.motion_mode,
@@ -98,8 +102,7 @@ class GcodeExecutor:
                 if refusal.text in c.TEXTS_WITHOUT_LINE_END:
                     ok = out.pop() + ok
             else:
-                if m.check:
-                    m.check_q = end_q
+                m.modal.joints = line.target if not line.cart else end_q
                 blocks += new_blocks
                 if line.cart:
                     m.modal.cart = pose6(line.target[:6])

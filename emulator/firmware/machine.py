@@ -63,8 +63,6 @@ class Machine:
         self.suspended = False
         """``@`` received: lines wait until ``~`` (the state word does not change)."""
         self.check = False
-        self.check_q: Vec7 = motion.ZERO
-        """The joints the parser works from in check mode (``$C``)."""
 
     # output ---------------------------------------------------------------------------------
 
@@ -116,7 +114,8 @@ class Machine:
 
     def parser_init(self, *, feed: float) -> None:
         """GRBL ``gc_init`` with ``feed``; the pose is the FK of the planned joints."""
-        self.modal.init(feed=feed, pose=self.geometry.fk(self.planner.planned_position))
+        q = self.planner.planned_position
+        self.modal.init(feed=feed, joints=q, pose=self.geometry.fk(q))
 
     def moving(self) -> bool:
         """True when the arm is physically in motion (a reset then loses position)."""
@@ -131,9 +130,9 @@ class Machine:
         """True while received lines wait (planner full, homing, dwell, hold, alarm)."""
         return self.pending is not None or self.hold or self.suspended or self.critical
 
-    def parser_q(self) -> Vec7:
-        """The joints the parser works from (the end of queued motion)."""
-        return self.check_q if self.check else self.planner.planned_position
+    def machine_position(self) -> Vec7:
+        """Where the arm is now, in whole steps: what ``M20``/``M21`` resynchronise to."""
+        return self.geometry.limits().quantise(self.planner.position)
 
     def hard_limit_alarm(self, pins: int = 0) -> None:
         """A limit switch closed: stop, print the alarm, refuse everything but ``%``.

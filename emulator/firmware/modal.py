@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from .. import settings as cfg
+from ..motion import Vec7
 
 Pose = tuple[float, float, float, float, float, float]
 
@@ -29,10 +30,13 @@ class ModalState:
     cart_mode: bool = False
     cart: Pose = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     """The last commanded Cartesian pose (``M20`` ``G91`` increments add to it)."""
+    joints: Vec7 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    """The parser's own position (GRBL's ``gc_state.position``, not rounded to steps): where the
+    last accepted move ends; ``M21``/``M20`` and resets set it to the machine position."""
 
-    def init(self, *, feed: float, pose: Pose) -> None:
-        """GRBL ``gc_init`` plus the Mirobot defaults (G0, G90, M21, PWM 0), ``feed`` and the
-        Cartesian pose of the planned joints."""
+    def init(self, *, feed: float, joints: Vec7, pose: Pose) -> None:
+        """GRBL ``gc_init`` plus the Mirobot defaults (G0, G90, M21, PWM 0), ``feed``, and the
+        position synchronised to the machine's ``joints`` (``pose`` their FK)."""
         self.motion = 0
         self.plane = 17
         self.units = 21
@@ -46,6 +50,7 @@ class ModalState:
         self.valve_pwm = 0.0
         self.cart_mode = False
         self.cart = pose
+        self.joints = joints
 
     def program_end(self) -> None:
         """M2 / M30: GRBL resets these modal groups (motion becomes G1)."""

@@ -94,7 +94,6 @@ class SystemCommands:
                 m.error(c.IDLE_ERROR)
                 return
             m.check = True
-            m.check_q = m.planner.planned_position
             m.emit("[Enabled]")
         elif m.alarm:  # $X
             m.emit(c.FEEDBACK_UNLOCKED)
@@ -254,6 +253,7 @@ class SystemCommands:
         target = vec7((0.0, 0.0, 0.0, 0.0, 0.0, 0.0, start[6]))
         block = motion.joint_block(start, target, None, m.geometry.limits())
         m.modal.cart = m.geometry.fk(target)
+        m.modal.joints = target
         if block.length == 0.0:
             m.emit("ok")
             return

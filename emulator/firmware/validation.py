@@ -25,6 +25,8 @@ class CheckedLine:
     """A valid line: the modal values it sets and where its motion goes."""
 
     block: GBlock
+    origin: Vec7
+    """The parser's joints the line starts from."""
     cart: bool
     motion_mode: int
     distance: int
@@ -121,7 +123,7 @@ def check_line(g: GBlock, modal: ModalState, q0: Vec7, geometry: Geometry) -> Ch
     if set(words) - used:
         return c.UNUSED_WORDS
     return CheckedLine(
-        g, cart, motion_mode, distance, units, feed_mode, feed, pump, valve,
+        g, q0, cart, motion_mode, distance, units, feed_mode, feed, pump, valve,
         base, target, axis_command, arc,
     )  # fmt: skip
 
