@@ -11,7 +11,8 @@ Raises :class:`~mirobot_async.errors.MirobotUsageError` with the reason. Pure mo
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -25,6 +26,7 @@ from mirobot_async.paths import (
     arc_plan,
     arc_samples,
     as_pose,
+    firmware_ik_rows,
     line_samples,
     line_samples_needed,
     unwrap,
@@ -43,10 +45,13 @@ SNAP_TOLERANCE = 1e-4
 class CartesianEnd:
     """Where a Cartesian move ends and what was checked on the way."""
 
-    joints: Joints
+    joints: Joints | None
+    """The end joints; None when the wrist snap may turn J4/J6 either way (the pose is known)."""
     snap: Joints | None
     """Target of the rapid joint move before the path, when there is one."""
     samples: int
+    model_joints: Joints | None = None
+    """The end joints of the emulator's model (J4/J6 nearest to the start)."""
 
 
 def _fmt(values: tuple[float, ...] | list[float]) -> str:
@@ -76,7 +81,7 @@ def point_to_point(
         raise MirobotUsageError(problem)
     if start is not None:
         envelope.check_joint_path(start, q, what=what)
-    return CartesianEnd(q, None, 1)
+    return CartesianEnd(q, None, 1, q)
 
 
 Segment = tuple[Callable[[int], FloatArray], float, str]
@@ -124,19 +129,25 @@ def cartesian_path(
             f"the path needs {total:.0f} check samples, more than the {MAX_PATH_SAMPLES} the "
             "envelope checks for one line: split it into shorter moves"
         )
-    first = unwrap(firmware_ik(envelope, start_pose, "the start pose", what), start)
+    ik = firmware_ik(envelope, start_pose, "the start pose", what)
+    candidates = snap_candidates(ik, start)
+    first = candidates[0]
     snap: Joints | None = None
-    if max(abs(a - b) for a, b in zip(first, start, strict=True)) > SNAP_TOLERANCE:
-        snap = first  # the firmware's rapid joint move to its IK branch first
+    for target_q in candidates:
+        if max(abs(a - b) for a, b in zip(target_q, start, strict=True)) <= SNAP_TOLERANCE:
+            continue
+        snap = snap or target_q  # the firmware's rapid joint move to its IK branch first
         problem = envelope.joint_problem(
-            first, what, f"the rapid joint move to the firmware's IK branch {_fmt(first)}: "
+            target_q, what, f"the rapid joint move to the firmware's IK branch {_fmt(target_q)}: "
         )
         if problem is not None:
             raise MirobotUsageError(problem)
-        envelope.check_joint_path(start, first, what=f"{what}, wrist snap before the path")
+        envelope.check_joint_path(start, target_q, what=f"{what}, wrist snap before the path")
+    limits = envelope.joint_limits
+    allowed = np.maximum(np.asarray(_excess(limits, first)), 0.0)
     prev = first
     count = 0
-    allowed = np.maximum(_excess(envelope, first), 0.0)
+    wrist = [first[3], first[3], first[5], first[5]]  # J4 and J6 extremes along the path
     for sampler, needed, kind in segments:
         samples = sampler(int(needed))
         problem = envelope.box_problem(as_pose(samples[-1]), what) or envelope.path_box_problem(
@@ -144,23 +155,105 @@ def cartesian_path(
         )
         if problem is not None:
             raise MirobotUsageError(problem)
-        for i, row in enumerate(samples):
-            pose = as_pose(row)
-            last = i == len(samples) - 1
-            where = "target pose" if last else f"the {kind} passes"
-            q = unwrap(firmware_ik(envelope, pose, where, what), prev)
-            excess = _excess(envelope, q)
-            if last or (excess > allowed + LIMIT_TOL).any():
-                problem = envelope.joint_problem(q, what, f"{where} {_fmt(pose)} with ")
-                if problem is not None:
-                    raise MirobotUsageError(problem)
-            prev = q
-            count += 1
-    return CartesianEnd(prev, snap, count)
+        rows = _path_joints(envelope, samples, prev, kind, what)
+        lo = np.asarray([v[0] for v in limits])
+        hi = np.asarray([v[1] for v in limits])
+        excess = np.maximum(lo[None, :] - rows, rows - hi[None, :])
+        bad = (excess > allowed[None, :] + LIMIT_TOL).any(axis=1)
+        bad[-1] = bool((excess[-1] > LIMIT_TOL).any())
+        if bad.any():
+            i = int(np.argmax(bad))
+            where = "target pose" if i == len(rows) - 1 else f"the {kind} passes"
+            q = as_pose(rows[i])
+            pose = as_pose(samples[i])
+            problem = envelope.joint_problem(q, what, f"{where} {_fmt(pose)} with ")
+            if problem is not None:
+                raise MirobotUsageError(problem)
+        wrist = [
+            min(wrist[0], float(rows[:, 3].min())),
+            max(wrist[1], float(rows[:, 3].max())),
+            min(wrist[2], float(rows[:, 5].min())),
+            max(wrist[3], float(rows[:, 5].max())),
+        ]
+        prev = as_pose(rows[-1])
+        count += len(rows)
+    for other in candidates[1:]:  # the same path with J4/J6 whole turns apart
+        shift4, shift6 = other[3] - first[3], other[5] - first[5]
+        for j, low, high, shift in (
+            (3, wrist[0], wrist[1], shift4),
+            (5, wrist[2], wrist[3], shift6),
+        ):
+            bottom, top = limits[j]
+            if low + shift < bottom - LIMIT_TOL or high + shift > top + LIMIT_TOL:
+                raise MirobotUsageError(
+                    f"after the rapid joint move to the firmware's IK branch {_fmt(other)}, "
+                    f"J{j + 1} would leave the envelope's range {bottom:g}..{top:g} deg ({what})"
+                )
+    ambiguous = (
+        len(
+            {round(c[3] - first[3]) for c in candidates}
+            | {round(c[5] - first[5]) for c in candidates}
+        )
+        > 1
+    )
+    return CartesianEnd(None if ambiguous else prev, snap, count, prev)
 
 
-def _excess(envelope: Envelope, q: Joints) -> FloatArray:
-    limits = np.asarray(envelope.joint_limits)
-    qa = np.asarray(q)
-    out: FloatArray = np.maximum(limits[:, 0] - qa, qa - limits[:, 1])
+def _path_joints(
+    envelope: Envelope, samples: FloatArray, start: Joints, kind: str, what: str
+) -> FloatArray:
+    """Firmware-branch IK of every sample (vectorised), J4/J6 kept continuous from ``start``."""
+    rows = firmware_ik_rows(samples, envelope.dh, envelope.tool)
+    for i in np.flatnonzero(np.isnan(rows[:, 0])).tolist():  # singular or back branch: one by one
+        last = i == len(rows) - 1
+        where = "target pose" if last else f"the {kind} passes"
+        rows[i] = firmware_ik(envelope, as_pose(samples[i]), where, what)
+    lo = np.asarray([v[0] for v in JOINT_LIMITS])
+    hi = np.asarray([v[1] for v in JOINT_LIMITS])
+    outside = ((rows < lo[None, :] - LIMIT_TOL) | (rows > hi[None, :] + LIMIT_TOL)).any(axis=1)
+    if outside.any():  # the firmware's IK refuses angles outside its factory ranges
+        i = int(np.argmax(outside))
+        where = "target pose" if i == len(rows) - 1 else f"the {kind} passes"
+        firmware_ik(envelope, as_pose(samples[i]), where, what)  # raises with the firmware's text
+    ref4, ref6 = start[3], start[5]
+    (lo4, hi4), (lo6, hi6) = JOINT_LIMITS[3], JOINT_LIMITS[5]
+    j4 = rows[:, 3].tolist()
+    j6 = rows[:, 5].tolist()
+    for i in range(len(j4)):
+        shifted = j4[i] + 360.0 * round((ref4 - j4[i]) / 360.0)
+        if lo4 <= shifted <= hi4:
+            j4[i] = shifted
+        shifted = j6[i] + 360.0 * round((ref6 - j6[i]) / 360.0)
+        if lo6 <= shifted <= hi6:
+            j6[i] = shifted
+        ref4, ref6 = j4[i], j6[i]
+    rows[:, 3] = j4
+    rows[:, 5] = j6
+    return rows
+
+
+def snap_candidates(ik: Joints, start: Joints) -> list[Joints]:
+    """Where the firmware's rapid joint move before a path may go: its IK of the start pose,
+    with J4/J6 taken nearest to the current joints (the emulator's model) or as computed (the
+    firmware's own numbers). A wrist flip puts J4/J6 exactly half a turn away: both ways count."""
+    nearest = unwrap(ik, start)
+    options: list[list[float]] = [[v] for v in nearest]
+    for j in (3, 5):
+        lo, hi = JOINT_LIMITS[j]
+        turns = (start[j] - ik[j]) / 360.0
+        values = {nearest[j], ik[j]}
+        if abs(turns - math.floor(turns) - 0.5) < 1e-3:  # a tie: both half-turn directions
+            values |= {ik[j] + 360.0 * math.floor(turns), ik[j] + 360.0 * math.ceil(turns)}
+        options[j] = [nearest[j], *sorted(v for v in values if v != nearest[j] and lo <= v <= hi)]
+    out: list[Joints] = [nearest]
+    for j4 in options[3]:
+        for j6 in options[5]:
+            q = (nearest[0], nearest[1], nearest[2], j4, nearest[4], j6)
+            if q not in out:
+                out.append(q)
     return out
+
+
+def _excess(limits: tuple[tuple[float, float], ...], q: Sequence[float]) -> list[float]:
+    """How far each joint is outside its range (negative: inside)."""
+    return [max(lo - v, v - hi) for v, (lo, hi) in zip(q, limits, strict=True)]

@@ -364,6 +364,25 @@ class ParsedLine:
         return any(w.lossy or (isinstance(w, CodeWord) and not w.canonical) for w in self.words)
 
     @property
+    def coordinate_conflict(self) -> str | None:
+        """Why the firmware refuses this line's ``M20``/``M21`` word by its neighbours, or None.
+
+        Seen on the firmware oracle: ``G21 M21`` (a units word before it) and ``M21 M3`` (another
+        M word in the line) give ``Modal group violation``, yet the M20/M21 takes effect.
+        """
+        if self.coordinate_mode is None:
+            return None
+        seen = False
+        for word in self.codes:
+            if word.letter == "M" and word.code in (20, 21):
+                seen = True
+            elif word.letter == "G" and word.code in (20, 21) and not seen:
+                return f"{word} before the M20/M21 word"
+            elif word.letter == "M" and word.code not in (20, 21):
+                return f"{word} in the same line as M20/M21"
+        return None
+
+    @property
     def may_move(self) -> bool:
         """True unless the line certainly does not move the arm (conservative)."""
         if self.kind == "empty":

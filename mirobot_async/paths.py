@@ -17,7 +17,7 @@ from typing import Final, TypeAlias
 import numpy as np
 import numpy.typing as npt
 
-from mirobot_async.kinematics import JOINT_LIMITS, Joints, Pose
+from mirobot_async.kinematics import DH, JOINT_LIMITS, Joints, Pose
 
 __all__ = [
     "MAX_JOINT_PATH_SAMPLES",
@@ -26,6 +26,7 @@ __all__ = [
     "ArcPlan",
     "arc_plan",
     "arc_samples",
+    "firmware_ik_rows",
     "line_samples",
     "line_samples_needed",
     "unwrap",
@@ -38,6 +39,9 @@ MAX_PATH_SAMPLES: Final = 300
 refused with a request to split them (300 samples at 2 mm is a 600 mm line, the arm's reach)."""
 MAX_JOINT_PATH_SAMPLES: Final = 4000
 """Most samples of one joint-space path (vectorised forward kinematics, about 3 ms)."""
+_REACH_EPS: Final = 1e-12
+_SINGULAR_EPS: Final = 1e-9
+"""The tolerances of :mod:`mirobot_async.kinematics` (reach and wrist singularity)."""
 PATH_STEP_DEG: Final = 2.0
 """Largest change of each orientation angle between two samples of a Cartesian path."""
 
@@ -165,3 +169,53 @@ def as_pose(values: Sequence[float]) -> Pose:
         float(values[4]),
         float(values[5]),
     )
+
+
+def firmware_ik_rows(poses: FloatArray, dh: DH, tool: Sequence[float]) -> FloatArray:
+    """The firmware-branch IK (shoulder front, elbow up, wrist unflipped) of many poses at once.
+
+    The same closed form as :func:`mirobot_async.kinematics.inverse` (``branch="firmware"``),
+    vectorised; rows where that branch does not apply (front unreachable, a singular wrist or
+    shoulder) are NaN: the caller solves those one by one with ``inverse``.
+    """
+    deg = math.pi / 180.0
+    x, y, z = poses[:, 0], poses[:, 1], poses[:, 2]
+    cx, sx = np.cos(poses[:, 3] * deg), np.sin(poses[:, 3] * deg)
+    cy, sy = np.cos(poses[:, 4] * deg), np.sin(poses[:, 4] * deg)
+    cz, sz = np.cos(poses[:, 5] * deg), np.sin(poses[:, 5] * deg)
+    r00, r01, r02 = cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx
+    r10, r11, r12 = sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx
+    r20, r21, r22 = -sy, cy * sx, cy * cx
+    tx, ty, tz = (float(v) for v in tool)
+    wx = x - (r00 * tx + r01 * ty + r02 * tz) - dh.l * r02
+    wy = y - (r10 * tx + r11 * ty + r12 * tz) - dh.l * r12
+    wz = z - (r20 * tx + r21 * ty + r22 * tz) - dh.l * r22
+    a2, k = dh.a2, dh.forearm
+    beta = math.atan2(dh.d4, dh.a3)
+    rho = np.hypot(wx, wy)
+    q1 = np.arctan2(wy, wx)
+    h = wz - dh.d1
+    r = rho - dh.a1
+    cos_phi = (r * r + h * h - a2 * a2 - k * k) / (2.0 * a2 * k)
+    good = (np.abs(cos_phi) <= 1.0 + _REACH_EPS) & (rho > 1e-12)
+    phi = np.arccos(np.clip(cos_phi, -1.0, 1.0))
+    q3 = phi - beta
+    q2 = np.arctan2(r, h) - np.arctan2(k * np.sin(phi), a2 + k * np.cos(phi))
+    c1, s1 = np.cos(q1), np.sin(q1)
+    c23, s23 = np.cos(q2 + q3), np.sin(q2 + q3)
+    v0, v1, v2 = c1 * r00 + s1 * r10, c1 * r01 + s1 * r11, c1 * r02 + s1 * r12
+    m02 = s23 * v2 + c23 * r22
+    m10 = c23 * v0 - s23 * r20
+    m11 = c23 * v1 - s23 * r21
+    m12 = c23 * v2 - s23 * r22
+    m22 = -s1 * r02 + c1 * r12
+    c5 = np.hypot(m02, m22)
+    good &= c5 >= _SINGULAR_EPS
+    q5 = np.arctan2(m12, c5)
+    q4 = np.arctan2(-m22, m02)
+    q6 = np.arctan2(-m11, m10)
+    out: FloatArray = np.stack([q1, q2, q3, q4, q5, q6], axis=1) / deg
+    out = np.fmod(out, 360.0)
+    out = np.where(out <= -180.0, out + 360.0, np.where(out > 180.0, out - 360.0, out)) + 0.0
+    out[~good] = np.nan
+    return out

@@ -116,6 +116,9 @@ class Prediction:
     """The line moves the arm (or homes it)."""
     snap: Joints | None = None
     """The rapid joint move's target before a Cartesian path (firmware IK branch), if any."""
+    model_joints: Joints | None = None
+    """End joints of the emulator's model when :attr:`state` has none because the wrist snap
+    may turn J4/J6 either way (the pose is known; the client reads the joints from a status)."""
     samples: int = 0
     """Path samples checked."""
 
@@ -407,4 +410,6 @@ def _cartesian(
             what=what,
         )
     after = replace(base, modes=after_modes, joints=end.joints, pose=target, rail=rail)
-    return Prediction(parsed, after, True, end.snap, end.samples)
+    return Prediction(
+        parsed, after, True, snap=end.snap, samples=end.samples, model_joints=end.model_joints
+    )
