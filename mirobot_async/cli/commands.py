@@ -178,7 +178,8 @@ async def cmd_move_joints(args: argparse.Namespace) -> int:
     """``mirobot move joints j1=.. [--relative] [--speed]``."""
     targets = joint_targets(args)
     async with open_robot(args) as arm:
-        await prepare(arm, args)
+        async with stop_safely(arm, args.on_interrupt):  # homing moves the arm
+            await prepare(arm, args)
         await preflight(arm)
         async with stop_safely(arm, args.on_interrupt):
             await arm.move_joints(
@@ -192,7 +193,8 @@ async def cmd_move_pose(args: argparse.Namespace) -> int:
     """``mirobot move pose x=.. [--linear] [--relative] [--speed]``."""
     targets = pose_targets(args)
     async with open_robot(args) as arm:
-        await prepare(arm, args)
+        async with stop_safely(arm, args.on_interrupt):  # homing moves the arm
+            await prepare(arm, args)
         await preflight(arm)
         async with stop_safely(arm, args.on_interrupt):
             await arm.move_pose(
@@ -253,7 +255,8 @@ async def cmd_run(args: argparse.Namespace) -> int:
         async with open_robot(args) as arm:
             if not args.no_check:
                 await _check_before_running(arm, args, name, program)
-            await prepare(arm, args)
+            async with stop_safely(arm, args.on_interrupt):  # homing moves the arm
+                await prepare(arm, args)
             before = await preflight(arm)
             if trace is not None:
                 trace.write(before)  # the start of the path, before the first move

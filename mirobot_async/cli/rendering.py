@@ -289,16 +289,28 @@ class LiveView:
 
         table = Table(
             title=f"sample {self.samples} at {when.strftime('%H:%M:%S.%f')[:-3]}  (Ctrl-C to stop)",
-            show_header=True,
+            show_header=False,
         )
-        names = ["", "J1", "J2", "J3", "J4", "J5", "J6"] + (["rail"] if report.rail else [])
-        for name in names:
-            table.add_column(name, justify="right")
-        rail = [] if report.rail is None else [_n(report.rail)]
-        table.add_row("joints", *(_n(v) for v in report.joints), *rail)
-        table.add_row("pose", *(_n(v) for v in report.pose), *([""] if rail else []))
+        rail = report.rail is not None
+        for _ in range(8 if rail else 7):
+            table.add_column(justify="right")
         table.add_row(
-            "state", report.state.value, f"pump {report.pump_pwm}", f"valve {report.valve_pwm}"
+            "", "J1", "J2", "J3", "J4", "J5", "J6", *(["rail"] if rail else []), style="bold"
+        )
+        table.add_row(
+            "joints",
+            *(_n(v) for v in report.joints),
+            *([_n(report.rail)] if report.rail is not None else []),
+        )
+        table.add_row("", "x", "y", "z", "rx", "ry", "rz", style="bold")
+        table.add_row("pose", *(_n(v) for v in report.pose))
+        table.add_row(
+            "state",
+            report.state.value,
+            "pump",
+            str(report.pump_pwm),
+            "valve",
+            str(report.valve_pwm),
         )
         self._live.update(table, refresh=True)
 

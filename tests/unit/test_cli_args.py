@@ -580,3 +580,22 @@ async def test_cancelling_the_caller_during_background_clean_up_propagates() -> 
     with pytest.raises(asyncio.CancelledError):
         await task
     assert job_done
+
+
+def test_live_view_draws_a_table_on_a_terminal_and_lines_otherwise() -> None:
+    import datetime
+
+    from mirobot_async.cli.rendering import LiveView
+
+    when = datetime.datetime(2025, 1, 1, 12, 0, 0)
+    terminal = FakeTerminal()
+    with LiveView(terminal) as view:
+        view.show(REPORT, when)
+        view.show(REPORT, when)
+    text = terminal.getvalue()
+    assert "sample 2 at 12:00:00.000" in text and "rail" in text and "198.670" in text
+    assert "\x1b[" in text  # drawn in place
+    plain = io.StringIO()
+    with LiveView(plain) as view:
+        view.show(REPORT, when)
+    assert plain.getvalue() == format_status_line(REPORT, when) + "\n"
