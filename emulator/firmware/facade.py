@@ -145,6 +145,8 @@ class Firmware:
         m.limit_blocks.clear()
         m.hold = False
         m.suspended = False
+        m.status_deferred = False
+        m.rezero = None
         m.check = False
         m.critical = False
         m.reset_condition(interrupted=interrupted)
@@ -207,7 +209,11 @@ class Firmware:
         if m.critical and not (byte == 0x3F and STATUS_DURING_CRITICAL_ALARM):
             return  # nothing but % until reset (GRBL's critical-event loop)
         if byte == 0x3F:  # ?
-            m.emit(status_line(m))
+            running = m.planner.running
+            if running is not None and running.kind == "home_search":
+                m.status_deferred = True  # oracle: the homing search answers no ``?``
+            else:
+                m.emit(status_line(m))
         elif byte == 0x21:  # !
             running = m.planner.running
             if (
@@ -232,6 +238,9 @@ class Firmware:
 
     def _after_step(self) -> None:
         m = self._m
+        if m.rezero is not None and not m.planner.busy:
+            m.planner.set_position(m.rezero)  # the end of homing's return move reads zero
+            m.rezero = None
         if m.limit_blocks:
             queued = m.planner.blocks
             for block in m.limit_blocks:

@@ -61,6 +61,10 @@ class Machine:
         self.locked = True
         self.hold = False
         self.suspended = False
+        self.status_deferred = False
+        """``?`` arrived during a homing search: answered once when the search ends."""
+        self.rezero: Vec7 | None = None
+        """After homing's return move: the position to read when the planner is next idle."""
         """``@`` received: lines wait until ``~`` (the state word does not change)."""
         self.check = False
 

@@ -34,10 +34,11 @@ def step_position(q: Vec7, settings: Mapping[int, float]) -> Vec7:
     return vec7(out)
 
 
-def status_line(m: Machine) -> str:
-    """The status report at this instant, without its ``\\r\\n`` (PROTOCOL 5)."""
+def status_line(m: Machine, state: str | None = None) -> str:
+    """The status report at this instant, without its ``\\r\\n`` (PROTOCOL 5); ``state``
+    overrides the state word."""
     mask = uint8(m.settings[10])
-    parts = ["<", m.state]
+    parts = ["<", m.state if state is None else state]
     q = step_position(m.planner.position, m.settings)
     if mask & 1:
         wire = (q[3], q[4], q[5], q[6], q[0], q[1], q[2])

@@ -9,10 +9,11 @@ from typing import Final
 
 from .. import motion
 from .. import settings as cfg
+from ..motion import Vec7
 from . import codes as c
 from .geometry import vec7
 from .machine import N_STARTUP_LINE, Machine, Pending
-from .reports import ngc_parameters
+from .reports import ngc_parameters, status_line
 from .scanner import read_float, uint8
 
 HOMING_RAIL_FACTOR: Final = 1.5
@@ -217,8 +218,9 @@ class SystemCommands:
                     home_rail = True
                 else:
                     axes = (axis,)
+        start = m.planner.planned_position
         blocks = motion.homing_blocks(
-            m.planner.planned_position,
+            start,
             seconds,
             m.geometry.limits(),
             sequential,
@@ -226,16 +228,43 @@ class SystemCommands:
             axes=axes,
             home_rail=home_rail,
         )
+        searches = [b for b in blocks if b.kind == "home_search"]
+        homed = {*axes, *((motion.RAIL,) if home_rail else ())}
         m.alarm = False
         if m.profile == "classic":
             m.emit_lines(["", f"Free memory: {FREE_MEMORY}"])
 
         def finish() -> list[str]:
+            zero = vec7([0.0 if j in homed else start[j] for j in range(motion.AXES)])
+            m.planner.set_position(zero)
             m.locked = False
             m.parser_init(feed=0.0)
-            return [c.TEXT_HOMED[m.profile]]
+            lines = [status_line(m, state="Home")] if m.status_deferred else []
+            m.status_deferred = False
+            self._return_to_zero(zero, homed)
+            return [*lines, c.TEXT_HOMED[m.profile]]
 
-        m.wait(Pending(blocks, "searched", finish))
+        m.wait(Pending(searches, "searched", finish))
+
+    def _return_to_zero(self, zero: Vec7, homed: set[int]) -> None:
+        """After the switch search (oracle): each homed axis moves its reset distance
+        (``$150..$156``, away from its switch: negative where ``$28`` has its bit) at the homing
+        feed ``$24``, state ``Run``; the position reads 0 again when the planner is next idle.
+        The parser is free meanwhile."""
+        m = self.m
+        target = list(zero)
+        for k, joint in enumerate(motion.LETTER_TO_JOINT):
+            if joint in homed:
+                sign = -1.0 if uint8(m.settings[28]) >> k & 1 else 1.0
+                target[joint] += sign * m.settings[150 + k]
+        delta = [b - a for a, b in zip(zero, target, strict=True)]
+        longest = max(abs(d) for d in delta)
+        if longest == 0.0:
+            return
+        feed = m.settings[24] * math.sqrt(math.fsum(d * d for d in delta)) / longest
+        limits = m.geometry.limits()
+        m.planner.push(motion.joint_block(zero, vec7(target), feed, limits))
+        m.rezero = zero
 
     def _zero_move(self, line: str) -> None:
         """2021 ``$M``: rapid move of J1..J6 to zero (ASSUMED details in the package doc)."""

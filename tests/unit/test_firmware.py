@@ -713,15 +713,23 @@ def test_homing_sequence(profile: str) -> None:
     send(fw, "M21 G90 G0 X20 Y10 Z-10 A5 B-5 C30\nM3 S500\n", math.inf)
     out = send(fw, "$H\n")
     assert out == (["", "Free memory: 2036"] if profile == "classic" else [])
-    assert status(fw).state == "Home"
-    assert send(fw, "", 9.9) == []
-    assert status(fw).state == "Home"
+    assert fw.state == "Home"
+    # oracle: the switch search answers no '?'; one is answered (state Home) when it ends
+    assert send(fw, "?", 9.9) == []
+    assert send(fw, "?") == []
     out = send(fw, "", 0.2)
-    assert out == [
+    assert out[0].startswith("<Home,") and parse_status(out[0]).joints == (0.0,) * 6
+    assert out[1:] == [
         "in homeing moving...ok" if profile == "classic" else "Info, in homing moving...ok"
     ]
-    samples, _ = poll_until_idle(fw)
+    # then each homed axis moves its reset distance ($150..$156) at the homing feed $24 (state
+    # Run, the parser is free), and the position reads zero again at the end (oracle: ~2.3 s)
+    samples, duration = poll_until_idle(fw)
     assert samples[0].state == "Run"
+    s = fw.settings
+    longest = max(s[150 + k] for k in range(7) if k != 3)
+    assert duration == pytest.approx(trapezoid(longest, s[24] / 60.0, 50.0), rel=0.05)
+    assert max(abs(v) for v in samples[len(samples) // 2].joints) > 10.0
     final = samples[-1]
     assert final.state == "Idle" and final.joints == (0.0,) * 6
     assert (final.pump, final.valve, final.mode) == (0, 0, 0)
