@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 import re
+import struct
 from collections.abc import Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
@@ -45,6 +46,17 @@ REALTIME_BYTES: Final = "?!~%"
 
 AXIS_LETTERS: Final = "XYZABCD"
 """Axis words: J1..J6 and the rail D in ``M21``; x y z and roll pitch yaw (and D) in ``M20``."""
+
+
+_F32: Final = struct.Struct("<f")
+
+
+def _f32(value: float) -> float:
+    """``value`` rounded to single precision (the AVR's ``float``, and its ``double``)."""
+    try:
+        return float(_F32.unpack(_F32.pack(value))[0])
+    except OverflowError:
+        return math.copysign(math.inf, value)
 
 
 def normalize_line(line: str | bytes) -> str:
@@ -91,6 +103,8 @@ class FirmwareNumber:
     """How many digits were written."""
     lossy: bool
     """True when a dropped digit (beyond the 8th) was not zero: the value differs from the text."""
+    single: float = 0.0
+    """The value as the firmware computes it, in single precision (for command numbers)."""
 
 
 def read_number(text: str, start: int) -> FirmwareNumber | None:
@@ -128,7 +142,19 @@ def read_number(text: str, start: int) -> FirmwareNumber | None:
     # The firmware computes in single precision; the value here is the exact decimal number of
     # the kept digits (they differ by less than a micrometre in any reachable range).
     value = intval / 10 ** (-exp) if exp < 0 else float(intval * 10**exp)
-    return FirmwareNumber(-value if negative else value, i, ndigit, lossy)
+    single = _f32(float(intval))
+    if single != 0.0:
+        while exp <= -2:
+            single = _f32(single * _f32(0.01))
+            exp += 2
+        if exp < 0:
+            single = _f32(single * _f32(0.1))
+        while exp > 0:
+            single = _f32(single * 10.0)
+            exp -= 1
+    if negative:
+        value, single = -value, -single
+    return FirmwareNumber(value, i, ndigit, lossy, single)
 
 
 def _c_round(x: float) -> int:
@@ -176,8 +202,11 @@ class CodeWord(Word):
 
 def _code_word(letter: str, text: str, number: FirmwareNumber) -> CodeWord:
     value = number.value
-    code = math.trunc(value) % 256
-    mantissa = _c_round(100.0 * (value - code)) % 65536
+    single = number.single
+    if not math.isfinite(single):
+        return CodeWord(letter, text, value, number.lossy, 0, True)
+    code = math.trunc(single) % 256
+    mantissa = _c_round(_f32(_f32(single - code) * 100.0)) % 65536
     # G90.1/G91.x etc. take a fraction in GRBL; none is a Mirobot command, so any is an error here.
     return CodeWord(letter, text, value, number.lossy, code, mantissa != 0)
 
