@@ -1,8 +1,10 @@
 """Benchmarks of mirobot-async against the virtual Mirobot: ``python benchmarks/run.py [--quick]``.
 
-Prints one markdown table (machine in its header). See issue 6 for what is measured and why.
-Sans-IO figures run in this process; everything else drives the emulator *process* over a real
-pseudo-terminal (:func:`mirobot_async.testing.start_emulator`).
+Prints one markdown table (machine in its header), then item 10's tables. See issue 6 for what
+items 1-9 measure and why, issue 12 for item 10 ("a real program", :mod:`real_program`).
+Sans-IO figures run in this process (:mod:`sansio`); everything else drives the emulator
+*process* over a real pseudo-terminal (:func:`mirobot_async.testing.start_emulator`).
+``--item10`` runs item 10 alone (at real time it takes a few minutes).
 """
 
 from __future__ import annotations
@@ -11,9 +13,6 @@ import argparse
 import asyncio
 import contextlib
 import gc
-import os
-import platform
-import random
 import statistics
 import sys
 import time
@@ -22,319 +21,28 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import psutil
+from figures import (
+    Config,
+    Stat,
+    Table,
+    fmt_mb,
+    fmt_ms,
+    fmt_rate,
+    fmt_ratio,
+    machine_header,
+    percentile,
+    rate,
+)
 from mirobot_emulator.motion import AxisLimits, joint_block
 from mirobot_emulator.settings import default_settings
+from real_program import Item10Config, measure_item10, render_item10
+from sansio import item_sansio
 
-from mirobot_async import gcode
 from mirobot_async.client import LineResult, Mirobot, StreamResult
-from mirobot_async.protocol import MirobotConnection
-from mirobot_async.replies import State, StatusReport, format_status, parse_status
 from mirobot_async.testing import EmulatorProcess, start_emulator
 from mirobot_async.transport import Implementation
 
 WIRE_BYTES_PER_S = 115200 / 10  # 8N1: 10 bits per byte
-
-
-# ---- configuration --------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Config:
-    """Counts and repetitions: the full run, or a few-second smoke run (``--quick``)."""
-
-    quick: bool
-    reps: int = 5
-    sansio_seconds: float = 0.3  # time spent per sans-IO figure and repetition
-    round_trips: int = 1000  # item 2 / 5: samples per repetition
-    stream_lines: int = 10_000  # item 3
-    wait_lines: int = 2_000  # item 3: stop-and-wait lines (a rate: fewer lines suffice)
-    wire_seconds: float = 1.5  # item 4: wire time per paced stream
-    poll_seconds: float = 1.0  # item 5: sustained polling
-    moves: int = 50  # item 6
-    arms: int = 16  # item 7
-    scale_seconds: float = 4.0  # item 7
-    memory_lines: int = 100_000  # item 8
-
-    @classmethod
-    def make(cls, quick: bool) -> Config:
-        if not quick:
-            return cls(quick=False)
-        return cls(
-            quick=True,
-            reps=1,
-            sansio_seconds=0.02,
-            round_trips=50,
-            stream_lines=300,
-            wait_lines=100,
-            wire_seconds=0.3,
-            poll_seconds=0.2,
-            moves=3,
-            arms=2,
-            scale_seconds=0.5,
-            memory_lines=2_000,
-        )
-
-
-# ---- statistics -----------------------------------------------------------------------------
-
-
-@dataclass
-class Stat:
-    """One figure: its value in every repetition; reported as the median and min..max."""
-
-    values: list[float] = field(default_factory=list)
-
-    def add(self, value: float) -> None:
-        self.values.append(value)
-
-    @property
-    def median(self) -> float:
-        return statistics.median(self.values)
-
-    @property
-    def lo(self) -> float:
-        return min(self.values)
-
-    @property
-    def hi(self) -> float:
-        return max(self.values)
-
-
-def percentile(samples: Sequence[float], q: float) -> float:
-    return float(np.percentile(np.asarray(samples, dtype=float), q))
-
-
-def repeat(reps: int, measure: Callable[[], float]) -> Stat:
-    stat = Stat()
-    for _ in range(reps):
-        stat.add(measure())
-    return stat
-
-
-def rate(count: int, seconds: float) -> float:
-    return count / seconds if seconds > 0 else float("inf")
-
-
-# ---- formatting -----------------------------------------------------------------------------
-
-
-def fmt_rate(value: float, unit: str = "/s") -> str:
-    """A rate with a k/M prefix: ``12 k lines/s``, ``3.4 k/s``, ``16.21 MB/s``.
-
-    ``unit`` is ``"/s"``, ``"B/s"`` or a word with a leading space (``" lines/s"``).
-    """
-    if value >= 1e6:
-        number, prefix = f"{value / 1e6:.2f}", "M"
-    elif value >= 1e4:
-        number, prefix = f"{value / 1e3:.0f}", "k"
-    elif value >= 1e3:
-        number, prefix = f"{value / 1e3:.1f}", "k"
-    else:
-        number, prefix = f"{value:.0f}", ""
-    if unit.startswith(" "):  # a word: "12 k lines/s", "408 polls/s"
-        return f"{number} {prefix}{' ' if prefix else ''}{unit.strip()}"
-    return f"{number} {prefix}{unit}" if prefix or unit[0] != "/" else f"{number}{unit}"
-
-
-def fmt_ms(seconds: float) -> str:
-    ms = seconds * 1e3
-    return f"{ms:.3f} ms" if ms < 1 else f"{ms:.2f} ms" if ms < 10 else f"{ms:.1f} ms"
-
-
-def fmt_ratio(value: float) -> str:
-    return f"{value:.3f}" if value < 10 else f"{value:.1f}"
-
-
-def fmt_mb(value: float) -> str:
-    return f"{value:+.2f} MB"
-
-
-@dataclass
-class Row:
-    item: str
-    what: str
-    median: str
-    spread: str
-    note: str = ""
-
-
-class Table:
-    """Rows of the one result table, plus notes printed under it."""
-
-    def __init__(self) -> None:
-        self.rows: list[Row] = []
-        self.notes: list[str] = []
-
-    def add(
-        self, item: str, what: str, stat: Stat, fmt: Callable[[float], str], note: str = ""
-    ) -> None:
-        spread = "-" if len(stat.values) < 2 else f"{fmt(stat.lo)} .. {fmt(stat.hi)}"
-        self.rows.append(Row(item, what, fmt(stat.median), spread, note))
-
-    def add_text(self, item: str, what: str, value: str, spread: str = "-", note: str = "") -> None:
-        self.rows.append(Row(item, what, value, spread, note))
-
-    def render(self, header: str) -> str:
-        cols = ("#", "Measurement", "Median", "Spread (min .. max)", "Target / ratio / note")
-        cells = [cols] + [(r.item, r.what, r.median, r.spread, r.note) for r in self.rows]
-        widths = [max(len(c[i]) for c in cells) for i in range(len(cols))]
-
-        def line(c: Sequence[str]) -> str:
-            return "| " + " | ".join(s.ljust(w) for s, w in zip(c, widths, strict=True)) + " |"
-
-        out = [header, "", line(cols), "|" + "|".join("-" * (w + 2) for w in widths) + "|"]
-        out += [line(c) for c in cells[1:]]
-        if self.notes:
-            out.append("")
-            out += [f"- {n}" for n in self.notes]
-        return "\n".join(out)
-
-
-def machine_header(config: Config) -> str:
-    cpu = "unknown CPU"
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8") as f:
-            for text in f:
-                if text.startswith("model name"):
-                    cpu = text.split(":", 1)[1].strip()
-                    break
-    except OSError:
-        cpu = platform.processor() or cpu
-    cores = os.cpu_count() or 1
-    python = f"{platform.python_implementation()} {platform.python_version()}"
-    system = f"{platform.system()} {platform.release()} {platform.machine()}"
-    mode = (
-        "quick smoke run (1 repetition, tiny counts: do not quote)"
-        if config.quick
-        else (f"{config.reps} repetitions per figure unless noted")
-    )
-    load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
-    return (
-        f"**mirobot-async benchmarks** - {cpu}, {cores} cores; {python}; {system}\n\n"
-        f"{time.strftime('%Y-%m-%d')}, {mode}; "
-        "emulator process on a pty, time scale 0 unless noted; "
-        f"load average at the start {load}."
-    )
-
-
-# ---- item 1: sans-IO core -------------------------------------------------------------------
-
-
-def _sample_reports(n: int) -> list[StatusReport]:
-    rng = random.Random(1)
-    states = [State.IDLE, State.RUN, State.RUN, State.HOLD]
-    reports = []
-    for _ in range(n):
-        reports.append(
-            StatusReport(
-                rng.choice(states),
-                tuple(round(rng.uniform(-90, 90), 3) for _ in range(6)),  # type: ignore[arg-type]
-                round(rng.uniform(0, 500), 3),
-                tuple(round(rng.uniform(-250, 250), 3) for _ in range(6)),  # type: ignore[arg-type]
-                rng.choice([0, 500, 1000]),
-                rng.choice([0, 40, 65]),
-                rng.choice([0, 1]),
-            )
-        )
-    return reports
-
-
-def _timed_loop(seconds: float, batch: Callable[[], int]) -> float:
-    """Run ``batch`` (returns items done) until ``seconds`` have passed; return items per second."""
-    done = 0
-    start = time.perf_counter()
-    while (elapsed := time.perf_counter() - start) < seconds:
-        done += batch()
-    return rate(done, elapsed)
-
-
-def bench_parse_status(config: Config) -> Stat:
-    lines = [format_status(r) for r in _sample_reports(1000)]
-
-    def batch() -> int:
-        for text in lines:
-            parse_status(text)
-        return len(lines)
-
-    return repeat(config.reps, lambda: _timed_loop(config.sansio_seconds, batch))
-
-
-def bench_encode(config: Config) -> Stat:
-    rng = random.Random(2)
-    joints = [tuple(round(rng.uniform(-25, 25), 2) for _ in range(6)) for _ in range(100)]
-    poses = [
-        (
-            round(rng.uniform(150, 250), 2),
-            round(rng.uniform(-50, 50), 2),
-            round(rng.uniform(50, 200), 2),
-        )
-        for _ in range(100)
-    ]
-
-    def batch() -> int:
-        for (j1, j2, j3, j4, j5, j6), (x, y, z) in zip(joints, poses, strict=True):
-            gcode.move_joints(j1, j2, j3, j4, j5, j6)
-            gcode.move_joints(j1, j2, speed=2000)
-            gcode.move_pose(x, y, z, 0, 0, 0)
-            gcode.move_pose(x, y, z, linear=True, speed=1500)
-            gcode.set_pump(gcode.PUMP_SUCK)
-        return 5 * len(joints)
-
-    return repeat(config.reps, lambda: _timed_loop(config.sansio_seconds, batch))
-
-
-def recorded_stream(lines: int, statuses_every: int = 10) -> bytes:
-    """What the robot prints while a program streams and a poller asks ``?``: oks and statuses."""
-    reports = _sample_reports(max(1, lines // statuses_every))
-    out = bytearray()
-    for i in range(lines):
-        out += b"ok\r\n"
-        if i % statuses_every == statuses_every - 1:
-            out += format_status(reports[i // statuses_every]).encode("ascii") + b"\r\n"
-    return bytes(out)
-
-
-def bench_connection_bytes(config: Config) -> Stat:
-    """Bytes/s through MirobotConnection.receive_data in pty-sized chunks, every event drained."""
-    lines = 2000
-    stream = recorded_stream(lines)
-    rng = random.Random(3)
-    cuts, pos = [], 0
-    while pos < len(stream):
-        size = rng.randint(16, 256)
-        cuts.append(stream[pos : pos + size])
-        pos += size
-
-    def one() -> float:
-        total, elapsed = 0, 0.0
-        while elapsed < config.sansio_seconds:
-            conn = MirobotConnection(rx_buffer_size=1 << 30)
-            for _ in range(lines):
-                conn.send_line(b"M3 S0")
-            events = 0
-            start = time.perf_counter()
-            for chunk in cuts:
-                conn.receive_data(chunk)
-                for _event in conn.events():
-                    events += 1
-            elapsed += time.perf_counter() - start
-            total += len(stream)
-            assert conn.pending_count == 0 and events == lines + lines // 10, events
-        return rate(total, elapsed)
-
-    return repeat(config.reps, one)
-
-
-def item_sansio(config: Config, table: Table) -> None:
-    table.add("1", "Sans-IO: status lines parsed", bench_parse_status(config), fmt_rate)
-    table.add("1", "Sans-IO: commands encoded", bench_encode(config), fmt_rate)
-    table.add(
-        "1",
-        "Sans-IO: bytes through MirobotConnection",
-        bench_connection_bytes(config),
-        lambda v: fmt_rate(v, "B/s"),
-        "oks + 1 status per 10, 16-256 B chunks",
-    )
 
 
 # ---- the emulator process and the client ----------------------------------------------------
@@ -773,13 +481,22 @@ async def run_all(config: Config) -> Table:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smoke run of a few seconds")
+    parser.add_argument("--item10", action="store_true", help="run item 10 (a real program) only")
     args = parser.parse_args(argv)
     config = Config.make(args.quick)
     header = machine_header(config)
     started = time.perf_counter()
-    table = asyncio.run(run_all(config))
-    table.notes.append(f"Total run time {time.perf_counter() - started:.0f} s.")
-    print(table.render(header))
+    parts = []
+    if not args.item10:
+        table = asyncio.run(run_all(config))
+        parts.append(table.render(header))
+    else:
+        parts.append(header)
+    item10 = Item10Config.make(args.quick)
+    runs, latencies = asyncio.run(measure_item10(item10))
+    parts.append(render_item10(item10, runs, latencies))
+    parts.append(f"Total run time {time.perf_counter() - started:.0f} s.")
+    print("\n\n".join(parts))
     return 0
 
 
