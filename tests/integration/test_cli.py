@@ -11,6 +11,7 @@ Waits are conditions with deadlines; every process is stopped and reaped.
 from __future__ import annotations
 
 import csv
+import math
 import os
 import selectors
 import signal
@@ -25,6 +26,7 @@ import psutil
 import pytest
 import serial
 
+from mirobot_async.plotting import read_trace
 from mirobot_async.testing import SyncEmulatorProcess
 
 pytestmark = pytest.mark.timeout(60)
@@ -444,10 +446,25 @@ def test_run_continue_on_error_reports_every_refused_line(tmp_path: Path) -> Non
 
 
 def test_run_trace_then_plot(tmp_path: Path) -> None:
+    """The square, then the pump, the pump off and the older gripper, at the default speed:
+    the trace is in the robot's time, dense enough for the corners, with the events."""
     trace = tmp_path / "square.csv"
     image = tmp_path / "square.png"
-    proc = mirobot("run", str(EXAMPLES / "square.gcode"), "--trace", str(trace))
+    program = tmp_path / "square_and_events.gcode"
+    square = (EXAMPLES / "square.gcode").read_text()
+    program.write_text(square + "M3 S1000\nG4 P0.2\nM3 S0\nM4 E65\n")
+    proc = mirobot("run", str(program), "--trace", str(trace), "--unlock")  # homing: elsewhere
     assert proc.returncode == 0, proc.stderr
+    recorded = read_trace(trace)
+    assert recorded.robot_time
+    # The square is drawn at 1500 mm/min (25 mm/s): 4 x 60 mm take >= 9.6 s of robot time,
+    # about 1 s of wall time at the default time scale 10.
+    assert recorded.seconds[-1] > 9.6
+    for corner in ((170, -30), (230, -30), (230, 30), (170, 30)):  # sampled densely enough
+        nearest = min(math.dist(corner, (x, y)) for x, y, _ in recorded.positions)
+        assert nearest < 1.5, (corner, nearest)
+    events = [event.label for event in recorded.events()]
+    assert events == ["suction on", "pump off", "gripper open (PWM2)"]
     rows = read_csv(trace)
     assert rows[0] == TRACE_HEADER
     samples = rows[1:]

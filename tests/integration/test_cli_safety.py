@@ -1,5 +1,5 @@
-"""The ``mirobot`` command line stops the arm safely and checks it first (issue 15), reads a
-program from stdin, and draws plots in the robot's time.
+"""The ``mirobot`` command line stops the arm safely and checks it first (issue 15), and reads a
+program from stdin (the plots in robot time: ``test_cli.py::test_run_trace_then_plot``).
 
 Ctrl-C / SIGTERM tests run the CLI as a subprocess against an emulator started separately, and
 read the emulator through second channels the CLI does not use: its control channel (``stats``:
@@ -18,7 +18,6 @@ from pathlib import Path
 import pytest
 import serial
 
-from mirobot_async.plotting import read_trace
 from mirobot_async.replies import State, StatusReport, parse_status
 from mirobot_async.testing import SyncEmulatorProcess
 
@@ -181,45 +180,3 @@ def test_run_reads_the_program_from_stdin() -> None:
     proc = mirobot("check", "-", stdin="M21 G90\nG0 X500\n")
     assert proc.returncode == 1
     assert proc.stdout.splitlines() == ["<stdin>:2: J1=500 is outside -100..160"]
-
-
-def test_version_and_offline_commands_show_no_robot_flags() -> None:
-    from mirobot_async import __version__
-
-    proc = mirobot("--version")
-    assert proc.returncode == 0
-    assert proc.stdout.strip() == f"mirobot {__version__}"
-    for command in ("check", "plot"):
-        text = mirobot(command, "--help").stdout
-        assert "usage: mirobot " + command in text
-        for flag in ("--port", "--time-scale", "--verbose", "--on-interrupt", "--home"):
-            assert flag not in text, (command, flag)
-    for command in (["run"], ["move", "joints"], ["home"], ["gripper"]):
-        text = mirobot(*command, "--help").stdout
-        assert "--port" in text and "--on-interrupt {hold,reset}" in text, command
-
-
-def test_trace_is_in_robot_time_with_events_and_sharp_corners(tmp_path: Path) -> None:
-    trace_file = tmp_path / "pp.csv"
-    program = tmp_path / "p.gcode"
-    square = [line for line in (EXAMPLES / "square.gcode").read_text().splitlines()]
-    program.write_text("\n".join([*square, "M3 S1000", "G4 P0.2", "M3 S0", "M4 E65"]) + "\n")
-    proc = mirobot("run", str(program), "--trace", str(trace_file), "--time-scale", "10")
-    assert proc.returncode == 0, proc.stderr
-    trace = read_trace(trace_file)
-    assert trace.robot_time
-    # The square is drawn at 1500 mm/min (25 mm/s): 4 x 60 mm take >= 9.6 s of robot time,
-    # about 1 s of wall time at time scale 10.
-    assert trace.seconds[-1] > 9.6
-    # Dense in robot time: every corner of the square is in the trace within 1.5 mm.
-    for corner in ((170, -30), (230, -30), (230, 30), (170, 30)):
-        nearest = min(
-            ((x - corner[0]) ** 2 + (y - corner[1]) ** 2) ** 0.5 for x, y, _ in trace.positions
-        )
-        assert nearest < 1.5, (corner, nearest)
-    labels = [event.label for event in trace.events()]
-    assert labels == ["suction on", "pump off", "gripper open (PWM2)"]
-    image = tmp_path / "pp.png"
-    proc = mirobot("plot", str(trace_file), "-o", str(image))
-    assert proc.returncode == 0, proc.stderr
-    assert image.stat().st_size > 20_000

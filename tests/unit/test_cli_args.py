@@ -599,3 +599,29 @@ def test_live_view_draws_a_table_on_a_terminal_and_lines_otherwise() -> None:
     with LiveView(plain) as view:
         view.show(REPORT, when)
     assert plain.getvalue() == format_status_line(REPORT, when) + "\n"
+
+
+def test_version_and_offline_commands_show_no_robot_flags(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    from mirobot_async import __version__
+
+    with pytest.raises(SystemExit) as info:
+        main(["--version"])
+    assert info.value.code == 0
+    assert capsys.readouterr().out.strip() == f"mirobot {__version__}"
+
+    def help_of(*argv: str) -> str:
+        with pytest.raises(SystemExit):
+            main([*argv, "--help"])
+        return capsys.readouterr().out
+
+    for command in ("check", "plot", "ports"):
+        text = help_of(command)
+        assert "usage: mirobot " + command in text
+        for flag in ("--port", "--time-scale", "--verbose", "--on-interrupt", "--home"):
+            assert flag not in text, (command, flag)
+    for argv in (["run"], ["move", "joints"], ["move", "pose"], ["home"], ["gripper"]):
+        text = help_of(*argv)
+        assert "--port" in text and "--on-interrupt {hold,reset}" in text, argv
+    assert "--on-interrupt" not in help_of("status")  # it does not move the arm
