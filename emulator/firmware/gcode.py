@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 from .. import motion
-from ..motion import Block
+from ..motion import Block, Vec7
 from . import codes as c
 from .geometry import Refusal, pose6
 from .machine import Machine, Pending
-from .scanner import scan
-from .validation import CheckedLine, check_line
+from .offsets import ZERO7, with_values
+from .scanner import AXIS_WORDS, scan
+from .validation import MM_PER_INCH, CheckedLine, check_line
 
 
 class GcodeExecutor:
@@ -26,7 +27,7 @@ class GcodeExecutor:
         # oracle: a line with M20 or M21 first sets the parser's position to the machine's
         # (where the arm is now, not where queued motion ends)
         origin = m.machine_position() if scanned.coord_mode is not None else m.modal.joints
-        checked = check_line(scanned, m.modal, origin, m.geometry)
+        checked = check_line(scanned, m.modal, origin, m.geometry, m.work)
         if isinstance(checked, int):
             m.error(checked)
             return
@@ -70,6 +71,52 @@ class GcodeExecutor:
                 out.append(m.info(c.TEXT_M21))
         return out
 
+    def _store_offsets(self, line: CheckedLine) -> None:
+        """``G10 L2``/``L20``, ``G92``, ``G92.1``, ``G28.1``, ``G30.1`` (oracle: as GRBL 0.9j)."""
+        m = self.m
+        g = line.block
+        modal = m.modal
+        scale = MM_PER_INCH if line.units == 20 else 1.0
+        values = {k: g.words[a] * scale for k, a in enumerate(AXIS_WORDS) if a in g.words}
+        selected = modal.coord_select
+        if g.nonmodal == 10:
+            p = int(g.words["P"])
+            system = selected if p == 0 else 53 + p
+            if g.words["L"] == 20.0:  # the current position becomes the given value
+                values = {k: line.base[k] - v for k, v in values.items()}
+            m.work.systems[system] = with_values(m.work.systems[system], values)
+        elif g.nonmodal == 92:
+            offsets = m.work.systems[selected]
+            values = {k: line.base[k] - offsets[k] - v for k, v in values.items()}
+            modal.g92 = with_values(modal.g92, values)
+        elif g.nonmodal == 921:
+            modal.g92 = ZERO7
+        elif g.nonmodal == 281:
+            m.work.g28 = modal.joints
+        else:
+            m.work.g30 = modal.joints
+
+    def _go_to_stored(self, line: CheckedLine, start: Vec7) -> list[Block]:
+        """``G28``/``G30``: rapid joint moves, through the axis words' point if any (joint
+        mode only, ASSUMED), to the stored joints (raises :class:`Refusal`)."""
+        m = self.m
+        stored = m.work.g28 if line.block.nonmodal == 28 else m.work.g30
+        if m.locked:
+            raise Refusal(c.TEXT_LOCKED)
+        points = (
+            [line.target]
+            if not line.cart and any(a in line.block.words for a in AXIS_WORDS)
+            else []
+        )
+        blocks: list[Block] = []
+        for point in [*points, stored]:
+            new, _, _ = m.moves.joint_move(start, point, None, line.feed_mode, check=m.check)
+            blocks += new
+            start = new[-1].end if new else start
+        m.modal.joints = stored
+        m.modal.cart = m.geometry.fk(stored)
+        return blocks
+
     def _run(self, line: CheckedLine) -> None:
         m = self.m
         g = line.block
@@ -82,7 +129,15 @@ class GcodeExecutor:
             wait_idle = True
             # The dwell starts where the queued motion ends; the motion of this line follows.
             blocks.append(motion.dwell_block(g.words["P"], m.planner.planned_position))
-        if line.axis_command and line.motion_mode != 80:
+        if g.nonmodal in (10, 92, 281, 301, 921):
+            self._store_offsets(line)
+        elif g.nonmodal in (28, 30):
+            start = blocks[-1].end if blocks else m.planner.planned_position
+            try:
+                blocks += self._go_to_stored(line, start)
+            except Refusal as refusal:
+                out += c.refusal_lines(refusal.text)
+        elif line.axis_command and line.motion_mode != 80:
             start = blocks[-1].end if blocks else m.planner.planned_position
             try:
                 new_blocks, hard_limit, end_q = m.moves.plan(

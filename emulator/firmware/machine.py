@@ -16,6 +16,7 @@ from .geometry import Geometry
 from .linebuffer import LineBuffer
 from .modal import ModalState
 from .moves import MoveBuilder
+from .offsets import WorkOffsets
 
 N_STARTUP_LINE = 2  # GRBL 0.9j config.h
 
@@ -48,6 +49,7 @@ class Machine:
         self.moves = MoveBuilder(self.geometry, self.settings)
         self.planner = Planner(motion.ZERO)
         self.modal = ModalState()
+        self.work = WorkOffsets()
         self.rx = LineBuffer()
         self.out = bytearray()
         self.pending: Pending | None = None

@@ -30,6 +30,8 @@ class ModalState:
     cart_mode: bool = False
     cart: Pose = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     """The last commanded Cartesian pose (``M20`` ``G91`` increments add to it)."""
+    g92: Vec7 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    """The ``G92`` offset (axis-word order; cleared by a reset)."""
     joints: Vec7 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     """The parser's own position (GRBL's ``gc_state.position``, not rounded to steps): where the
     last accepted move ends; ``M21``/``M20`` and resets set it to the machine position."""
@@ -51,6 +53,7 @@ class ModalState:
         self.cart_mode = False
         self.cart = pose
         self.joints = joints
+        self.g92 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
     def program_end(self) -> None:
         """M2 / M30: GRBL resets these modal groups (motion becomes G1)."""

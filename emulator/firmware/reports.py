@@ -95,12 +95,3 @@ def banner(m: Machine) -> list[str]:
     if m.alarm:
         lines.append(c.FEEDBACK_ALARM_LOCK)
     return lines
-
-
-def ngc_parameters() -> list[str]:
-    """``$#``: every offset is zero (work coordinate systems are not modelled)."""
-    zeros = ",".join(["0.000"] * motion.AXES)
-    lines = [f"[G{n}:{zeros}]" for n in range(54, 60)]
-    lines += [f"[G28:{zeros}]", f"[G30:{zeros}]", f"[G92:{zeros}]", "[TLO:0.000]"]
-    lines.append(f"[PRB:{zeros}:0]")
-    return lines

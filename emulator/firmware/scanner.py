@@ -12,6 +12,8 @@ from . import codes as c
 AXIS_WORDS: Final = "XYZABCD"  # index = joint (M21: J1..J6, rail) or pose component (M20)
 _VALUE_WORDS: Final = frozenset("FIJKLNPRSETXYZABCD")
 _NON_NEGATIVE_WORDS: Final = frozenset("FNPTSE")
+NONMODAL_AXIS_COMMANDS: Final = frozenset({10, 28, 30, 92})
+"""Non-modal commands that take the axis words (then no motion mode may)."""
 
 
 def read_float(line: str, i: int) -> tuple[float, int] | None:
@@ -63,7 +65,7 @@ def uint8(value: float) -> int:
 class GBlock:
     """The words of one G-code line (GRBL's ``parser_block_t``)."""
 
-    nonmodal: int | None = None  # 4 (dwell) or 53 (absolute override)
+    nonmodal: int | None = None  # 4, 10, 28, 30, 53, 92; 281, 301, 921 = G28.1, G30.1, G92.1
     motion: int | None = None  # 0, 1, 2, 3, 5 (2021 gate), 80
     axis_command: bool = False  # an explicit G0..G3/G5 in the line
     plane: int | None = None
@@ -74,6 +76,7 @@ class GBlock:
     flow: int | None = None  # M0, M1, M2, M30
     spindle: int | None = None  # M3, M4, M5
     coolant: int | None = None  # M8, M9
+    tool_length: int | None = None  # 431 (G43.1), 49
     coord_mode: int | None = None  # M20, M21
     unlock: bool = False  # M50
     words: dict[str, float] = field(default_factory=dict)
@@ -144,11 +147,22 @@ def _value_word(g: GBlock, letter: str, value: float) -> int:
 
 
 def _g_word(g: GBlock, code: int, mantissa: int, groups: set[str], profile: str) -> int:
-    if code in (10, 28, 30, 38, 43, 49, 92):
-        return c.UNSUPPORTED_COMMAND  # not modelled (see the package docstring)
-    if code in (4, 53):
+    if code in (38, 43) and not (code == 43 and mantissa == 10):
+        return c.UNSUPPORTED_COMMAND  # probing and G43 are not modelled
+    if code in (4, 10, 28, 30, 53, 92):
         group = "G0"
+        if mantissa == 10 and code in (28, 30, 92):
+            code = code * 10 + 1
+            mantissa = 0
         g.nonmodal = code
+        if code in NONMODAL_AXIS_COMMANDS:
+            if g.axis_command:
+                return c.AXIS_COMMAND_CONFLICT
+            g.axis_command = True
+    elif code in (43, 49):
+        group = "G8"
+        g.tool_length = 431 if code == 43 else 49
+        mantissa = 0
     elif code in (0, 1, 2, 3, 5, 80):
         if code in (2, 3, 5) and profile == "classic":
             return c.UNSUPPORTED_COMMAND

@@ -13,7 +13,7 @@ from ..motion import Vec7
 from . import codes as c
 from .geometry import vec7
 from .machine import N_STARTUP_LINE, Machine, Pending
-from .reports import ngc_parameters, status_line
+from .reports import status_line
 from .scanner import read_float, uint8
 
 HOMING_RAIL_FACTOR: Final = 1.5
@@ -53,7 +53,7 @@ class SystemCommands:
             if len(line) != 2:
                 m.error(c.INVALID_STATEMENT)
                 return
-            m.emit_lines(ngc_parameters())
+            m.emit_lines(m.work.report(m.modal.g92))
             m.emit("ok")
         elif kind == "H":
             self._home(line)

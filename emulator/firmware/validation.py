@@ -13,7 +13,8 @@ from . import codes as c
 from .geometry import Geometry, vec7
 from .modal import ModalState
 from .moves import Arc
-from .scanner import AXIS_WORDS, GBlock
+from .offsets import WorkOffsets
+from .scanner import AXIS_WORDS, NONMODAL_AXIS_COMMANDS, GBlock
 
 ARC_ANGULAR_TRAVEL_EPSILON: Final = 5e-7  # GRBL 0.9j config.h
 MAX_LINE_NUMBER: Final = 9999999  # GRBL 0.9j gcode.c
@@ -42,8 +43,11 @@ class CheckedLine:
     arc: Arc | None
 
 
-def check_line(g: GBlock, modal: ModalState, q0: Vec7, geometry: Geometry) -> CheckedLine | int:
-    """GRBL's error checks of ``g`` in the order of its parser; ``q0`` the parser's joints."""
+def check_line(
+    g: GBlock, modal: ModalState, q0: Vec7, geometry: Geometry, work: WorkOffsets
+) -> CheckedLine | int:
+    """GRBL's error checks of ``g`` in the order of its parser; ``q0`` the parser's joints,
+    ``work`` the stored work offsets."""
     words = g.words
     cart = modal.cart_mode if g.coord_mode is None else g.coord_mode == 20
     motion_mode = modal.motion if g.motion is None else g.motion
@@ -51,8 +55,11 @@ def check_line(g: GBlock, modal: ModalState, q0: Vec7, geometry: Geometry) -> Ch
     units = modal.units if g.units is None else g.units
     feed_mode = modal.feed_mode if g.feed_mode is None else g.feed_mode
     axis_letters = [letter for letter in AXIS_WORDS if letter in words]
-    axis_command = g.axis_command or bool(axis_letters)
-    used = set("NFSTE")
+    nonmodal_axes = g.nonmodal in NONMODAL_AXIS_COMMANDS  # the axis words are G10/28/30/92's
+    axis_command = not nonmodal_axes and (g.axis_command or bool(axis_letters))
+    used = set("NFSTE") | (set(AXIS_WORDS) if nonmodal_axes else set())
+    if g.tool_length == 431:
+        return c.INVALID_TOOL_LENGTH_AXIS  # oracle: G43.1 always (no axis fits the Mirobot)
 
     # [non-specific] line number
     if "N" in words and words["N"] > MAX_LINE_NUMBER:
@@ -74,7 +81,16 @@ def check_line(g: GBlock, modal: ModalState, q0: Vec7, geometry: Geometry) -> Ch
         if "P" not in words:
             return c.VALUE_WORD_MISSING
         used.add("P")
-    # [12] units; [19] target
+    # [19] G10 and G92 need their words
+    if g.nonmodal == 10:
+        if "L" not in words or "P" not in words:
+            return c.VALUE_WORD_MISSING
+        if words["L"] not in (2.0, 20.0) or words["P"] not in range(7):
+            return c.UNSUPPORTED_COMMAND
+        used |= {"L", "P"}
+    if g.nonmodal in (10, 92) and not axis_letters:
+        return c.NO_AXIS_WORDS
+    # [12] units; [19] target (absolute targets add the work offsets, except with G53)
     scale = MM_PER_INCH if units == 20 else 1.0
     base: tuple[float, ...]
     if cart:
@@ -85,6 +101,9 @@ def check_line(g: GBlock, modal: ModalState, q0: Vec7, geometry: Geometry) -> Ch
     else:
         base = q0
         offset = (0.0,) * 7
+    if g.nonmodal != 53:
+        system = work.systems[modal.coord_select if g.coord_select is None else g.coord_select]
+        offset = tuple(a + b + c_ for a, b, c_ in zip(offset, system, modal.g92, strict=True))
     target_list = list(base)
     for k, letter in enumerate(AXIS_WORDS):
         if letter in words:

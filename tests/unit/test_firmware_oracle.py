@@ -1,0 +1,122 @@
+"""Behaviours of the firmware model fixed against the oracle (the classic firmware 20191228_2 run
+in an AVR simulator); each test quotes what the oracle printed."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from mirobot_emulator.firmware import Firmware
+
+STEP_TOLERANCE = 0.1  # status angles are whole motor steps (see test_firmware.py)
+
+
+def lines(fw: Firmware, data: str, dt: float = 0.0) -> list[str]:
+    fw.receive(data.encode("latin-1"))
+    fw.advance(dt)
+    text = fw.read_output().decode("latin-1")
+    return text.split("\r\n")[:-1] if text else []
+
+
+def angles(fw: Firmware) -> list[float]:
+    """J1..J6 and the rail from a status report."""
+    (status,) = lines(fw, "?")
+    values = [float(v) for v in status.split("Angle(ABCDXYZ):")[1].split(",C")[0].split(",")]
+    a, b, c, d, x, y, z = values
+    return [x, y, z, a, b, c, d]
+
+
+def unlocked(profile: str = "classic") -> Firmware:
+    fw = Firmware(profile)
+    fw.read_output()
+    if profile == "2021":
+        lines(fw, "$X\n")
+    lines(fw, "M50\n")
+    return fw
+
+
+def test_settings_dump_has_28_and_the_reset_distances() -> None:
+    fw = Firmware("classic")
+    fw.read_output()
+    dump = lines(fw, "$$\n")
+    assert "$28=65 (homing pos dir invert mask:01000001)" in dump
+    assert dump[dump.index("$146=170.000 (g min travel, mm)") + 1 :] == [
+        "$150=45.000 (a reset distance)",
+        "$151=45.000 (b reset distance)",
+        "$152=0.000 (c reset distance)",
+        "$153=0.000 (d reset distance)",
+        "$154=45.000 (e reset distance)",
+        "$155=45.000 (f reset distance)",
+        "$156=45.000 (g reset distance)",
+        "ok",
+    ]
+    assert lines(fw, "$150=10\n") == ["ok"]
+
+
+def test_status_angles_are_whole_steps() -> None:
+    fw = unlocked()
+    lines(fw, "M21 G90 X10\n", math.inf)
+    (status,) = lines(fw, "?")
+    assert status.startswith("<Idle,Angle(ABCDXYZ):0.000,0.000,0.000,0.000,9.995,0.000,0.000,")
+    assert "Cartesian coordinate(XYZ RxRyRz):198.934,35.059,181.000,0.000,0.000,9.995," in status
+
+
+def test_a_reset_does_not_lock() -> None:
+    fw = unlocked()
+    lines(fw, "%")
+    assert lines(fw, "M21 G90 X20 F2000\n", math.inf) == ["ok"]
+    assert angles(fw)[0] == pytest.approx(20.007, abs=1e-9)
+
+
+def test_at_holds_the_lines_until_cycle_start() -> None:
+    fw = unlocked()
+    assert lines(fw, "G4@P0\n") == []
+    assert fw.state == "Idle" and fw.parser_blocked
+    assert lines(fw, "~") == ["ok"]
+
+
+def test_m21_and_m20_resynchronise_the_parser() -> None:
+    fw = unlocked()
+    assert lines(fw, "M21 G91 X1\n" * 8, math.inf) == ["ok"] * 8
+    assert angles(fw)[0] == pytest.approx(1.005, abs=1e-9)  # not 8
+    lines(fw, "M21 G90 X0\n", math.inf)
+    assert lines(fw, "G91 X1\n" * 8, math.inf) == ["ok"] * 8
+    assert angles(fw)[0] == pytest.approx(8.003, abs=1e-9)  # 454 steps: 8 x 56.73 rounded
+    lines(fw, "M21 G90 G0 X0 Y30\nM21 G90 G0 X10\n", math.inf)
+    assert angles(fw)[:2] == pytest.approx([9.995, 0.0], abs=1e-9)
+
+
+def test_refusal_texts() -> None:
+    fw = unlocked()
+    assert lines(fw, "M20 G90 G0 X400 Y0 Z100 A0 B0 C0\n") == [
+        "",
+        "GOAL OUT OF WORKSPACE, THERE IS NO VAILD VALUS FOR  THETA3!ok",
+    ]
+    wrist = "M20 G90 G0 X200 Y0 Z150 A0 B100 C0\n"
+    assert lines(fw, wrist) == ["", "Soft limit triggered:B", "ok"]
+    assert lines(fw, "$20=0\n" + wrist, math.inf) == ["ok", "ok"]  # moves without soft limits
+    assert angles(fw)[4] > 36.0
+
+
+def test_work_offsets_and_stored_positions() -> None:
+    fw = unlocked()
+    assert lines(fw, "G10 L2 P1 X5\nM21 G90 G0 X0\n", math.inf) == ["ok", "ok"]
+    assert angles(fw)[0] == pytest.approx(5.006, abs=1e-9)
+    assert lines(fw, "$#\n")[0] == "[G54:0.000,0.000,0.000,0.000,5.000,0.000,0.000]"
+    assert lines(fw, "G10 L2 P1 X0\nG10 L20 P2 Y3\nG55 G0 Y0\nG54\n", math.inf) == ["ok"] * 4
+    assert angles(fw)[1] == pytest.approx(-3.0, abs=1e-9)
+    assert lines(fw, "G28\n", math.inf) == ["ok"]  # to the G28 position (zero)
+    assert angles(fw)[:2] == [0.0, 0.0]
+    lines(fw, "M21 G90 G0 X20\nG28.1\nM21 G90 G0 X0\n", math.inf)
+    assert lines(fw, "$#\n")[6] == "[G28:0.000,0.000,0.000,0.000,20.000,0.000,0.000]"
+    assert lines(fw, "G28\n", math.inf) == ["ok"]
+    assert angles(fw)[0] == pytest.approx(20.007, abs=1e-9)
+    assert lines(fw, "G92 X5\nM21 G90 G0 X0\n", math.inf) == ["ok", "ok"]
+    assert angles(fw)[0] == pytest.approx(15.001, abs=1e-9)
+    assert lines(fw, "G92.1\nG49\nG43.1 Z1\n") == ["ok", "ok", "error: Invalid gcode ID:37"]
+
+
+def test_a_locked_g28_is_refused() -> None:
+    fw = Firmware("classic")
+    fw.read_output()
+    assert lines(fw, "G28\n") == ["", "Locked status of each axis!", "ok"]
