@@ -29,7 +29,7 @@ import numpy as np
 import serial
 from programs import IdealRun, Program, full_programs, ideal_run, quick_programs
 
-from mirobot_async.client import Mirobot
+from mirobot_async import Mirobot
 from mirobot_async.testing import EmulatorProcess
 
 MOTION_ENDS_POLL_S = 0.5

@@ -38,7 +38,7 @@ from mirobot_emulator.settings import default_settings
 from real_program import Item10Config, measure_item10, render_item10
 from sansio import item_sansio
 
-from mirobot_async.client import LineResult, Mirobot, StreamResult
+from mirobot_async import LineResult, Mirobot, StreamResult
 from mirobot_async.testing import EmulatorProcess, start_emulator
 from mirobot_async.transport import Implementation
 

@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 
 import psutil
 
-from mirobot_async.client import LineResult, Mirobot
+from mirobot_async import LineResult, Mirobot
 from mirobot_async.testing import start_emulator
 
 PWM_VALUES = 1001  # M3 S0 .. S1000
