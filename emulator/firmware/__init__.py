@@ -134,7 +134,7 @@ from __future__ import annotations
 from .codes import PROFILES, error_text
 from .facade import DEFAULT_HOMING_SECONDS, Firmware
 from .geometry import HARD_LIMIT_SWITCHES
-from .linebuffer import LINE_BUFFER_SIZE, RX_BUFFER_SIZE
+from .linebuffer import LINE_BUFFER_SIZE, RX_BUFFER_SIZE, RX_CAPACITY
 
 __all__ = [
     "DEFAULT_HOMING_SECONDS",
@@ -142,6 +142,7 @@ __all__ = [
     "LINE_BUFFER_SIZE",
     "PROFILES",
     "RX_BUFFER_SIZE",
+    "RX_CAPACITY",
     "Firmware",
     "error_text",
 ]

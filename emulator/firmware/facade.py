@@ -12,7 +12,7 @@ from ..motion import Vec7
 from . import codes as c
 from .gcode import GcodeExecutor
 from .geometry import switch_pins
-from .linebuffer import RX_BUFFER_SIZE
+from .linebuffer import RX_BUFFER_SIZE, RX_CAPACITY
 from .machine import Machine
 from .reports import banner, status_line
 from .scanner import read_float
@@ -179,7 +179,7 @@ class Firmware:
 
     @property
     def rx_free(self) -> int:
-        """Free bytes in the 128-byte receive ring."""
+        """Free bytes in the receive ring (127 when empty)."""
         return self._m.rx.free
 
     @property
@@ -290,4 +290,4 @@ class Firmware:
         return parsed is not None and parsed == (50.0, len(line))
 
 
-__all__ = ["RX_BUFFER_SIZE", "Firmware"]
+__all__ = ["RX_BUFFER_SIZE", "RX_CAPACITY", "Firmware"]

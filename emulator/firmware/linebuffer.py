@@ -1,9 +1,9 @@
 """The receive ring and the line discipline (PROTOCOL 2): bytes in, filtered lines out.
 
-A byte enters the 128-byte ring (lost when it is full); the parser takes bytes from the ring
-into the line buffer only while it is free, so the ring is what the host's character counting
-sees. Filtering: ``\\r`` or ``\\n`` end a line, bytes ``<= 0x20`` and ``/`` are dropped, ``(...)``
-and ``;`` comments removed, letters upper-cased.
+A byte enters the receive ring (127 bytes; lost when it is full); the parser takes bytes from
+the ring into the line buffer only while it is free, so the ring is what the host's character
+counting sees. Filtering: ``\\r`` or ``\\n`` end a line, bytes ``<= 0x20`` and ``/`` are
+dropped, ``(...)`` and ``;`` comments removed, letters upper-cased.
 """
 
 from __future__ import annotations
@@ -12,7 +12,11 @@ from dataclasses import dataclass
 from typing import Final
 
 RX_BUFFER_SIZE: Final = 128
-"""Receive ring in bytes (ASSUMED: all 128 usable)."""
+"""GRBL's receive ring in bytes; it holds one byte less (:data:`RX_CAPACITY`)."""
+
+RX_CAPACITY: Final = RX_BUFFER_SIZE - 1
+"""Bytes the ring holds (oracle: with the parser blocked, the 128th byte sent is lost).
+Character counting with 128 stays safe: the line the parser holds is part of the count."""
 
 LINE_BUFFER_SIZE: Final = 80
 """GRBL's line buffer in bytes: a line holds at most ``LINE_BUFFER_SIZE - 1`` = 79 bytes after
@@ -50,11 +54,11 @@ class LineBuffer:
     @property
     def free(self) -> int:
         """Free bytes in the ring."""
-        return RX_BUFFER_SIZE - len(self._ring)
+        return RX_CAPACITY - len(self._ring)
 
     def put(self, c: int) -> bool:
         """One received byte into the ring; False (and counted as lost) when the ring is full."""
-        if len(self._ring) >= RX_BUFFER_SIZE:
+        if len(self._ring) >= RX_CAPACITY:
             self.lost += 1
             return False
         self._ring.append(c)

@@ -109,9 +109,10 @@ class Machine:
             return "Hold"
         if self.check:
             return "Check"
-        if planner_state == "run":
+        running = self.planner.running
+        if planner_state == "run" and not (running is not None and running.kind == "dwell"):
             return "Run"
-        return "Idle"
+        return "Idle"  # oracle: a G4 dwell reports Idle
 
     def reset_condition(self, *, interrupted: bool) -> None:
         """Alarm after a reset that interrupted motion; ASSUMED: on 2021 always (its power-on

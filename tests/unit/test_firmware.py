@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
-from mirobot_emulator.firmware import RX_BUFFER_SIZE, Firmware
+from mirobot_emulator.firmware import RX_CAPACITY, Firmware
 from mirobot_emulator.motion import Planner
 
 from mirobot_async import kinematics as kin
@@ -356,18 +356,20 @@ def test_ctrl_x_is_an_ordinary_dropped_byte() -> None:
 def test_receive_ring_overflow_loses_bytes() -> None:
     fw = boot("classic", unlocked=True)
     assert send(fw, b"G4 P5\n") == []  # the parser now waits for the dwell
-    assert fw.rx_free == RX_BUFFER_SIZE
+    assert fw.rx_free == RX_CAPACITY
     payload = b"G4 P0\n" * 40  # 240 bytes while nothing is read
     fw.receive(payload)
     assert fw.rx_free == 0
-    assert fw.rx_lost == len(payload) - RX_BUFFER_SIZE
+    assert fw.rx_lost == len(payload) - RX_CAPACITY
     fw.advance(math.inf)
     out = lines_of(fw.read_output())
-    # the dwell's ok, then one ok per complete line kept (128 bytes = 21 lines and 2 bytes)
-    assert out == ["ok"] * (1 + RX_BUFFER_SIZE // 6)
-    assert fw.rx_free == RX_BUFFER_SIZE
-    # the 2 bytes kept of the 22nd line ("G4") join whatever comes next: the loss is visible
-    assert send(fw, b"\n") == ["error: Invalid gcode ID:28"]
+    # the dwell's ok, then one ok per complete line kept: the ring holds 127 bytes (oracle:
+    # during a dwell, 25 x "G4P0\n" + "G4P" -> 26 oks, then "\n" -> "Invalid gcode ID:28": "G4"
+    # was kept, the "P" lost), so 21 lines and 1 byte here
+    assert out == ["ok"] * (1 + RX_CAPACITY // 6)
+    assert fw.rx_free == RX_CAPACITY
+    # the byte kept of the 22nd line ("G") joins whatever comes next: the loss is visible
+    assert send(fw, b"\n") == ["error: Bad number format"]
 
 
 def test_planner_back_pressure_delays_oks() -> None:
@@ -375,13 +377,13 @@ def test_planner_back_pressure_delays_oks() -> None:
     line = b"G91 G1 X1 F600\n"  # no M21: it would resync to the machine position
     for i in range(Planner.CAPACITY):
         assert send(fw, line) == ["ok"], i
-    assert fw.rx_free == RX_BUFFER_SIZE
+    assert fw.rx_free == RX_CAPACITY
     # the next line waits (it has left the ring, as in GRBL's line buffer)
     assert send(fw, line) == []
     assert fw.parser_blocked
     # more lines wait in the ring
     assert send(fw, line + line) == []
-    assert fw.rx_free == RX_BUFFER_SIZE - 2 * len(line)
+    assert fw.rx_free == RX_CAPACITY - 2 * len(line)
     for waiting in (1, 0):  # a block done: one line queued, the next one leaves the ring
         out: list[str] = []
         while not out:
@@ -389,7 +391,7 @@ def test_planner_back_pressure_delays_oks() -> None:
             assert deadline is not None
             fw.advance(deadline - fw.now)
             out = lines_of(fw.read_output())
-        assert out == ["ok"] and fw.rx_free == RX_BUFFER_SIZE - waiting * len(line)
+        assert out == ["ok"] and fw.rx_free == RX_CAPACITY - waiting * len(line)
     out = []
     while not out:
         deadline = fw.next_deadline()
@@ -1224,7 +1226,7 @@ def test_every_line_gets_exactly_one_final_reply(
     assume(not any(line.startswith(("Grbl ", "ALARM")) for line in got))  # no reset, no alarm
     replies = [line for line in got if is_final_reply(line)]
     assert len(replies) == expected, (stream, got)
-    assert not fw.parser_blocked and fw.rx_free == RX_BUFFER_SIZE
+    assert not fw.parser_blocked and fw.rx_free == RX_CAPACITY
     if b"$10" not in stream:
         for line in got:
             if line.startswith("<"):
@@ -1259,7 +1261,7 @@ def test_arbitrary_byte_streams_never_raise(
         deadline = fw.next_deadline()
         assert deadline is None or deadline >= fw.now
         fw.status_line()
-        assert 0 <= fw.rx_free <= RX_BUFFER_SIZE
+        assert 0 <= fw.rx_free <= RX_CAPACITY
     out = fw.read_output()
     if not any(b"$10" in data for data, _dt in chunks):
         for line in lines_of(out):

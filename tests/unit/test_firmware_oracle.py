@@ -120,3 +120,12 @@ def test_a_locked_g28_is_refused() -> None:
     fw = Firmware("classic")
     fw.read_output()
     assert lines(fw, "G28\n") == ["", "Locked status of each axis!", "ok"]
+
+
+def test_a_dwell_reports_idle_and_the_ring_holds_127_bytes() -> None:
+    fw = unlocked()
+    assert lines(fw, "G4 P2\n") == []
+    fw.receive(b"G4P0\n" * 25 + b"G4P")  # 128 bytes while the parser waits
+    assert fw.rx_lost == 1 and fw.state == "Idle"
+    assert lines(fw, "", math.inf) == ["ok"] * 26
+    assert lines(fw, "\n") == ["error: Invalid gcode ID:28"]  # "G4": the "P" was lost
