@@ -6,11 +6,13 @@ command works on a machine with no arm. ``--firmware`` and ``--time-scale`` choo
 arm's profile and speed; ``-v`` logs the wire traffic to stderr. Exit statuses: see
 :mod:`mirobot_async.cli.exits`.
 
-Layout (a one-way chain, top to bottom):
+Layout (each module imports only the ones below it):
 
 * :mod:`~mirobot_async.cli.running`: :func:`main`, the event loop, signals, exit statuses;
-* :mod:`~mirobot_async.cli.arguments`: the argparse parser and KEY=VALUE targets;
+* :mod:`~mirobot_async.cli.arguments`: the argparse parser (number types, option groups);
 * :mod:`~mirobot_async.cli.commands`: one ``cmd_*`` function per subcommand;
+* :mod:`~mirobot_async.cli.targets`: the KEY=VALUE targets of ``move``;
+* :mod:`~mirobot_async.cli.ports`: ``mirobot ports``, listing and probing serial ports;
 * :mod:`~mirobot_async.cli.session`: opening, preparing and pre-flighting the arm, background
   jobs, stopping safely on SIGINT/SIGTERM;
 * :mod:`~mirobot_async.cli.rendering`: status tables, progress bar, live monitor, summaries;
@@ -20,7 +22,7 @@ Layout (a one-way chain, top to bottom):
 
 from __future__ import annotations
 
-from mirobot_async.cli.arguments import JOINT_KEYS, POSE_KEYS, build_parser, parse_assignments
+from mirobot_async.cli.arguments import build_parser
 from mirobot_async.cli.exits import (
     EXIT_FAILED,
     EXIT_INTERRUPTED,
@@ -39,6 +41,7 @@ from mirobot_async.cli.rendering import (
 )
 from mirobot_async.cli.running import main
 from mirobot_async.cli.session import DEFAULT_TIME_SCALE
+from mirobot_async.cli.targets import JOINT_KEYS, POSE_KEYS, parse_assignments
 
 __all__ = [
     "DEFAULT_TIME_SCALE",

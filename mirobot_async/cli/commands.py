@@ -14,7 +14,6 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING, Final
 
 from mirobot_async import gcode, validation
-from mirobot_async.cli.arguments import JOINT_KEYS, POSE_KEYS, parse_assignments
 from mirobot_async.cli.exits import EXIT_FAILED, EXIT_OK, CliError, RobotNotReadyError, note
 from mirobot_async.cli.programs import (
     ProgramLine,
@@ -40,6 +39,7 @@ from mirobot_async.cli.session import (
     stop_safely,
     time_scale_of,
 )
+from mirobot_async.cli.targets import JOINT_KEYS, POSE_KEYS, parse_assignments
 from mirobot_async.errors import MirobotAlarmError, MirobotCommandError, MirobotError
 from mirobot_async.line import normalize_line
 from mirobot_async.plotting import TraceError, TraceWriter

@@ -8,7 +8,7 @@ import sys
 from dataclasses import dataclass
 from typing import Final
 
-from mirobot_async.cli.exits import CliError
+from mirobot_async.cli.exits import CliError, note
 from mirobot_async.plotting import TraceError, TraceWriter
 
 __all__ = ["STDIN", "ProgramLine", "open_trace", "program_name", "read_lines", "read_program"]
@@ -51,6 +51,8 @@ def read_lines(path: str) -> list[str]:
     """The lines of a text file, or of standard input for ``-`` (latin-1, so that any byte is
     reported by ``check``, not a decode error). Raises :class:`CliError` if it cannot be read."""
     if path == STDIN:
+        if sys.stdin.isatty():
+            note("reading the program from the terminal: end it with Ctrl-D (Ctrl-Z on Windows)")
         data = sys.stdin.buffer.read() if hasattr(sys.stdin, "buffer") else sys.stdin.read()
         text = data.decode("latin-1") if isinstance(data, bytes) else data
         return text.splitlines()
