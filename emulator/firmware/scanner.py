@@ -164,7 +164,7 @@ def _g_word(g: GBlock, code: int, mantissa: int, groups: set[str], profile: str)
         g.tool_length = 431 if code == 43 else 49
         mantissa = 0
     elif code in (0, 1, 2, 3, 5, 80):
-        if code in (2, 3, 5) and profile == "classic":
+        if code == 5 and profile == "classic":
             return c.UNSUPPORTED_COMMAND
         if code != 80:
             if g.axis_command:
