@@ -23,7 +23,7 @@ from collections.abc import AsyncIterator, Awaitable, Callable, Iterator
 from typing import TYPE_CHECKING, Final
 
 from mirobot_async.cli.exits import CliError, RobotNotReadyError, note
-from mirobot_async.errors import MirobotError
+from mirobot_async.errors import MirobotError, MirobotLinkLostError
 from mirobot_async.replies import State, StatusReport
 
 if TYPE_CHECKING:
@@ -122,11 +122,15 @@ async def open_robot(args: argparse.Namespace) -> AsyncIterator[Mirobot]:
         f"no --port given; using an embedded virtual Mirobot "
         f"(firmware {firmware}, time-scale {scale:g})"
     )
-    async with (
-        start_emulator(firmware=firmware, time_scale=scale) as url,
-        Mirobot.connect(url, firmware="classic" if firmware == "classic" else "2021") as arm,
-    ):
-        yield arm
+    token = _EMBEDDED.set(True)
+    try:
+        async with (
+            start_emulator(firmware=firmware, time_scale=scale) as url,
+            Mirobot.connect(url, firmware="classic" if firmware == "classic" else "2021") as arm,
+        ):
+            yield arm
+    finally:
+        _EMBEDDED.reset(token)
 
 
 @contextlib.asynccontextmanager
@@ -203,6 +207,10 @@ async def background_jobs(**jobs: Awaitable[None] | None) -> AsyncIterator[None]
 _CURRENT: contextvars.ContextVar[Interrupts | None] = contextvars.ContextVar(
     "mirobot_cli_interrupts", default=None
 )
+_EMBEDDED: contextvars.ContextVar[bool] = contextvars.ContextVar(
+    "mirobot_cli_embedded", default=False
+)
+"""True while the arm is the embedded virtual Mirobot (:func:`open_robot` without a port)."""
 
 
 class Interrupts:
@@ -257,7 +265,7 @@ class Interrupts:
             self._urgent.remove(action)
 
 
-async def _stop_arm(arm: Mirobot, on_interrupt: str) -> str:
+async def _stop_arm(arm: Mirobot, on_interrupt: str, embedded: bool) -> str:
     """Feed hold (or soft reset) and wait up to :data:`STOP_WAIT` s; returns what happened.
 
     The first step writes ``!`` / ``%`` synchronously (:meth:`Mirobot.hold` and
@@ -281,6 +289,10 @@ async def _stop_arm(arm: Mirobot, on_interrupt: str) -> str:
                 break
         else:
             return f"interrupted: feed hold sent (!); the arm was still moving after {STOP_WAIT} s"
+    except MirobotLinkLostError as err:
+        if embedded:  # a terminal's Ctrl-C reaches the emulator in the same process group too
+            return "interrupted: the embedded virtual Mirobot stopped with the signal"
+        return f"interrupted: the arm may still be moving: {err}"
     except MirobotError as err:
         return f"interrupted: the arm may still be moving: {err}"
     waited = (loop.time() - started) * 1000
@@ -309,8 +321,11 @@ async def stop_safely(
     loop = asyncio.get_running_loop()
     stopping: list[asyncio.Task[str]] = []
 
+    embedded = _EMBEDDED.get()  # read here: the signal callback runs in another context
+
     def stop_now() -> None:
-        stopping.append(loop.create_task(_stop_arm(arm, on_interrupt), name="mirobot-stop"))
+        stop = _stop_arm(arm, on_interrupt, embedded)
+        stopping.append(loop.create_task(stop, name="mirobot-stop"))
 
     with interrupts.urgent(stop_now):
         try:
@@ -323,6 +338,6 @@ async def stop_safely(
             note(outcome)
             for message in messages:
                 note(message)
-            if on_interrupt == "hold":
+            if on_interrupt == "hold" and "feed hold sent" in outcome:
                 note("queued moves stay in the arm until `mirobot reset` clears them")
             raise

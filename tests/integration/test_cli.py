@@ -60,7 +60,9 @@ def mirobot(
     )
 
 
-def spawn(*args: str, cwd: Path | None = None) -> subprocess.Popen[str]:
+def spawn(*args: str, cwd: Path | None = None, session: bool = False) -> subprocess.Popen[str]:
+    """Start ``python -m mirobot_async ARGS``; ``session``: in its own process group, as a
+    terminal runs a command (its Ctrl-C then reaches every process of the group)."""
     return subprocess.Popen(
         [sys.executable, "-m", "mirobot_async", *args],
         stdout=subprocess.PIPE,
@@ -68,6 +70,7 @@ def spawn(*args: str, cwd: Path | None = None) -> subprocess.Popen[str]:
         stdin=subprocess.DEVNULL,
         text=True,
         cwd=cwd,
+        start_new_session=session,
     )
 
 
@@ -548,6 +551,7 @@ def test_monitor_stops_cleanly_on_sigint(tmp_path: Path) -> None:
 
 
 def test_run_interrupted_exits_130_quietly(tmp_path: Path) -> None:
+    """Ctrl-C in a terminal: SIGINT to the whole process group, the embedded emulator too."""
     trace = tmp_path / "t.csv"
     proc = spawn(
         "run",
@@ -557,6 +561,7 @@ def test_run_interrupted_exits_130_quietly(tmp_path: Path) -> None:
         "--unlock",
         "--time-scale",
         "0.5",
+        session=True,
     )
     try:
         wait_for(
@@ -565,7 +570,7 @@ def test_run_interrupted_exits_130_quietly(tmp_path: Path) -> None:
             "the run to be under way",
         )
         children = psutil.Process(proc.pid).children(recursive=True)
-        proc.send_signal(signal.SIGINT)
+        os.killpg(proc.pid, signal.SIGINT)
         _, err = proc.communicate(timeout=20)
     finally:
         if proc.poll() is None:
@@ -573,6 +578,8 @@ def test_run_interrupted_exits_130_quietly(tmp_path: Path) -> None:
             proc.communicate()
     assert proc.returncode == 130, err
     assert "Traceback" not in err and "error" not in err, err
+    stopped = [line for line in err.splitlines() if line.startswith("mirobot: interrupted: ")]
+    assert len(stopped) == 1, err  # one line says what became of the (virtual) arm
     _, alive = psutil.wait_procs(children, timeout=5)
     assert not alive
 
