@@ -1,90 +1,101 @@
 """The pure firmware model of the virtual Mirobot: bytes in, bytes out, an explicit clock.
 
-:class:`Firmware` behaves like the arm's GRBL 0.9j based firmware (PROTOCOL.md is the reference
-for every byte; where PROTOCOL.md is silent, the vendor's open firmware source and GRBL 0.9j
-decide). No asyncio, no OS calls: the host feeds bytes with :meth:`Firmware.receive`, runs the
-simulated clock with :meth:`Firmware.advance` and collects what the robot prints with
-:meth:`Firmware.read_output`. Motion timing is :mod:`mirobot_emulator.motion`; kinematics are
-:mod:`mirobot_async.kinematics` (the only module of the client it uses).
+:class:`Firmware` behaves like the arm's GRBL 0.9j based firmware. Evidence, strongest first
+(classic profile): the device logs in ``vectors.json`` (banner and homing texts), the oracle (the
+vendor's open firmware 20191228_2 run unmodified in an AVR simulator, used as a black box),
+PROTOCOL.md, the manuals. The 2021 profile keeps the 2021 manual's texts and otherwise behaves
+as the classic oracle does. No asyncio, no OS calls: the host feeds bytes with
+:meth:`Firmware.receive`, runs the simulated clock with :meth:`Firmware.advance` and collects
+what the robot prints with :meth:`Firmware.read_output`. Motion timing is
+:mod:`mirobot_emulator.motion`; kinematics are :mod:`mirobot_async.kinematics` (the only module
+of the client it uses; its typed ``Unreachable``/``OutOfLimits`` become the firmware's texts in
+:func:`.geometry.kinematics_refusal`).
 
 Layout
 ------
 * :mod:`.linebuffer`: the receive ring and the line discipline.
 * :mod:`.scanner`: GRBL's word scanner (STEP 2); :mod:`.validation`: its checks (STEP 3).
-* :mod:`.modal`: the modal state; :mod:`.geometry`: FK, IK, soft limits, switches.
+* :mod:`.modal`: the modal state; :mod:`.offsets`: work coordinates; :mod:`.geometry`: FK, IK,
+  soft limits, switches.
 * :mod:`.moves`: motion lines into planner blocks; :mod:`.gcode`: executing a valid line.
-* :mod:`.system`: the ``$`` commands and homing; :mod:`.reports`: status, banner, ``$#``.
+* :mod:`.system`: the ``$`` commands and homing; :mod:`.reports`: status and banner.
 * :mod:`.machine`: the shared state; :mod:`.facade`: :class:`Firmware`; :mod:`.codes`: texts.
 
-What is modelled
-----------------
-* Line discipline (PROTOCOL 2): ``\\r`` or ``\\n`` end a line, every empty line gets ``ok``, bytes
-  ``<= 0x20`` and ``/`` (GRBL's unsupported block delete) are dropped, letters upper-cased,
-  ``(...)`` and ``;`` comments removed, a line longer than 80 bytes after filtering gets one
-  ``Line overflow`` error; a 128-byte receive ring whose overflow bytes are lost
-  (:attr:`Firmware.rx_lost` counts them); the 18-block planner with its back-pressure.
-* Realtime bytes ``?`` ``!`` ``~`` ``%`` anywhere in the stream (PROTOCOL 3); ``0x18`` is an
+What is modelled (checked against the oracle where it says so)
+----------------------------------------------------------------
+* Line discipline: ``\\r`` or ``\\n`` end a line, every empty line gets ``ok``, bytes
+  ``<= 0x20`` and ``/`` are dropped, letters upper-cased, ``(...)`` and ``;`` comments removed.
+  A line holds 79 bytes after filtering; the 80th byte is dropped, ``Line overflow`` is printed
+  at once and the bytes after it start a new line (oracle: ``LINE_BUFFER_SIZE``). The receive
+  ring holds 127 bytes, the rest is lost (oracle: ``RX_CAPACITY``; :attr:`Firmware.rx_lost`).
+* Realtime bytes ``?`` ``!`` ``~`` ``%`` and ``@`` anywhere in the stream; ``@`` holds the
+  parser (lines wait, motion and the state word go on) until ``~`` (oracle). ``0x18`` is an
   ordinary (dropped) byte.
-* The G-code grammar with GRBL 0.9j's modal groups and checks (PROTOCOL 6), the error texts of
-  PROTOCOL 4.1 for both profiles, the Mirobot texts of PROTOCOL 4.3, settings and ``$$``,
-  ``$G``, ``$#``, ``$I``, ``$N``, ``$C``, ``$X``, ``$RST``, homing, the status report (PROTOCOL 5),
-  power-on lock, Alarm, soft and hard limits, feed hold, soft reset, the two profiles.
+* The G-code grammar with GRBL 0.9j's modal groups and checks, the error texts of both profiles,
+  the Mirobot texts, settings and ``$$`` (classic: with ``$28`` and ``$150..$156``, oracle),
+  ``$G``, ``$#``, ``$I`` (oracle line), ``$N``, ``$C``, ``$X``, ``$RST``, homing, the status
+  report, the power-on lock, Alarm, soft and hard limits, feed hold, soft reset.
+* Work coordinates (oracle): ``G10 L2``/``L20`` set ``G54..G59``, ``G92``/``G92.1``,
+  ``G28``/``G30`` (rapid joint moves, through the axis words' point in ``M21``) and
+  ``G28.1``/``G30.1``; the offsets add to absolute targets (ASSUMED in ``M20`` too), ``$#``
+  prints them; ``G49`` is accepted, ``G43.1`` answers ``Invalid gcode ID:37``.
+* The parser's own position (``ModalState.joints``): targets are measured from it, the planner
+  moves from where queued motion ends; a line with ``M20`` or ``M21`` first sets it to the
+  machine position, where the arm is now (oracle: eight queued ``M21 G91 X1`` end at 1.005).
+* Status angles are whole motor steps, the pose is the FK of those angles (oracle:
+  ``reports.step_position``); during a ``G4`` dwell the state is ``Idle`` (oracle).
 
 Not modelled
 ------------
-GRBL's look-ahead (see :mod:`mirobot_emulator.motion`); work coordinate
-systems, ``G10``/``G28``/``G30``/``G92``, tool length offsets (``G43.1``/``G49``) and probing
-(``G38.x``): they answer ``Unsupported command`` (GRBL would accept them; no Mirobot client sends
-them); ``G54..G59`` are accepted with all offsets zero; stored startup lines (``$N0=``) are kept
-but never executed; the limit-switch physics of homing (homing cannot fail except by ``%``);
-``$50`` tool presets; the ``$36`` point count (lines are exact); EEPROM persistence (settings
+GRBL's look-ahead details (see :mod:`mirobot_emulator.motion`); probing (``G38.x``: the oracle
+prints ``ALARM: Probe fail``; here ``Unsupported command``) and ``G43`` without ``.1``; arcs in
+the classic firmware's real arc plane (its axes 0..2 are J4..J6); stored startup lines
+(``$N0=``) are kept but never executed; the limit-switch physics of homing (homing cannot fail
+except by ``%``); ``$50`` tool presets; the ``$36`` point count; EEPROM persistence (settings
 live as long as the object); the 500 ms stall GRBL adds after printing an alarm; the firmware
 bugs visible in the open source (a stale modal-group bit for ``M3``/``M20``, parser positions
 updated by refused moves, ``M20``/``M50`` executed by lines that then fail).
 
 ASSUMED points implemented (each in one constant or function, named here)
 -------------------------------------------------------------------------
-* ``RX_BUFFER_SIZE`` = 128 usable bytes (GRBL's ring holds one less; PROTOCOL says 128).
-* ``LINE_BUFFER_SIZE``: 80 filtered bytes are accepted, the 81st makes the line an overflow; the
-  whole line (up to its end) then gets a single error (GRBL 0.9 would parse the rest as a new line;
-  the vectors show one reply).
-* ``_error_line``: 2021 errors are ``Error, E1nn,<text>`` with ``nn`` the GRBL 0.9 status number,
-  except the manual's ``E113 Undefined feed rate`` (GRBL 22) and ``E116 Arc radius error``
-  (GRBL 34); every other text is the classic one.
-* ``_refusal``: the four "ok but dropped" texts (locked, soft limit, out of workspace, angle out of
-  limit) are printed as an empty line then the text (as the open firmware's ``"\\r\\n..."``), then
-  ``ok``.
+* ``codes.error_line``: 2021 errors are ``Error, E1nn,<text>`` with ``nn`` the GRBL 0.9 status
+  number, except the manual's ``E113 Undefined feed rate`` (GRBL 22) and ``E116 Arc radius
+  error`` (GRBL 34); every other text is the classic one.
+* ``codes.refusal_lines``: the "ok but dropped" texts are an empty line then the text, then
+  ``ok`` (oracle); ``GOAL OUT OF WORKSPACE... THETA3!`` has ``ok`` glued to it on the same line
+  (oracle: ``codes.TEXTS_WITHOUT_LINE_END``).
 * ``Machine.reset_condition``: only power-on locks the axes (oracle; PROTOCOL 6.1 said every
   ``%`` too); after a reset the 2021 profile is in ``Alarm`` (ASSUMED, its power-on state), the
   classic profile only when the reset interrupted motion.
-* ``reports.step_position``: status angles are whole motor steps (``$100..$106`` per degree or
-  mm, rounded half away from zero) and the pose is the FK of those angles (oracle).
-* ``_m50_allowed_in_alarm``: on 2021 a bare ``M50`` line is accepted in ``Alarm`` and clears it
-  (the 2021 manual unlocks with ``M50`` right after power-on, when the arm is in ``Alarm``);
-  on classic ``M50`` in ``Alarm`` gets ``error: Alarm lock`` like any G-code.
+* ``Firmware._m50_allowed_in_alarm``: on 2021 a bare ``M50`` line is accepted in ``Alarm`` and
+  clears it (the 2021 manual unlocks with ``M50`` right after power-on, when the arm is in
+  ``Alarm``); on classic ``M50`` in ``Alarm`` gets ``error: Alarm lock`` like any G-code.
 * Only a valid line has effects: ``M20``/``M21``/``M50`` act and print only when the whole line
   is accepted (so ``M20 G1 X200`` with feed 0 prints just the error, as in the vectors).
-* ``M20`` re-reads the Cartesian pose from the FK of the planned joints (the end of queued
-  motion); ``M20`` ``G91`` increments add to the last *commanded* pose (as the firmware does).
+* ``M20`` ``G91`` increments add to the last *commanded* pose; a line with ``M20`` first sets it
+  to the FK of the machine position.
 * The 2021 base offset ``$41..$43`` is added to absolute ``M20`` X/Y/Z targets (open firmware);
   the status report prints the pose in the robot frame (FK with the ``$46..$48`` tool offset).
-* IK uses the firmware branch and the factory joint ranges (``kinematics.JOINT_LIMITS``), as the
-  firmware's IK has fixed ranges; the soft limits (``$20``) use the ``$130..$146`` settings.
-* ``M20 G1`` lines, ``G2``/``G3`` arcs and ``G05`` are checked sample by sample (every 2 mm /
-  2 degrees) before any motion; J4 and J6 are kept continuous along a path (they may pass
-  +-180 degrees) where the firmware's per-segment IK would spin them; if the current joints are
-  not the firmware IK branch of the current pose, a rapid joint move to it comes first.
-* ``HARD_LIMIT_SWITCHES``: J1..J3 switches sit at the factory range ends; a joint-space move that
-  would carry J1..J3 out of them (``$21=1``; possible with ``$20=0`` or widened ``$13x``/``$14x``)
-  is cut at the switch: the arm stops there and ``ALARM: Hard limit``, ``[Reset to continue]``
-  are printed at that instant; nothing but ``%`` is processed until reset, not even ``?``
-  (``STATUS_DURING_CRITICAL_ALARM``, as GRBL 0.9j). Cartesian moves cannot reach a switch: their
-  IK refuses angles outside those ranges.
-  :meth:`Firmware.trigger_hard_limit` raises the same alarm at once in any state (fault
-  injection).
+* ``geometry.IK_CHECKS_JOINT_RANGES``: the IK is the firmware branch with no joint range check
+  (oracle): a wrist out of range gets ``Soft limit triggered:B`` with ``$20=1`` and moves with
+  ``$20=0``; ``There is one angle out of limit!!!`` is never printed.
+* ``MoveBuilder.linear_lines``: classic ``M20 G1`` is one joint-space block, F in deg/min along
+  the joint vector (oracle); on 2021 with ``$35=1`` it is a straight line. Straight lines,
+  ``G2``/``G3`` arcs and ``G05`` are checked sample by sample (every 2 mm / 2 degrees) before
+  any motion; J4 and J6 are kept continuous along a path; if the current joints are not the IK
+  of the commanded pose (to a motor step), a rapid joint move to it comes first.
+* ``HARD_LIMIT_SWITCHES``: J1..J3 switches sit at the factory range ends (the oracle's harness
+  puts them just outside, e.g. J1 stops at 160.515); a move that would carry J1..J3 out of them
+  (``$21=1``; possible with ``$20=0`` or widened ``$13x``/``$14x``), joint-space or along a
+  path, is cut at the switch: the arm stops there and ``<8 binary digits>ALARM: Hard limit``
+  (the closed switches, bit 4 = J1: oracle ``00010000ALARM: Hard limit``) and ``[Reset to
+  continue]`` are printed; nothing but ``%`` is processed until reset, not even ``?``
+  (``STATUS_DURING_CRITICAL_ALARM``); after the reset the arm is in Alarm where it stopped.
+  :meth:`Firmware.trigger_hard_limit` raises the same alarm at once (fault injection).
 * 2021 ``G2``/``G3`` arcs are always in the XY plane (2021 manual), Z and orientation move
   linearly (helix); ``G2``/``G3``/``G05`` in ``M21`` (joint) mode answer ``Unsupported command``.
-  An arc whose end has the start's X and Y answers ``Invalid gcode ID:33``.
+  An arc whose end has the start's X and Y answers ``Invalid gcode ID:33``. Classic parses
+  ``G2``/``G3`` but X/Y are not in its arc plane: ``Invalid gcode ID:32`` (oracle).
 * ``G05`` (2021 gate move): straight up to ``max(z_start, z_end) + $49``, across, straight down,
   all at the feed rate F (so F is required, E113 otherwise); orientation and rail change on the
   way across.
@@ -93,22 +104,29 @@ ASSUMED points implemented (each in one constant or function, named here)
 * Homing: ``homing_seconds`` (default ``DEFAULT_HOMING_SECONDS``) is the switch search of ``$H``;
   ``$HH`` and ``$HE`` are sequential (:mod:`mirobot_emulator.motion`); ``$H0`` (arm + rail)
   searches ``HOMING_RAIL_FACTOR`` times as long, ``$H1..$H7`` (one axis; 7 = rail) for
-  ``HOMING_SINGLE_AXIS_FACTOR`` of it. PROTOCOL's ``$H0`` = arm + rail and ``$H7`` = rail only
-  (the 2021 manual calls ``$H7`` "arm, then axis 7"). Any homing unlocks and re-initialises the
-  parser (feed 0, ``M21``, PWM 0) when the search ends; ``$H`` and ``$HH`` leave the rail alone.
-  The classic profile accepts any ``$H...`` as ``$H`` except ``$HH`` (open firmware). Classic
-  prints ``""``, ``Free memory: 2036`` at the start; 2021 prints only its final line (vectors).
-* ``G4`` waits for the planner to empty, then dwells (a planner block, state ``Run``); its ``ok``
-  comes after the dwell (GRBL). ``M2``/``M30`` wait for the planner, reset the modal state as GRBL
-  does and print ``[Pgm End]``; ``M0`` waits, then holds; its ``ok`` follows the ``~``.
+  ``HOMING_SINGLE_AXIS_FACTOR`` of it. During the search ``?`` is not answered; one deferred
+  ``?`` is answered (state ``Home``) when it ends (oracle). Then the homed axes read zero, the
+  lock is cleared and the parser re-initialised (feed 0, ``M21``, PWM 0), the homed text is
+  printed (device logs: classic ``""``, ``Free memory: 2036`` before and ``in homeing
+  moving...ok`` after, where the oracle prints ``ok``), and ``SystemCommands._return_to_zero``
+  moves each homed axis its reset distance ``$150..$156`` (away from its switch: negative where
+  ``$28`` has its bit) at the homing feed ``$24`` in ``Run`` while the parser is free; the
+  position reads zero again when the planner is next idle (oracle: ~2.3 s on classic).
+  The classic profile accepts any ``$H...`` as ``$H`` except ``$HH`` (open firmware).
+* ``G4`` waits for the planner to empty, then dwells (state ``Idle``, oracle); its ``ok`` comes
+  after the dwell. ``M2``/``M30`` wait for the planner, reset the modal state as GRBL does and
+  print ``[Pgm End]``; ``M0`` waits, then holds; its ``ok`` follows the ``~``.
 * A soft reset during a dwell or a completed feed hold is not "during motion" (no alarm), as in
   GRBL; during homing it is ``ALARM: Homing fail``.
-* The banner's last line is followed by ``['$H'|'$X' to unlock]`` whenever the state is Alarm
-  (GRBL), so always on 2021; the banner's numbers are the integer parts (truncated) of the DH
-  settings, the base offsets and the FK at zero joints (with the tool offset).
-* ``_fmt``: status reports follow the ``$10`` mask like the open firmware (bit 0 angles and pose,
-  bit 5 the PWMs, bit 6 ``Motion_MODE``, bits 2/3/4 ``Buf``/``RX``/``Lim``); a number that would
-  print as ``-0.000`` prints ``0.000`` (the vectors never show ``-0.000``).
+* The banner's last line is followed by ``['$H'|'$X' to unlock]`` whenever the state is Alarm,
+  so always on 2021; the banner's numbers are the integer parts of the DH settings, the base
+  offsets and the FK at zero joints. The second banner line is the device logs' ``Qinnew Robot
+  ...`` (the oracle prints ``Wlkata Robot ...--Modified by Thor Zhou``).
+* ``$I``: ``[0.9j.20160303:<stored info>--ZDX&LEAH(201306)]`` on classic (oracle); 2021 the same
+  GRBL build without the suffix (ASSUMED).
+* ``reports.fmt``: status reports follow the ``$10`` mask like the open firmware (bit 0 angles
+  and pose, bit 5 the PWMs, bit 6 ``Motion_MODE``, bits 2/3/4 ``Buf``/``RX``/``Lim``); a number
+  that would print as ``-0.000`` prints ``0.000`` (the vectors never show ``-0.000``).
 * A line with both a refusal (IK) and a lock prints only the first refusal (IK first, as the
   firmware computes IK before its lock check).
 
@@ -117,7 +135,7 @@ Taken from GRBL 0.9j / the open firmware where PROTOCOL.md is silent
 * ``$X`` prints ``[Caution: Unlocked]`` only in Alarm (otherwise just ``ok``).
 * ``$`` commands other than ``$$``, ``$G``, ``$C``, ``$X`` need Idle or Alarm: ``$H`` or a
   setting sent while the arm moves answers ``Not idle``; ``$$`` too while moving or held.
-* ``!`` while idle enters ``Hold`` as well; while held, received lines wait until ``~``.
+* ``!`` while idle enters ``Hold`` as well (oracle); while held, received lines wait until ``~``.
 * ``Pump PWM`` / ``Valve PWM`` are the last ``S`` / ``E`` words (with or without ``M3``/``M4``;
   ``M5`` does not clear them); a reset and a homing set both to 0 (GRBL's ``gc_init``).
 * ``Soft limit triggered:<axis>`` names the first offending axis in the firmware's order
