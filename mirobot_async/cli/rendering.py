@@ -262,7 +262,9 @@ class LiveView:
             from rich.live import Live
 
             console = Console(file=stream, force_terminal=True)
-            self._live = Live(console=console, auto_refresh=False, redirect_stdout=False)
+            self._live = Live(
+                console=console, auto_refresh=False, redirect_stdout=False, redirect_stderr=False
+            )
 
     def __enter__(self) -> LiveView:
         if self._live is not None:
