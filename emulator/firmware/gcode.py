@@ -8,7 +8,7 @@ from . import codes as c
 from .geometry import Refusal, pose6
 from .machine import Machine, Pending
 from .offsets import ZERO7, with_values
-from .scanner import AXIS_WORDS, scan
+from .scanner import AXIS_WORDS, GBlock, scan
 from .validation import MM_PER_INCH, CheckedLine, check_line
 
 
@@ -20,18 +20,37 @@ class GcodeExecutor:
 
     def execute(self, line: str) -> None:
         m = self.m
-        scanned = scan(line, m.profile)
-        if isinstance(scanned, int):
-            m.error(scanned)
+        scanned, status = scan(line, m.profile)
+        if status:
+            self._early_effects(scanned)
+            m.error(status)
             return
         # oracle: a line with M20 or M21 first sets the parser's position to the machine's
         # (where the arm is now, not where queued motion ends)
         origin = m.machine_position() if scanned.coord_mode is not None else m.modal.joints
         checked = check_line(scanned, m.modal, origin, m.geometry, m.work)
         if isinstance(checked, int):
+            self._early_effects(scanned)
             m.error(checked)
             return
         self._run(checked)
+
+    def _early_effects(self, g: GBlock) -> None:
+        """A failing line's ``M50``/``M20``/``M21`` words still act on classic (oracle:
+        ``M20 Q1`` -> ``Unsupported command`` and then ``Motion_MODE:1``; ``M50 Q1`` prints
+        ``M50: Unlock each axis.`` before its error and unlocks). ASSUMED not on 2021 (its
+        vectors show a failing ``M20`` line printing no ``Info`` line)."""
+        m = self.m
+        if m.profile != "classic":
+            return
+        if g.unlock:
+            m.locked = False
+            m.emit(m.info(c.TEXT_M50))
+        if g.coord_mode is not None:
+            q = m.machine_position()
+            m.modal.cart_mode = g.coord_mode == 20
+            m.modal.joints = q
+            m.modal.cart = m.geometry.fk(q)
 
     def _set_modal(self, line: CheckedLine) -> list[str]:
         """The modal effects of a valid line; the information lines it prints."""

@@ -1,9 +1,10 @@
-"""What the firmware prints about itself: the status report, the banner, ``$#``."""
+"""What the firmware prints about itself: the status report and the banner."""
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from typing import Final
 
 from .. import motion
 from .. import settings as cfg
@@ -13,11 +14,14 @@ from .geometry import vec7
 from .machine import Machine
 from .scanner import c_round, uint8
 
+NUMERIC_ZERO: Final = 1e-9
+"""Below this a status number is rounding noise of our double-precision FK and prints as 0."""
+
 
 def fmt(value: float) -> str:
-    """A status number: 3 decimals; ASSUMED ``0.000`` rather than ``-0.000``."""
-    text = cfg.grbl_float(value)
-    return "0.000" if text == "-0.000" else text
+    """A status number as GRBL prints it: 3 decimals, ``-0.000`` for a small negative value
+    (oracle); values within ``NUMERIC_ZERO`` of 0 print ``0.000``."""
+    return cfg.grbl_float(0.0 if abs(value) < NUMERIC_ZERO else value)
 
 
 def step_position(q: Vec7, settings: Mapping[int, float]) -> Vec7:

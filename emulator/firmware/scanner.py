@@ -82,8 +82,9 @@ class GBlock:
     words: dict[str, float] = field(default_factory=dict)
 
 
-def scan(line: str, profile: str) -> GBlock | int:
-    """The words of ``line``, or the GRBL status of the first scanning error."""
+def scan(line: str, profile: str) -> tuple[GBlock, int]:
+    """The words of ``line`` and 0, or the words before the first scanning error and its GRBL
+    status (the classic firmware acts on the ``M20``/``M21``/``M50`` scanned before it)."""
     g = GBlock()
     groups: set[str] = set()
     i = 0
@@ -91,10 +92,10 @@ def scan(line: str, profile: str) -> GBlock | int:
     while i < n:
         letter = line[i]
         if not "A" <= letter <= "Z":
-            return c.EXPECTED_COMMAND_LETTER
+            return g, c.EXPECTED_COMMAND_LETTER
         parsed = read_float(line, i + 1)
         if parsed is None:
-            return c.BAD_NUMBER_FORMAT
+            return g, c.BAD_NUMBER_FORMAT
         value, i = parsed
         int_value = uint8(value)
         mantissa = c_round(100.0 * (value - int_value)) % 65536
@@ -105,8 +106,8 @@ def scan(line: str, profile: str) -> GBlock | int:
         else:
             status = _value_word(g, letter, value)
         if status:
-            return status
-    return g
+            return g, status
+    return g, 0
 
 
 def _m_word(g: GBlock, code: int, mantissa: int, groups: set[str]) -> int:

@@ -123,7 +123,8 @@ def check_line(
             return c.AXIS_WORDS_EXIST
     elif axis_command:
         if motion_mode in (2, 3) and geometry.profile == "classic":
-            return classic_arc_status(words, feed, modal.plane if g.plane is None else g.plane)
+            plane = modal.plane if g.plane is None else g.plane
+            return classic_arc_status(words, axis_letters, feed, plane)
         if motion_mode in (2, 3, 5) and not cart:
             return c.UNSUPPORTED_COMMAND  # ASSUMED: no arcs / gates in joint mode
         if motion_mode == 0:
@@ -153,12 +154,16 @@ CLASSIC_ARC_PLANES: Final = {17: "AB", 18: "CA", 19: "BC"}
 """The classic firmware's arc planes: GRBL's axes 0, 1, 2 are its a, b, c = J4, J5, J6."""
 
 
-def classic_arc_status(words: dict[str, float], feed: float, plane: int) -> int:
+def classic_arc_status(
+    words: dict[str, float], axis_letters: list[str], feed: float, plane: int
+) -> int:
     """The classic firmware's reply to ``G2``/``G3`` (oracle: ``G2 X210 Y10 R10 F1000`` ->
     ``Invalid gcode ID:32``, X and Y are not its arc plane). ASSUMED: an arc in its real plane
     (wrist joints) is refused as unsupported."""
     if feed == 0.0:
         return c.UNDEFINED_FEED_RATE
+    if not axis_letters:
+        return c.NO_AXIS_WORDS  # oracle: 'M20 G2' -> 'Invalid gcode ID:26'
     if not any(letter in words for letter in CLASSIC_ARC_PLANES[plane]):
         return c.NO_AXIS_WORDS_IN_PLANE
     return c.UNSUPPORTED_COMMAND

@@ -129,3 +129,23 @@ def test_a_dwell_reports_idle_and_the_ring_holds_127_bytes() -> None:
     assert fw.rx_lost == 1 and fw.state == "Idle"
     assert lines(fw, "", math.inf) == ["ok"] * 26
     assert lines(fw, "\n") == ["error: Invalid gcode ID:28"]  # "G4": the "P" was lost
+
+
+def test_a_failing_line_still_acts_on_its_m20_m21_m50_on_classic() -> None:
+    fw = Firmware("classic")
+    fw.read_output()
+    assert lines(fw, "M20 Q1\n") == ["error: Unsupported command"]
+    assert lines(fw, "?")[0].endswith("Motion_MODE:1>")
+    assert lines(fw, "Q1 M21\n") == ["error: Unsupported command"]  # the error comes first
+    assert lines(fw, "?")[0].endswith("Motion_MODE:1>")
+    assert lines(fw, "M50 Q1\n") == ["M50: Unlock each axis.", "error: Unsupported command"]
+    assert lines(fw, "M21 G90 X5\n") == ["ok"]  # unlocked
+    assert lines(fw, "M20 G2\n") == ["error: Invalid gcode ID:26"]
+
+
+def test_small_negative_status_numbers_print_minus_zero() -> None:
+    fw = unlocked()
+    lines(fw, "M20 G90 G1 X199 Y3 Z167 A0 B0 C0 F1000\n", math.inf)
+    (status,) = lines(fw, "?")
+    # oracle: ...Cartesian coordinate(XYZ RxRyRz):199.001,3.000,166.975,-0.000,0.003,-0.036,...
+    assert ",-0.000,0.003,-0.036," in status
