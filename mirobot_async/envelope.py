@@ -73,6 +73,7 @@ from .paths import (
     MAX_PATH_SAMPLES,
     arc_plan,
     arc_samples,
+    firmware_ik_rows,
     line_samples,
     line_samples_needed,
 )
@@ -445,32 +446,37 @@ class Envelope:
         )
         if problem is not None:
             raise MirobotUsageError(problem)
-        limits = np.asarray(self.joint_limits)
-        allowed = np.zeros(6)
-        last: Joints = _ZERO_JOINTS
-        for i, row in enumerate(samples):
-            v = row.tolist()
+        rows = firmware_ik_rows(samples, self.dh, self.tool)
+        reachable = np.ones(len(rows), dtype=bool)
+        for i in np.flatnonzero(np.isnan(rows[:, 0])).tolist():  # singular or back branch
+            v = samples[i].tolist()
             pose: Pose = (v[0], v[1], v[2], v[3], v[4], v[5])
-            where = "target pose" if i == len(samples) - 1 else f"the {kind} passes"
             try:
-                q = inverse(pose, self.dh, "firmware", tool=self.tool)
+                rows[i] = inverse(pose, self.dh, "firmware", tool=self.tool)
             except MirobotUsageError:
                 if i == 0:
-                    continue  # an unreachable start: the arm is not there; judge the rest
+                    reachable[0] = False  # an unreachable start: the arm is not there
+                    continue
+                where = "target pose" if i == len(samples) - 1 else f"the {kind} passes"
                 raise MirobotUsageError(
                     f"{where} {_fmt(pose)}, which is unreachable ({what})"
                 ) from None
-            qa = np.asarray(q)
-            excess = np.maximum(limits[:, 0] - qa, qa - limits[:, 1])
-            if i == 0:
-                allowed = np.maximum(excess, 0.0)
-            elif i == len(samples) - 1 or (excess > allowed + LIMIT_TOL).any():
-                prefix = f"{where} {_fmt(pose)} with (firmware IK) "
-                problem = self.joint_problem(q, what, prefix)
-                if problem is not None:
-                    raise MirobotUsageError(problem)
-            last = q
-        return last
+        limits = np.asarray(self.joint_limits)
+        excess = np.maximum(limits[None, :, 0] - rows, rows - limits[None, :, 1])
+        allowed = np.maximum(excess[0], 0.0) if reachable[0] else np.zeros(6)
+        bad = (excess > allowed[None, :] + LIMIT_TOL).any(axis=1)
+        bad[0] = False
+        bad[-1] = bool((excess[-1] > LIMIT_TOL).any())
+        if bad.any():
+            i = int(np.argmax(bad))
+            v = samples[i].tolist()
+            where = "target pose" if i == len(samples) - 1 else f"the {kind} passes"
+            prefix = f"{where} {_fmt(v)} with (firmware IK) "
+            problem = self.joint_problem(rows[i].tolist(), what, prefix)
+            if problem is not None:
+                raise MirobotUsageError(problem)
+        q = rows[-1].tolist()
+        return (q[0], q[1], q[2], q[3], q[4], q[5])
 
     def check_arc(
         self,

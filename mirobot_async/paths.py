@@ -34,9 +34,10 @@ __all__ = [
 
 FloatArray: TypeAlias = npt.NDArray[np.float64]
 
-MAX_PATH_SAMPLES: Final = 300
-"""Most samples (each an inverse kinematics) checked for one Cartesian path; longer paths are
-refused with a request to split them (300 samples at 2 mm is a 600 mm line, the arm's reach)."""
+MAX_PATH_SAMPLES: Final = 1000
+"""Most samples (inverse kinematics, vectorised) checked for one Cartesian path, about 4 ms;
+longer paths are refused with a request to split them (1000 samples at 2 mm is 2 m, more than
+any reachable path: the arm's reach is about 300 mm)."""
 MAX_JOINT_PATH_SAMPLES: Final = 4000
 """Most samples of one joint-space path (vectorised forward kinematics, about 3 ms)."""
 _REACH_EPS: Final = 1e-12
