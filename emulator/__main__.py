@@ -1,13 +1,14 @@
-"""``mirobot-emulator`` / ``python -m mirobot_emulator``: a virtual Mirobot on a pseudo-terminal.
+"""``mirobot-emulator`` / ``python -m mirobot_emulator``: a virtual Mirobot on a pty or TCP socket.
 
-Prints the device path as the first line of stdout (flushed), then serves until SIGINT or
-SIGTERM (exit status 0, link removed, no traceback). Stdin is a control channel for fault
+Prints the device path (or, with ``--listen HOST:PORT``, ``socket://HOST:PORT``) as the first
+line of stdout (flushed), then serves until SIGINT or SIGTERM (exit status 0, link removed, no
+traceback). Stdin is a control channel for fault
 injection (one command per line, answered ``ack <command>`` on stdout); EOF on stdin only stops
 reading it. Diagnostics go to stderr. See :mod:`mirobot_emulator.server` for what is modelled and
 :mod:`mirobot_emulator.faults` for the fault specifications and commands.
 
-Exit status: 0 after a signal or a ``close`` fault, 2 for bad arguments, 1 if the pty or the
-link cannot be created.
+Exit status: 0 after a signal or a ``close`` fault, 2 for bad arguments, 1 if the pty, the
+socket or the link cannot be created.
 """
 
 from __future__ import annotations
@@ -33,11 +34,12 @@ def _early_stop(signum: int, frame: object) -> None:
 def _build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="mirobot-emulator",
-        description="A virtual WLKATA Mirobot (firmware model) on a pseudo-terminal. The first "
-        "line of stdout is the device path; stdin takes fault-injection commands "
-        "(drop-ok [N], corrupt-status [N], ignore-status [N], stall S, hard-limit [AXIS], "
-        "reset, close, split-bytes [on|off], delay MS, time-scale X; stats for the "
-        "counters), each answered 'ack <command>'.",
+        description="A virtual WLKATA Mirobot (firmware model) on a pseudo-terminal or a TCP "
+        "socket. The first line of stdout is the device path (or socket://HOST:PORT); stdin "
+        "takes fault-injection commands (drop-ok [N], corrupt-status [N], ignore-status [N], "
+        "stall S, hard-limit [AXIS], reset, close, split-bytes [on|off], delay MS, "
+        "time-scale X; stats and motion-ends for the server's counters), each answered "
+        "'ack <command>'.",
     )
     parser.add_argument(
         "--firmware",
@@ -53,6 +55,12 @@ def _build_parser() -> argparse.ArgumentParser:
         help="simulated seconds per wall second; 0 = motion completes at once (default: 1)",
     )
     parser.add_argument("--link", metavar="PATH", help="also create a symlink to the device here")
+    parser.add_argument(
+        "--listen",
+        metavar="HOST:PORT",
+        help="serve on a TCP socket instead of a pty (socket://HOST:PORT for pyserial); "
+        "port 0 picks a free one; HOST defaults to 127.0.0.1; one client at a time",
+    )
     parser.add_argument(
         "--baud",
         type=int,
@@ -111,7 +119,7 @@ def _log(message: str) -> None:
 
 def _options(args: argparse.Namespace, parser: argparse.ArgumentParser) -> ServerOptions:
     from .faults import FaultSpecError, parse_fault
-    from .server import ServerOptions
+    from .server import ServerOptions, parse_listen
 
     try:
         faults = tuple(parse_fault(spec) for spec in args.fault)
@@ -125,6 +133,14 @@ def _options(args: argparse.Namespace, parser: argparse.ArgumentParser) -> Serve
         parser.error("--usb-latency-ms must be >= 0")
     if args.homing_seconds is not None and not 0 <= args.homing_seconds < float("inf"):
         parser.error("--homing-seconds must be a finite number >= 0")
+    listen = None
+    if args.listen is not None:
+        if args.link:
+            parser.error("--link makes a symlink to a pty: it cannot be used with --listen")
+        try:
+            listen = parse_listen(args.listen)
+        except ValueError as exc:
+            parser.error(f"--listen {exc}")
     return ServerOptions(
         firmware=args.firmware,
         time_scale=args.time_scale,
@@ -135,6 +151,7 @@ def _options(args: argparse.Namespace, parser: argparse.ArgumentParser) -> Serve
         seed=args.seed,
         faults=faults,
         homing_seconds=args.homing_seconds,
+        listen=listen,
     )
 
 
@@ -161,7 +178,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     server = EmulatorServer(options, on_reply=_say, control_fd=control_fd, log=_log)
     try:
         try:
-            path = server.open()  # the pty, the firmware (numpy), the power-on banner, the link
+            path = server.open()  # the port, the firmware (numpy), the power-on banner, the link
         except OSError as exc:
             _log(f"cannot create the port: {exc}")
             return 1

@@ -394,6 +394,7 @@ class OutputDelay:
     def __init__(self, delay: float = 0.0) -> None:
         self._queue: deque[tuple[float, bytes]] = deque()
         self._last_release = -math.inf
+        self._held = 0
         self.delay = delay
 
     @property
@@ -408,19 +409,24 @@ class OutputDelay:
         self._delay = seconds
 
     def __len__(self) -> int:
-        return sum(len(data) for _, data in self._queue)
+        """Bytes waiting."""
+        return self._held
 
     def push(self, data: bytes, now: float) -> None:
+        """A chunk produced at ``now``."""
         if not data:
             return
         release = max(now + self._delay, self._last_release)
         self._last_release = release
         self._queue.append((release, bytes(data)))
+        self._held += len(data)
 
     def pop(self, now: float) -> bytes:
+        """The chunks due at ``now``, oldest first, concatenated."""
         out = bytearray()
         while self._queue and self._queue[0][0] <= now:
             out += self._queue.popleft()[1]
+        self._held -= len(out)
         return bytes(out)
 
     def next_time(self) -> float | None:
@@ -428,8 +434,10 @@ class OutputDelay:
         return self._queue[0][0] if self._queue else None
 
     def clear(self) -> None:
+        """Forget every chunk waiting."""
         self._queue.clear()
         self._last_release = -math.inf
+        self._held = 0
 
 
 class FaultSchedule:

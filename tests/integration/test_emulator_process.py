@@ -27,6 +27,7 @@ MODULE = (sys.executable, "-m", "mirobot_emulator")
 SCRIPT = Path(sys.executable).parent / "mirobot-emulator"
 PROFILES = ("classic", "2021")
 BANNER_LAST = "Using reset pos!"
+STEP = 0.01  # status angles are whole motor steps (~0.005 deg): a target is met within this
 STATUS_RE = re.compile(
     r"<(?P<state>[A-Za-z]+),Angle\(ABCDXYZ\):(?P<angles>[-0-9.,]+),"
     r"Cartesian coordinate\(XYZ RxRyRz\):(?P<pose>[-0-9.,]+),"
@@ -222,7 +223,7 @@ def test_state_survives_reopen_without_reset_on_open(emulator: Callable[..., Emu
     with emu.port() as port:
         unlock(port, "classic")
         command(port, "M21 G90 G1 X10 F2000")
-        assert joints(wait_idle(port))[0] == pytest.approx(10.0, abs=0.01)
+        assert joints(wait_idle(port))[0] == pytest.approx(10.0, abs=STEP)
     with emu.port() as port:
         # No banner on reopen: the first line after "?" is the status, at the same place.
         port.write(b"?")
@@ -230,9 +231,9 @@ def test_state_survives_reopen_without_reset_on_open(emulator: Callable[..., Emu
         assert is_status(first), first
         match = STATUS_RE.fullmatch(first)
         assert match
-        assert joints(match)[0] == pytest.approx(10.0, abs=0.01)
+        assert joints(match)[0] == pytest.approx(10.0, abs=STEP)
         command(port, "G1 X20 F2000")  # still unlocked
-        assert joints(wait_idle(port))[0] == pytest.approx(20.0, abs=0.01)
+        assert joints(wait_idle(port))[0] == pytest.approx(20.0, abs=STEP)
 
 
 @pytest.mark.parametrize("profile", PROFILES)
@@ -251,7 +252,7 @@ def test_joint_move(emulator: Callable[..., Emulator], profile: str, scale: str)
                 break
             assert match["state"] == "Run", match[0]
             assert len(seen) < 2000
-        assert seen[-1] == pytest.approx(10.0, abs=0.01)
+        assert seen[-1] == pytest.approx(10.0, abs=STEP)
         assert seen == sorted(seen)  # monotonic toward the target
 
 
@@ -266,7 +267,7 @@ def test_time_scale_zero_is_instant(emulator: Callable[..., Emulator], profile: 
         match = STATUS_RE.fullmatch(lines[-1])
         assert match, lines
         assert match["state"] == "Idle"
-        assert joints(match)[:2] == pytest.approx([10.0, -5.0], abs=0.001)
+        assert joints(match)[:2] == pytest.approx([10.0, -5.0], abs=STEP)
 
 
 @pytest.mark.parametrize("profile", PROFILES)
@@ -281,7 +282,7 @@ def test_homing(emulator: Callable[..., Emulator], profile: str) -> None:
         assert replies[-1].endswith("moving...ok"), replies
         assert (time.monotonic() - started) > 0.05  # 10 s homing at x100 takes 0.1 s
         match = wait_idle(port)
-        assert joints(match) == pytest.approx([0.0] * 6, abs=0.001)
+        assert joints(match) == pytest.approx([0.0] * 6, abs=STEP)
 
 
 @pytest.mark.parametrize("profile", PROFILES)
@@ -591,7 +592,7 @@ def test_control_time_scale(emulator: Callable[..., Emulator]) -> None:
         assert emu.command("time-scale 0") == "ack time-scale 0"
         match = status(port)
         assert match["state"] == "Idle"
-        assert joints(match)[0] == pytest.approx(60.0, abs=0.01)
+        assert joints(match)[0] == pytest.approx(60.0, abs=STEP)
 
 
 def test_control_errors(emulator: Callable[..., Emulator]) -> None:

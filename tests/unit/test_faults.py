@@ -495,7 +495,9 @@ def _served(*faults: str) -> Iterator[tuple[VirtualMirobot, int]]:
     with VirtualMirobot(options) as robot:
         fd = os.open(robot.path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
         try:
-            termios.tcflush(fd, termios.TCIFLUSH)  # the power-on banner, as pyserial does
+            # Opened as pyserial does: configure the port, then flush the power-on banner.
+            termios.tcsetattr(fd, termios.TCSANOW, termios.tcgetattr(fd))
+            termios.tcflush(fd, termios.TCIFLUSH)
             yield robot, fd
         finally:
             os.close(fd)
@@ -574,4 +576,4 @@ def test_stats_counts_what_crossed_the_wire() -> None:
         assert stats["status_lines"] == 2
         assert stats["corrupted_status"] == 1
         assert stats["ignored_status"] == stats["split_writes"] == 0
-        assert stats["ports_opened"] == 1  # our flush
+        assert stats["ports_opened"] == 1  # our open

@@ -1,0 +1,416 @@
+"""The serve loop: a firmware model behind a port (pty or TCP), one ``selectors`` loop.
+
+No asyncio and no signals: the loop can run in the main thread of ``mirobot-emulator`` or in a
+background thread of the process under test (:class:`~mirobot_emulator.server.VirtualMirobot`).
+It sleeps until input arrives, output can be written, a control command comes, or the next
+change is due (the firmware's, the wire's, a timed fault's).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import selectors
+import socket
+import sys
+import time
+import traceback
+from collections import deque
+from collections.abc import Callable
+from typing import Any
+
+from ..faults import (
+    Command,
+    FaultFilter,
+    FaultSchedule,
+    FaultSpecError,
+    link_commands,
+    parse_command,
+)
+from .clock import Simulation
+from .control import ControlReader
+from .link import InputPath, OutputPath
+from .options import FirmwareLike, ServerOptions
+from .port import Arrival, Port
+
+__all__ = ["EmulatorServer"]
+
+MAX_LOGGED_ERRORS = 5  # tracebacks of firmware-model exceptions written to the log
+# Where a signal handler cannot interrupt select() (Windows), the loop wakes this often to see
+# a stop requested from one.
+_MAX_SLEEP_S = 0.25 if sys.platform == "win32" else None
+
+
+def _default_firmware_factory(options: ServerOptions) -> Callable[[], FirmwareLike]:
+    def make() -> FirmwareLike:
+        # Imported here: the firmware pulls in numpy (kinematics). (importlib keeps the type
+        # checker to the FirmwareLike protocol.)
+        import importlib
+
+        module = importlib.import_module("..firmware", __package__)
+        firmware: FirmwareLike = module.Firmware(
+            options.firmware, homing_seconds=options.homing_seconds
+        )
+        return firmware
+
+    return make
+
+
+def _make_port(options: ServerOptions, log: Callable[[str], None]) -> Port:
+    if options.listen is not None:
+        from .tcp_port import TcpPort
+
+        return TcpPort(*options.listen, log=log)
+    from .pty_port import PtyPort
+
+    return PtyPort(log=log)
+
+
+class EmulatorServer:
+    """A firmware model served on a pseudo-terminal or, with ``options.listen``, a TCP socket.
+
+    ``open()`` creates the port, powers the firmware on (the banner goes into the port), creates
+    the link and returns the address to open (the pty's path or ``socket://HOST:PORT``);
+    ``serve()`` runs the loop until :meth:`request_stop` (thread- and signal-safe) or a ``close``
+    fault, and returns ``"stopped"`` or ``"closed"``; ``close()`` releases everything
+    (idempotent). Control commands come from ``control_fd`` (the CLI passes stdin; read in a
+    thread) and/or :meth:`submit` (thread-safe); each is answered by calling ``on_reply`` (or the
+    ``reply`` given to :meth:`submit`) with ``"ack <command>"`` or ``"error <command>: ..."``.
+    """
+
+    def __init__(
+        self,
+        options: ServerOptions,
+        *,
+        firmware_factory: Callable[[], FirmwareLike] | None = None,
+        on_reply: Callable[[str], None] | None = None,
+        control_fd: int | None = None,
+        log: Callable[[str], None] | None = None,
+    ) -> None:
+        options.check()
+        self.options = options
+        self._factory = firmware_factory or _default_firmware_factory(options)
+        self._on_reply = on_reply
+        self._control_fd = control_fd
+        self._log = log or (lambda message: None)
+        self.path: str | None = None
+        """The address clients open: the pty's path, or ``socket://HOST:PORT``."""
+        self.port: Port = _make_port(options, self._log)
+        self.sim: Simulation | None = None
+        self._wake_r: socket.socket | None = None
+        self._wake_w: socket.socket | None = None
+        self._link_made = False
+        self._stop = False
+        self._result = "stopped"
+        self._commands: deque[tuple[str, Callable[[str], None] | None]] = deque()
+        self._start = 0.0
+        self._filter = FaultFilter(options.faults, seed=options.seed)
+        self._schedule = FaultSchedule(options.faults)
+        self.input = InputPath(options.baud, self._filter)
+        self.output = OutputPath(options.baud, options.usb_latency_ms / 1000.0, self._filter)
+        self.ports_opened = 0  # clients that opened the port
+        self.firmware_errors = 0  # exceptions raised by the firmware model (logged, survived)
+
+    @property
+    def firmware(self) -> FirmwareLike | None:
+        """The firmware model (None before :meth:`open`); read it from the loop's thread."""
+        return self.sim.firmware if self.sim is not None else None
+
+    @property
+    def split_writes(self) -> int:
+        """Bytes written one by one (split-bytes)."""
+        return self.output.split_writes
+
+    @property
+    def motion_end_walls(self) -> deque[float]:
+        """Ends of motion on the wall clock (see :class:`~.clock.Simulation`)."""
+        return self.sim.motion_end_walls if self.sim is not None else deque()
+
+    # ------------------------------------------------------------------ lifecycle
+    def open(self) -> str:
+        """Create the port and power the arm on; return the address, ready to be opened.
+
+        The firmware's power-on output (the banner) goes into the port at once, before the
+        address is published: a client's open-time flush discards it, as with an arm powered on
+        before the port is opened (``--reset-on-open`` prints a fresh one). Then the link is
+        created.
+        """
+        if self.path is not None:
+            return self.path
+        path = self.port.open()
+        self._wake_r, self._wake_w = socket.socketpair()
+        for sock in (self._wake_r, self._wake_w):
+            sock.setblocking(False)
+        self.path = path
+        if self.sim is None:
+            firmware = self._factory()
+            self.sim = Simulation(firmware, self.options.time_scale, time.monotonic())
+        self._start = time.monotonic()
+        self.output.power_on(self.sim.firmware.read_output())
+        self.output.write_to(self.port)
+        for command in link_commands(self.options.faults):  # from now on, not the banner
+            self._apply(command, self._start)
+        if self.options.reset_on_open and not getattr(self.port, "sees_opens", True):
+            self._log("this platform's pty does not report opens: --reset-on-open has no effect")
+        if self.options.link:
+            self._make_link(self.options.link, path)
+        if self._control_fd is not None:
+            ControlReader(self._control_fd, self.submit).start()
+        return path
+
+    def _make_link(self, link: str, target: str) -> None:
+        if os.path.lexists(link) and not os.path.islink(link):
+            raise FileExistsError(f"--link {link}: exists and is not a symlink, not replacing it")
+        tmp = f"{link}.{os.getpid()}.tmp"
+        os.symlink(target, tmp)
+        os.replace(tmp, link)  # atomic, replaces a stale link from an earlier run
+        self._link_made = True
+
+    def close(self) -> None:
+        """Close the port and the wake sockets, remove the link (only if it still points here)."""
+        if self._link_made and self.options.link:
+            self._link_made = False
+            with contextlib.suppress(OSError):
+                if os.readlink(self.options.link) == self.path:
+                    os.unlink(self.options.link)
+        self.port.close()
+        for sock in (self._wake_r, self._wake_w):
+            if sock is not None:
+                sock.close()
+
+    def __enter__(self) -> EmulatorServer:
+        self.open()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def request_stop(self) -> None:
+        """Make :meth:`serve` return soon. Safe from a signal handler or another thread."""
+        self._stop = True
+        self._wake()
+
+    def submit(self, command: str, reply: Callable[[str], None] | None = None) -> None:
+        """Queue a control command (thread-safe); ``reply`` (or ``on_reply``) gets the answer."""
+        self._commands.append((command, reply))
+        self._wake()
+
+    def _wake(self) -> None:
+        if self._wake_w is not None:
+            with contextlib.suppress(OSError):  # full (already awake) or closed
+                self._wake_w.send(b"!")
+
+    def _guard(self, func: Callable[..., object], *args: object) -> bool:
+        """Call ``func``; if the firmware model raises, log it and keep serving (False)."""
+        try:
+            func(*args)
+        except Exception:
+            self._firmware_error()
+            return False
+        return True
+
+    def _firmware_error(self) -> None:
+        self.firmware_errors += 1
+        if self.firmware_errors <= MAX_LOGGED_ERRORS:
+            self._log("internal error (the emulator keeps serving):\n" + traceback.format_exc())
+        elif self.firmware_errors == MAX_LOGGED_ERRORS + 1:
+            self._log("more internal errors; not logging them any more")
+
+    # ------------------------------------------------------------------ loop
+    def serve(self) -> str:
+        """Run until stopped; return ``"stopped"`` or ``"closed"`` (a close fault)."""
+        self.open()
+        assert self._wake_r is not None
+        selector = selectors.DefaultSelector()
+        watched: dict[Any, int] = {}
+        try:
+            selector.register(self._wake_r, selectors.EVENT_READ, "wake")
+            # A client may have opened the port already (while the firmware was being built):
+            # see its open before the power-on output goes out.
+            self._take(self.port.on_ready(None, selectors.EVENT_READ, self.input.room()))
+            while not self._stop:
+                now = time.monotonic()
+                self._guard(self._step, now)
+                if self._stop or not self.port.is_open:
+                    break
+                watched = self._watch(selector, watched)
+                try:
+                    timeout = self._timeout(now)
+                except Exception:
+                    self._firmware_error()
+                    timeout = 0.05  # do not spin on a broken firmware
+                for key, events in selector.select(timeout):
+                    if key.data == "wake":
+                        self._drain_wake()
+                    elif self.port.is_open:
+                        self._on_port_ready(key.fileobj, events)
+                while self._commands and not self._stop:
+                    text, reply = self._commands.popleft()
+                    self._handle_command(text, reply)
+        finally:
+            selector.close()
+        return self._result
+
+    def _watch(self, selector: selectors.BaseSelector, watched: dict[Any, int]) -> dict[Any, int]:
+        """Bring the selector's registrations of the port to what is wanted now."""
+        want = self.port.watches(
+            read=not self.output.full and self.input.room() > 0,
+            write=self.output.wants_write(self.port),
+        )
+        for fileobj in watched.keys() - want.keys():
+            with contextlib.suppress(KeyError, ValueError, OSError):
+                selector.unregister(fileobj)
+        for fileobj, events in want.items():
+            if fileobj not in watched:
+                selector.register(fileobj, events, "port")
+            elif watched[fileobj] != events:
+                selector.modify(fileobj, events, "port")
+        return want
+
+    def _on_port_ready(self, fileobj: Any, events: int) -> None:
+        room = 0 if self.output.full else self.input.room()
+        self._take(self.port.on_ready(fileobj, events, room))
+        if events & selectors.EVENT_WRITE:
+            self.output.write_to(self.port)
+
+    def _take(self, arrival: Arrival) -> None:
+        """Act on what came in through the port: opens first, then the client's bytes."""
+        if not arrival:
+            return
+        now = time.monotonic()
+        if arrival.opened:
+            self.ports_opened += arrival.opened
+            if self.options.reset_on_open and self.sim is not None:
+                self._log("port opened: reset")
+                self.output.discard()
+                self.input.clear()
+                self.sim.firmware.read_output()  # the reset wipes what was not printed yet
+                self._guard(self.sim.firmware.reset)
+        if arrival.closed:
+            self.output.discard()  # on its way to a client that is gone
+        self.input.push(arrival.data, now)
+
+    def _drain_wake(self) -> None:
+        assert self._wake_r is not None
+        with contextlib.suppress(OSError):
+            while self._wake_r.recv(4096):
+                pass
+
+    def _step(self, now: float) -> None:
+        sim = self.sim
+        assert sim is not None
+        for command in self._schedule.due(now - self._start):
+            self._log(f"timed fault: {command.text}")
+            self._apply(command, now)
+            if not self.port.is_open:
+                return
+        self._take(self.port.poll(now))
+        sim.sync(now)
+        sim.feed(self.input.pop(now))
+        self.output.collect(sim.firmware.read_output(), now)
+        self.output.release(now)
+        self.output.write_to(self.port)
+
+    def _timeout(self, now: float) -> float | None:
+        sim = self.sim
+        assert sim is not None
+        times = [
+            t
+            for t in (
+                sim.next_wall_deadline(),
+                self.input.next_time(),
+                self.output.next_time(now),
+                self.port.next_time(),
+            )
+            if t is not None
+        ]
+        due = self._schedule.next_time()
+        if due is not None:
+            times.append(self._start + due)
+        if _MAX_SLEEP_S is not None:
+            times.append(now + _MAX_SLEEP_S)
+        return max(0.0, min(times) - now) if times else None
+
+    # ------------------------------------------------------------------ control channel
+    def _handle_command(self, text: str, reply: Callable[[str], None] | None) -> None:
+        answer = reply or self._on_reply or (lambda line: None)
+        words = text.split()
+        if words and words[0].lower() == "motion-ends":
+            # A query of the server itself (not a fault): the ends of motion, wall clock.
+            if len(words) > 1:
+                answer(f"error {text.strip()}: motion-ends takes no argument")
+                return
+            if self.sim is not None and self.port.is_open:
+                self._guard(self.sim.sync, time.monotonic())
+            answer(" ".join(["ack motion-ends", *(f"{t:.6f}" for t in self.motion_end_walls)]))
+            return
+        try:
+            command = parse_command(text)
+        except FaultSpecError as exc:
+            answer(f"error {text.strip()}: {exc}")
+            return
+        now = time.monotonic()
+        if not self._guard(self._apply, command, now):
+            answer(f"error {command.text}: the firmware model raised (see stderr)")
+            return
+        if self.sim is not None and self.port.is_open:
+            self._guard(self.output.collect, self.sim.firmware.read_output(), now)
+        extra = f" {self.stats_text()}" if command.kind == "stats" else ""
+        answer(f"ack {command.text}{extra}")
+
+    def stats(self) -> dict[str, int]:
+        """The counters answered to the ``stats`` command (see the package docstring)."""
+        flt, link_in, link_out = self._filter, self.input, self.output
+        counters = {
+            "bytes_in": link_in.bytes_in,
+            "lines_in": link_in.lines_in,
+            "status_requests_in": link_in.status_requests_in,
+            "resets_in": link_in.resets_in,
+            "bytes_out": link_out.bytes_out,
+            "oks_seen": flt.oks_seen,
+            "dropped_oks": flt.dropped_oks,
+            "status_lines": flt.status_lines_seen,
+            "corrupted_status": flt.corrupted_status_lines,
+            "ignored_status": flt.ignored_status_requests,
+            "split_writes": link_out.split_writes,
+            "ports_opened": self.ports_opened,
+            "refused_clients": int(getattr(self.port, "refused", 0)),
+            "input_held": link_in.held(),
+            "input_held_max": link_in.held_max,
+            "output_held": link_out.held(),
+            "output_held_max": link_out.held_max,
+        }
+        firmware = self.firmware
+        rx_lost = getattr(firmware, "rx_lost", None)
+        if isinstance(rx_lost, int):
+            counters["rx_lost"] = rx_lost
+        return counters
+
+    def stats_text(self) -> str:
+        """:meth:`stats` as ``name=value`` words."""
+        return " ".join(f"{name}={value}" for name, value in self.stats().items())
+
+    def _apply(self, command: Command, now: float) -> None:
+        sim = self.sim
+        assert sim is not None
+        if self._filter.apply(command) or command.kind == "stats":
+            return
+        if command.kind == "stall":
+            self.output.stall(now + command.value)
+        elif command.kind == "hard-limit":
+            sim.sync(now)
+            sim.firmware.trigger_hard_limit(command.count)
+        elif command.kind == "reset":
+            sim.sync(now)
+            sim.firmware.reset()
+        elif command.kind == "time-scale":
+            sim.set_scale(command.value, now)
+        elif command.kind == "delay":
+            self.output.delay.delay = command.value
+        elif command.kind == "split-bytes":
+            self.output.split = bool(command.count)
+        elif command.kind == "close":
+            self._log("closing the port")
+            self.port.hang_up()
+            self._result = "closed"
+            self._stop = True
