@@ -139,6 +139,9 @@ class Firmware:
                 interrupted = True
         else:
             interrupted = True  # the hard-limit alarm survives the reset
+        if m.pending is not None or m.line_cut_short:
+            m.emit("ok")  # oracle: the line in progress (homing, a dwell, a wait) ends with ok
+        m.line_cut_short = False
         m.planner.abort()
         m.rx.clear()
         m.pending = None

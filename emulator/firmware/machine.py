@@ -64,6 +64,8 @@ class Machine:
         self.hold = False
         self.suspended = False
         self.status_deferred = False
+        self.line_cut_short = False
+        """A hard limit stopped a line in progress: the reset prints its ``ok``."""
         """``?`` arrived during a homing search: answered once when the search ends."""
         self.rezero: Vec7 | None = None
         """After homing's return move: the position to read when the planner is next idle."""
@@ -150,6 +152,7 @@ class Machine:
         self.emit(c.FEEDBACK_RESET_TO_CONTINUE)
         self.planner.abort()
         self.limit_blocks.clear()
+        self.line_cut_short = self.line_cut_short or self.pending is not None
         self.pending = None
         self.hold = False
         self.alarm = True

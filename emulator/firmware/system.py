@@ -231,13 +231,13 @@ class SystemCommands:
         searches = [b for b in blocks if b.kind == "home_search"]
         homed = {*axes, *((motion.RAIL,) if home_rail else ())}
         m.alarm = False
+        m.locked = False  # oracle: even a homing cut short by % leaves the axes unlocked
         if m.profile == "classic":
             m.emit_lines(["", f"Free memory: {FREE_MEMORY}"])
 
         def finish() -> list[str]:
             zero = vec7([0.0 if j in homed else start[j] for j in range(motion.AXES)])
             m.planner.set_position(zero)
-            m.locked = False
             m.parser_init(feed=0.0)
             lines = [status_line(m, state="Home")] if m.status_deferred else []
             m.status_deferred = False

@@ -149,3 +149,16 @@ def test_small_negative_status_numbers_print_minus_zero() -> None:
     (status,) = lines(fw, "?")
     # oracle: ...Cartesian coordinate(XYZ RxRyRz):199.001,3.000,166.975,-0.000,0.003,-0.036,...
     assert ",-0.000,0.003,-0.036," in status
+
+
+def test_a_reset_ends_the_line_in_progress_with_ok() -> None:
+    # oracle: 'M21 G90 X100 F2000', 'M21 G90 X50', 'G4 P5' then % -> 'ALARM: Abort during
+    # cycle', 'ok' (the waiting G4), the banner; after a hard limit the waiting line's ok too
+    fw = unlocked()
+    lines(fw, "M21 G90 X100 F2000\nM21 G90 X50\nG4 P5\n", 1.0)
+    assert lines(fw, "%")[:3] == ["ALARM: Abort during cycle", "ok", ""]
+    fw = unlocked()
+    lines(fw, "$20=0\nM21 G90 X165 F2000\n")
+    out = lines(fw, "G4 P0\n", math.inf)
+    assert out == ["00010000ALARM: Hard limit", "[Reset to continue]"]
+    assert lines(fw, "%")[:2] == ["ok", ""]
