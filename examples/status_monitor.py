@@ -6,8 +6,9 @@ Usage::
     python examples/status_monitor.py /dev/ttyUSB0    # a real arm (nothing moves)
     python examples/status_monitor.py /dev/ttyUSB0 50 # stop after 50 samples
 
-Against the embedded virtual Mirobot it stops after 15 samples, and meanwhile another task homes
-it and swings joint 1 so that there is something to watch.
+Against the embedded virtual Mirobot it stops after 15 samples: it is homed first (the firmware
+answers no status request while its homing switches are searched), then another task swings
+joints 1 and 2 so that there is something to watch.
 """
 
 import asyncio
@@ -19,7 +20,6 @@ from mirobot_async.testing import start_emulator
 
 
 async def something_to_watch(arm: Mirobot) -> None:
-    await arm.home()
     await arm.move_joints(j1=60, j2=20, speed=2000)
 
 
@@ -31,6 +31,8 @@ async def main(port: str | None, samples: int | None) -> None:
             print(f"no port given: using an embedded virtual Mirobot on {port}")
             samples = samples or 15
         arm = await stack.enter_async_context(Mirobot.connect(port))
+        if embedded:
+            await arm.home()
         demo = asyncio.create_task(something_to_watch(arm)) if embedded else None
 
         count = 0
