@@ -40,7 +40,12 @@ from mirobot_async.cli.session import (
     time_scale_of,
 )
 from mirobot_async.cli.targets import JOINT_KEYS, POSE_KEYS, parse_assignments
-from mirobot_async.errors import MirobotAlarmError, MirobotCommandError, MirobotError
+from mirobot_async.errors import (
+    MirobotAlarmError,
+    MirobotCommandError,
+    MirobotError,
+    MirobotTimeoutError,
+)
 from mirobot_async.line import normalize_line
 from mirobot_async.plotting import TraceError, TraceWriter
 from mirobot_async.replies import State
@@ -101,18 +106,27 @@ async def cmd_status(args: argparse.Namespace) -> int:
 
 
 async def cmd_monitor(args: argparse.Namespace) -> int:
-    """``mirobot monitor``: status samples until Ctrl-C (or ``--samples N``)."""
+    """``mirobot monitor``: status samples until Ctrl-C (or ``--samples N``).
+
+    An arm that does not answer for a while (the firmware answers no ``?`` while it searches its
+    homing switches) is waited for, with a note on stderr; a lost link ends the command.
+    """
     with open_trace(args.csv, append=True, time_scale=time_scale_of(args)) as trace:
         try:
             with LiveView(sys.stdout) as view:
-                async with open_robot(args) as arm, sampling(arm, args.interval) as statuses:
-                    async for report in statuses:
-                        when = datetime.datetime.now().astimezone()
-                        view.show(report, when)
-                        if trace is not None:
-                            trace.write(report, when)
-                        if args.samples is not None and view.samples >= args.samples:
-                            break
+                async with open_robot(args) as arm:
+                    while args.samples is None or view.samples < args.samples:
+                        try:
+                            async with sampling(arm, args.interval) as statuses:
+                                async for report in statuses:
+                                    when = datetime.datetime.now().astimezone()
+                                    view.show(report, when)
+                                    if trace is not None:
+                                        trace.write(report, when)
+                                    if args.samples is not None and view.samples >= args.samples:
+                                        break
+                        except MirobotTimeoutError as err:
+                            note(f"{err}; still waiting (is the arm homing?)")
         finally:
             if trace is not None and trace.rows:
                 note(f"{trace.rows} samples written to {trace.path}")

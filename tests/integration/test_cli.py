@@ -522,6 +522,27 @@ def test_monitor_samples_to_csv_on_a_port(port: str, tmp_path: Path) -> None:
     assert len(rows) == 1 + 3 + 2  # appended, one header
 
 
+def test_monitor_waits_for_an_arm_that_stops_answering(tmp_path: Path) -> None:
+    """The firmware answers no ``?`` while it searches its homing switches: monitor waits."""
+    trace = tmp_path / "m.csv"
+    with SyncEmulatorProcess(time_scale=0) as emulator:
+        proc = spawn("monitor", "--port", emulator.url, "--interval", "0.05", "--csv", str(trace))
+        try:
+            wait_for(lambda: trace.exists() and len(read_csv(trace)) >= 3, 20, "two samples")
+            emulator.control("stall 2.5")  # longer than the client's status timeout (2 s)
+            stalled_at = len(read_csv(trace))
+            wait_for(lambda: len(read_csv(trace)) >= stalled_at + 3, 20, "samples after the stall")
+            proc.send_signal(signal.SIGINT)
+            _, err = proc.communicate(timeout=20)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.communicate()
+    assert proc.returncode == 0, err
+    assert "still waiting (is the arm homing?)" in err, err
+    assert "Traceback" not in err and "error" not in err, err
+
+
 def test_monitor_stops_cleanly_on_sigint(tmp_path: Path) -> None:
     trace = tmp_path / "m.csv"
     proc = spawn("monitor", "--interval", "0.05", "--csv", str(trace), *FAST)
