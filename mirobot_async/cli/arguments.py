@@ -197,11 +197,15 @@ def build_parser() -> argparse.ArgumentParser:
     )
     monitor.add_argument("--samples", type=_positive_int, metavar="N", help="stop after N samples")
 
-    home = add("home", commands.cmd_home, "run the homing cycle ($H)")
+    home = add(
+        "home",
+        commands.cmd_home,
+        "run the homing cycle ($H); Ctrl-C stops it with a soft reset (%%), the only thing "
+        "that stops homing",
+    )
     home.add_argument(
         "--sequential", action="store_true", help="home the axes one after another ($HH)"
     )
-    _add_interrupt_option(home)
     add("unlock", commands.cmd_unlock, "unlock the axes without homing (clears an alarm)")
     add("reset", commands.cmd_reset, "soft-reset the controller (the arm is locked afterwards)")
 

@@ -30,6 +30,7 @@ from mirobot_async.cli.rendering import (
     progress_bar,
 )
 from mirobot_async.cli.session import (
+    HOMING_INTERRUPT,
     background_jobs,
     firmware_of,
     open_robot,
@@ -136,7 +137,7 @@ async def cmd_monitor(args: argparse.Namespace) -> int:
 async def cmd_home(args: argparse.Namespace) -> int:
     """``mirobot home [--sequential]``."""
     async with open_robot(args) as arm:
-        async with stop_safely(arm, args.on_interrupt):
+        async with stop_safely(arm, HOMING_INTERRUPT):
             await arm.home(sequential=args.sequential)
         await _show_final_status(arm)
     return EXIT_OK
@@ -192,8 +193,7 @@ async def cmd_move_joints(args: argparse.Namespace) -> int:
     """``mirobot move joints j1=.. [--relative] [--speed]``."""
     targets = joint_targets(args)
     async with open_robot(args) as arm:
-        async with stop_safely(arm, args.on_interrupt):  # homing moves the arm
-            await prepare(arm, args)
+        await prepare(arm, args)
         await preflight(arm)
         async with stop_safely(arm, args.on_interrupt):
             await arm.move_joints(
@@ -207,8 +207,7 @@ async def cmd_move_pose(args: argparse.Namespace) -> int:
     """``mirobot move pose x=.. [--linear] [--relative] [--speed]``."""
     targets = pose_targets(args)
     async with open_robot(args) as arm:
-        async with stop_safely(arm, args.on_interrupt):  # homing moves the arm
-            await prepare(arm, args)
+        await prepare(arm, args)
         await preflight(arm)
         async with stop_safely(arm, args.on_interrupt):
             await arm.move_pose(
@@ -269,8 +268,7 @@ async def cmd_run(args: argparse.Namespace) -> int:
         async with open_robot(args) as arm:
             if not args.no_check:
                 await _check_before_running(arm, args, name, program)
-            async with stop_safely(arm, args.on_interrupt):  # homing moves the arm
-                await prepare(arm, args)
+            await prepare(arm, args)
             before = await preflight(arm)
             if trace is not None:
                 trace.write(before)  # the start of the path, before the first move

@@ -31,6 +31,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "DEFAULT_TIME_SCALE",
+    "HOMING_INTERRUPT",
     "LOCKED_MESSAGE",
     "STOP_WAIT",
     "Interrupts",
@@ -53,6 +54,9 @@ STOP_WAIT: Final = 2.0
 banner after ``--on-interrupt reset``) before it gives up and exits anyway."""
 STILL_GAP: Final = 0.02
 """Two status reports this far apart (wall seconds) with the same joints: the arm stands still."""
+HOMING_INTERRUPT: Final = "reset"
+"""How an interrupted homing cycle is stopped: GRBL 0.9 checks only for a soft reset while it
+homes (a feed hold would be ignored and the arm would go on homing)."""
 LOCKED_MESSAGE: Final = "the arm is locked: run `mirobot home` or pass --home"
 HELD_MESSAGE: Final = (
     "the arm is in Hold with moves still queued: `mirobot reset` clears them "
@@ -144,7 +148,9 @@ async def sampling(arm: Mirobot, interval: float) -> AsyncIterator[AsyncIterator
 
 
 async def prepare(arm: Mirobot, args: argparse.Namespace) -> None:
-    """Home or unlock before starting, as ``--home`` / ``--unlock`` / ``--no-home`` say."""
+    """Home or unlock before starting, as ``--home`` / ``--unlock`` / ``--no-home`` say.
+
+    Homing is stopped safely with a soft reset (:data:`HOMING_INTERRUPT`)."""
     mode = args.prepare
     if mode is None:
         mode = "none" if args.port is not None else args.embedded_prepare
@@ -153,7 +159,8 @@ async def prepare(arm: Mirobot, args: argparse.Namespace) -> None:
         elif mode == "unlock":
             note("unlocking the virtual Mirobot first (--as-is to skip)")
     if mode == "home":
-        await arm.home()
+        async with stop_safely(arm, HOMING_INTERRUPT):
+            await arm.home()
     elif mode == "unlock":
         await arm.unlock()
 

@@ -144,6 +144,30 @@ def test_a_signal_stops_the_moving_arm_at_once(
     assert any("accepted by the arm" in line or "not sent" in line for line in lines), err
 
 
+def test_ctrl_c_while_homing_stops_it_with_a_soft_reset() -> None:
+    """GRBL checks only for a soft reset while it homes: Ctrl-C sends % (not !) there."""
+    with SyncEmulatorProcess(time_scale=1) as emulator:  # homing takes seconds at this speed
+        before = stats(emulator)
+        proc = spawn("home", "--port", emulator.url)
+        try:
+            wait_for(lambda: stats(emulator)["lines_in"] > before["lines_in"], 20, "$H")
+            sent = stats(emulator)
+            proc.send_signal(signal.SIGINT)
+            took = wait_for(lambda: realtime_bytes(sent, stats(emulator), "reset") >= 1, 5, "the %")
+            _, err = proc.communicate(timeout=20)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.communicate()
+        assert took < STOP_WITHIN, f"% reached the arm {took:.3f} s after the signal"
+        assert proc.returncode == 130, err
+        assert realtime_bytes(sent, stats(emulator), "hold") == 0  # no feed hold at all
+        reports = statuses_over_the_port(emulator.url, 3, 0.1)
+    assert "soft reset sent (%)" in err, err
+    assert {report.state for report in reports} <= {State.ALARM, State.IDLE}  # not Home
+    assert len({report.joints for report in reports}) == 1  # no further motion
+
+
 def test_a_held_arm_is_refused_by_the_pre_flight_check() -> None:
     with SyncEmulatorProcess(time_scale=1) as emulator:
         program = ["M21 G90", "G0 X100"]

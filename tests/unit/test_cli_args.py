@@ -621,7 +621,9 @@ def test_version_and_offline_commands_show_no_robot_flags(
         assert "usage: mirobot " + command in text
         for flag in ("--port", "--time-scale", "--verbose", "--on-interrupt", "--home"):
             assert flag not in text, (command, flag)
-    for argv in (["run"], ["move", "joints"], ["move", "pose"], ["home"], ["gripper"]):
+    for argv in (["run"], ["move", "joints"], ["move", "pose"], ["gripper"]):
         text = help_of(*argv)
         assert "--port" in text and "--on-interrupt {hold,reset}" in text, argv
     assert "--on-interrupt" not in help_of("status")  # it does not move the arm
+    home = help_of("home")  # feed hold does not stop a homing cycle: always a soft reset
+    assert "--on-interrupt" not in home and "soft reset" in " ".join(home.split())
