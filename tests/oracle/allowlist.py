@@ -28,7 +28,8 @@ class FieldText:
 ALLOWED: tuple[FieldText, ...] = (
     FieldText(
         field=b"Qinnew Robot 20191228_2 based on Grbl 0.9j ['$' for help]\r\n",
-        oracle=b"Wlkata Robot 20191228_2 based on Grbl 0.9j--Modified by Thor Zhou ['$' for help]\r\n",
+        oracle=b"Wlkata Robot 20191228_2 based on Grbl 0.9j--Modified by Thor Zhou "
+        b"['$' for help]\r\n",
         cite="vectors.json banner_classic[3] (power-on banner of a shipped classic binary)",
     ),
     FieldText(

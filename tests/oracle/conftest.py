@@ -4,7 +4,7 @@ mark the currently known differences strict-xfail, and give each test a fresh pa
 from __future__ import annotations
 
 import os
-from collections.abc import Iterator
+from collections.abc import Generator, Iterator
 from pathlib import Path
 
 import pytest
@@ -29,6 +29,25 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         reason = KNOWN_DIFFERENCES.get(f"{item.path.stem}::{item.name}")
         if reason:
             item.add_marker(pytest.mark.xfail(strict=True, reason=reason))
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(
+    item: pytest.Item, call: pytest.CallInfo[None]
+) -> Generator[None, pytest.TestReport, pytest.TestReport]:
+    """With ``MIROBOT_ORACLE_REPORT=FILE``, append every difference found (failed or xfailed
+    test) to FILE as a markdown section: the raw material of the differences list."""
+    report: pytest.TestReport = yield
+    target = os.environ.get("MIROBOT_ORACLE_REPORT")
+    if target and call.when == "call" and call.excinfo is not None and item.path.parent == HERE:
+        known = KNOWN_DIFFERENCES.get(f"{item.path.stem}::{item.name}")
+        text = f"### {item.path.stem}::{item.name}\n"
+        if known:
+            text += f"(known: {known})\n"
+        text += "```\n" + str(call.excinfo.value).strip() + "\n```\n\n"
+        with open(target, "a", encoding="utf-8") as out:
+            out.write(text)
+    return report
 
 
 @pytest.fixture

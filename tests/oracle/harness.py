@@ -35,12 +35,8 @@ REPO = Path(__file__).resolve().parents[2]
 ORACLE_SOURCE = Path(
     os.environ.get("MIROBOT_ORACLE_SOURCE", str(REPO.parent / "shared" / "firmware-oracle"))
 )
-ORACLE_BUILD = Path(
-    os.environ.get(
-        "MIROBOT_ORACLE_DIR",
-        str(Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "mirobot-firmware-oracle"),
-    )
-)
+_CACHE = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache"))
+ORACLE_BUILD = Path(os.environ.get("MIROBOT_ORACLE_DIR", str(_CACHE / "mirobot-firmware-oracle")))
 BUILD_FILES = ("fwsim", "grbl.elf", "eeprom.bin", "sys_addr")
 ENABLE_HINT = (
     "firmware oracle not built: run ../shared/firmware-oracle/build.sh "
@@ -131,7 +127,9 @@ class Device:
         assert self.proc.stdout is not None
         path = self._stdout_line(START_TIMEOUT)
         if not path.startswith("/"):
-            raise RuntimeError(f"{self.name}: no pty path on stdout ({path!r}); see {self.stderr_path}")
+            raise RuntimeError(
+                f"{self.name}: no pty path on stdout ({path!r}); see {self.stderr_path}"
+            )
         self.fd = os.open(path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
         tty.setraw(self.fd, termios.TCSANOW)  # TCSANOW: no flush, the banner stays readable
         if not self.read_until(lambda d: BANNER_END in d, START_TIMEOUT):
@@ -280,8 +278,13 @@ class Pair:
     banner: Exchange | None = None
 
     @classmethod
-    def spawn(cls, workdir: Path, oracle_flags: Sequence[str] = (), our_flags: Sequence[str] = (),
-              time_scale: float = EMULATOR_TIME_SCALE) -> Pair:
+    def spawn(
+        cls,
+        workdir: Path,
+        oracle_flags: Sequence[str] = (),
+        our_flags: Sequence[str] = (),
+        time_scale: float = EMULATOR_TIME_SCALE,
+    ) -> Pair:
         """Start both processes (without waiting); :meth:`connect` powers them on."""
         workdir.mkdir(parents=True, exist_ok=True)
         oracle = spawn_oracle(workdir, *oracle_flags)
@@ -308,8 +311,15 @@ class Pair:
             device.close()
 
     # --------------------------------------------------------------- sending
-    def send(self, data: bytes | str, until: Until | None = None, *, moving: bool = False,
-             timeout: float = 20.0, note: str = "") -> Exchange:
+    def send(
+        self,
+        data: bytes | str,
+        until: Until | None = None,
+        *,
+        moving: bool = False,
+        timeout: float = 20.0,
+        note: str = "",
+    ) -> Exchange:
         """Send ``data`` to both; read until ``until`` (default: one ok/error per line end)."""
         raw = data.encode() if isinstance(data, str) else data
         until = until or Until(terminals=line_ends(raw))
@@ -322,7 +332,7 @@ class Pair:
                 f"it said {self.oracle.pending()!r}"
             )
         spent = time.monotonic() - start
-        self.ours.read_until(until.met, 2.0 + 2 * spent)
+        self.ours.read_until(until.met, 4.0 + 2 * spent)
         if until.quiet:
             self.oracle.read_quiet(until.quiet)
             self.ours.read_quiet(until.quiet)
@@ -351,33 +361,16 @@ class Pair:
 
     def stream(self, lines: Sequence[str], window: int = 127, timeout: float = 60.0) -> Exchange:
         """Character-counting streaming of ``lines`` to both at once (at most ``window`` bytes
-        unacknowledged per side), until every line is answered."""
+        unacknowledged per side), until every line is answered or ``timeout`` wall seconds."""
         payloads = [(line + "\n").encode() for line in lines]
-        state = {d.name: [0, 0, [], 0] for d in (self.oracle, self.ours)}  # next, seen, sizes, base
+        senders = [_Streamer(d, payloads, window) for d in (self.oracle, self.ours)]
         deadline = time.monotonic() + timeout
-        devices = (self.oracle, self.ours)
-        for d in devices:
-            state[d.name][3] = len(d.received)
-        while time.monotonic() < deadline:
-            busy = False
-            for d in devices:
-                nxt, seen, sizes, base = state[d.name]
-                done = sum(map(is_terminal, lines_of(bytes(d.received[base:]))))
-                while len(sizes) > 0 and seen < done:
-                    sizes.pop(0)
-                    seen += 1
-                while nxt < len(payloads) and sum(sizes) + len(payloads[nxt]) <= window:
-                    d.write(payloads[nxt])
-                    sizes.append(len(payloads[nxt]))
-                    nxt += 1
-                state[d.name][:3] = [nxt, seen, sizes]
-                if seen < len(payloads):
-                    busy = True
-                    d.pump(0.002)
-            if not busy:
-                break
-        raw = b"".join(payloads)
-        exchange = Exchange(raw, self.oracle.take(), self.ours.take(), note="streamed")
+        while time.monotonic() < deadline and not all(s.done() for s in senders):
+            for sender in senders:
+                sender.step()
+        exchange = Exchange(
+            b"".join(payloads), self.oracle.take(), self.ours.take(), note="streamed"
+        )
         self.exchanges.append(exchange)
         return exchange
 
@@ -392,7 +385,8 @@ class Pair:
             if oracle != ours:
                 what = f"{ex.note}: " if ex.note else ""
                 out.append(
-                    f"#{i} {what}sent {_short(ex.sent)}\n    oracle: {oracle!r}\n    ours:   {ours!r}"
+                    f"#{i} {what}sent {_short(ex.sent)}\n"
+                    f"    oracle: {oracle!r}\n    ours:   {ours!r}"
                 )
         return out
 
@@ -402,6 +396,35 @@ class Pair:
         diffs = self.differences()
         if diffs:
             raise AssertionError("oracle and emulator differ:\n" + "\n".join(diffs))
+
+
+class _Streamer:
+    """One side of :meth:`Pair.stream`: keeps at most ``window`` unacknowledged bytes."""
+
+    def __init__(self, device: Device, payloads: list[bytes], window: int) -> None:
+        self.device, self.payloads, self.window = device, payloads, window
+        self.base = len(device.received)
+        self.next = 0
+        self.in_flight: list[int] = []
+        self.answered = 0
+
+    def done(self) -> bool:
+        return self.answered >= len(self.payloads)
+
+    def step(self) -> None:
+        replies = lines_of(bytes(self.device.received[self.base :]))
+        answered = sum(map(is_terminal, replies))
+        while self.in_flight and self.answered < answered:
+            self.in_flight.pop(0)
+            self.answered += 1
+        while self.next < len(self.payloads) and (
+            sum(self.in_flight) + len(self.payloads[self.next]) <= self.window
+        ):
+            self.device.write(self.payloads[self.next])
+            self.in_flight.append(len(self.payloads[self.next]))
+            self.next += 1
+        if not self.done():
+            self.device.pump(0.002)
 
 
 def _short(data: bytes, limit: int = 300) -> str:

@@ -1,11 +1,39 @@
 """Differences between our emulator and the oracle that are known and not yet fixed.
 
-Key: ``<test module>::<test name>``; value: the exact difference. Each listed test is marked
-``xfail(strict=True)``, so when a fix lands the test passes, strict xfail turns that into a
-failure, and the entry must be removed here. Never list texts of field binaries here (those are
-:mod:`tests.oracle.allowlist`), and never weaken a comparison instead of listing it.
+Key: ``<test module>::<test name>``; value: the exact difference (oracle first, then ours). Each
+listed test is marked ``xfail(strict=True)``: when a fix lands the test passes, strict xfail
+turns that into a failure, and the entry must be removed here. Never list texts of field
+binaries here (those are :mod:`tests.oracle.allowlist`), and never weaken a comparison instead
+of listing it. The full transcripts: run with ``MIROBOT_ORACLE_REPORT=FILE``.
 """
 
 from __future__ import annotations
 
-KNOWN_DIFFERENCES: dict[str, str] = {}
+_HOMING_RUN = (
+    "after the homing ok the oracle spends ~2 s in Run (its return-to-zero move) before Idle: "
+    "`?` right after the ok answers <Run,...> on the oracle, <Idle,...> on ours"
+)
+
+KNOWN_DIFFERENCES: dict[str, str] = {
+    "test_diff_homing::test_homing_phases[$H]": _HOMING_RUN,
+    "test_diff_homing::test_homing_phases[$HH]": _HOMING_RUN,
+    "test_diff_homing::test_homing_phases[$H1]": _HOMING_RUN,
+    "test_diff_motion::test_hard_limit": (
+        "J1 driven to 165 with $20=0: the oracle stops at 160.515 (harness switch just past 160, "
+        "then the deceleration), ours at 160.004; and on % the oracle first prints the 'ok' of "
+        "the G4 P0 pending since the alarm, ours does not"
+    ),
+    "test_diff_stream::test_stream_fills_planner": (
+        "forward kinematics rounding: at J1=1.992 J2=0.997 the oracle prints X 203.644, ours "
+        "203.643 (last digit; the firmware's float32 arithmetic)"
+    ),
+    "test_diff_fuzz::test_random_lines": (
+        "status pose: the oracle prints a negative zero '-0.000' for Rx/Rz after Cartesian moves "
+        "(ours '0.000'), and its float32 forward kinematics differs in the last digit "
+        "(Z 166.975 vs ours 166.976)"
+    ),
+    "test_diff_timing::test_program_time[cart-g1-200-segments]": (
+        "200 short M20 G1 segments: oracle 10.14 s simulated, ours 8.5-9.0 s (-11..-16 %; "
+        "allowed 2 %)"
+    ),
+}

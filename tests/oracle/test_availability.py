@@ -1,12 +1,11 @@
 """Is the firmware oracle there? Without it the differential tests are not collected, and this
-is the one line that says how to enable them (a failure with MIROBOT_REQUIRE_ORACLE=1, for CI)."""
+is the one skip line that says how to enable them (a failure with MIROBOT_REQUIRE_ORACLE=1)."""
 
 from __future__ import annotations
 
 import pytest
 
 from .conftest import MISSING, REQUIRE
-from .known import KNOWN_DIFFERENCES
 
 
 def test_oracle_available() -> None:
@@ -14,17 +13,3 @@ def test_oracle_available() -> None:
         if REQUIRE:
             pytest.fail(f"MIROBOT_REQUIRE_ORACLE is set but the {MISSING}")
         pytest.skip(MISSING)
-
-
-def test_known_differences_name_real_tests(request: pytest.FixtureRequest) -> None:
-    """Every KNOWN_DIFFERENCES key names a collected test, so a renamed test cannot silently
-    keep a stale entry."""
-    if MISSING:
-        pytest.skip(MISSING)
-    session = request.session
-    names = {f"{item.path.stem}::{item.name}" for item in session.items}
-    if not any(name.startswith("test_diff_") for name in names):
-        pytest.skip("run together with the test_diff_* modules to check the entries")
-    stale = sorted(key for key in KNOWN_DIFFERENCES if key.split("::")[0] in
-                   {n.split("::")[0] for n in names} and key not in names)
-    assert not stale, f"KNOWN_DIFFERENCES entries naming no test: {stale}"

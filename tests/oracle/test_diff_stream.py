@@ -22,11 +22,13 @@ def test_feed_hold_and_resume(pair: Pair) -> None:
 
 
 def test_reset_during_motion(pair: Pair) -> None:
+    """Where the abort stops the arm depends on the instant: statuses before the final one are
+    compared by format."""
     pair.lines("M50", LONG_MOVE)
     pair.status(moving=True)
     pair.reset()
-    pair.status()
-    pair.lines("M21 G90 X0 F2000", "$X", "M21 G90 X0 F2000")
+    pair.status(moving=True)
+    pair.lines("M21 G90 X0 Y0 Z0 A0 B0 C0 F2000", "$X", "M21 G90 X0 Y0 Z0 A0 B0 C0 F2000")
     pair.settle()
     pair.status()
     pair.check()
@@ -97,9 +99,10 @@ def test_burst_fills_receive_buffer(pair: Pair) -> None:
 
 
 def test_stream_fills_planner(pair: Pair) -> None:
-    """40 joint moves streamed with character counting: every line answered, same end."""
+    """30 short joint moves streamed with character counting (more than the planner holds):
+    every line answered, same end."""
     pair.lines("M50")
-    pair.stream([f"M21 G90 X{(i % 5) * 2} Y{(i % 3) * 2} F2000" for i in range(40)])
+    pair.stream([f"M21 G90 X{i % 3} Y{i % 2} F2000" for i in range(30)])
     pair.settle()
     pair.status()
     pair.check()

@@ -25,8 +25,7 @@ def circle(n: int, radius: float = 20.0) -> list[str]:
     out = ["M20 G90 G1 X202 Y0 Z160 A0 B0 C0 F2000"]
     for i in range(1, n + 1):
         a = 2 * math.pi * i / n
-        out.append(f"M20 G90 G1 X{182 + radius * math.cos(a):.3f} Y{radius * math.sin(a):.3f}"
-                   " Z160")
+        out.append(f"M20 G90 G1 X{182 + radius * math.cos(a):.3f} Y{radius * math.sin(a):.3f} Z160")
     return out
 
 
@@ -36,8 +35,7 @@ PROGRAMS: dict[str, tuple[list[str], float, float, float]] = {
     # simulated; long programs faster (the tolerance is then 100 ms or more).
     "joint-single": (["M21 G90 X30 F2000"], 0.01, 0.010, 2.0),
     "joint-six-axes": (["M21 G90 X10 Y-10 Z15 A-20 B-25 C30 F2000"], 0.01, 0.010, 2.0),
-    "joint-short-segments": (
-        [f"M21 G90 X{i * 0.5:g} F2000" for i in range(1, 61)], 0.02, 0.0, 4.0),
+    "joint-short-segments": ([f"M21 G90 X{i * 0.5:g} F2000" for i in range(1, 61)], 0.02, 0.0, 4.0),
     "cart-g0": (["M20 G90 G0 X180 Y20 Z120 A0 B0 C0 F2000"], 0.02, 0.0, 2.0),
     "cart-g1": (["M20 G90 G1 X180 Y20 Z120 A0 B0 C0 F2000"], 0.02, 0.0, 2.0),
     "cart-g1-200-segments": (circle(200), 0.02, 0.0, 8.0),
