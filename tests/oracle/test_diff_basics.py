@@ -35,6 +35,16 @@ def test_check_mode(pair: Pair) -> None:
     pair.check()
 
 
+def test_startup_lines(pair: Pair) -> None:
+    """``$N0=`` / ``$N1=`` store lines run at every reset; ``$N`` lists them."""
+    pair.lines("$N0=G91", "$N1=M3 S100", "$N")
+    pair.reset()
+    pair.send("$G\n")
+    pair.status()
+    pair.lines("$N0=", "$N1=", "$N")
+    pair.check()
+
+
 SETTINGS: dict[str, list[str]] = {
     "stepper": ["$0=20", "$1=25", "$2=3", "$3=7", "$4=1", "$5=1", "$6=1"],
     "report": ["$10=3", "$11=0.020", "$12=0.005", "$13=1"],
