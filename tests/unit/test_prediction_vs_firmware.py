@@ -22,8 +22,10 @@ from mirobot_async.prediction import MachineState, Prediction, predict
 
 Firmware = pytest.importorskip("mirobot_emulator.firmware").Firmware
 
-BOX = {"x": (120.0, 300.0), "y": (-160.0, 160.0), "z": (110.0, 320.0)}
-ENVELOPE = Envelope(**BOX)
+BOX = {"x": (100.0, 300.0), "y": (-160.0, 160.0), "z": (150.0, 320.0)}
+TOOL = (0.0, 60.0, 0.0)
+"""A tool sticking out sideways: a wrist snap swings it through a wide arc."""
+ENVELOPE = Envelope(**BOX, tool=TOOL)
 STEP = 0.05
 """Joint tolerance (deg): whole motor steps (about 0.01 deg) plus the emulator's rounding."""
 BOX_SLACK = 1.5
@@ -44,7 +46,11 @@ def _number(value: float) -> st.SearchStrategy[str]:
 
 @st.composite
 def lines(draw: st.DrawFn) -> str:
-    kind = draw(st.sampled_from(["joint", "cart", "cart", "setting", "modal"]))
+    kind = draw(st.sampled_from(["joint", "cart", "cart", "setting", "modal", "flip"]))
+    if kind == "flip":  # a legal joint move that leaves the wrist off the firmware's IK branch
+        a = draw(st.sampled_from([30, 60, 90, -45]))
+        b = draw(st.sampled_from([-100, -130, -160]))
+        return f"M21 G90 G0 G21 X10 Y10 Z10 A{a} B{b} C{draw(st.sampled_from([0, 45, -90]))}"
     if kind == "setting":
         number = draw(st.sampled_from([41, 42, 43, 130, 46, 49]))
         value = draw(st.sampled_from([-20.0, 0.0, 5.0, 15.0, 30.0]))
@@ -70,6 +76,8 @@ def lines(draw: st.DrawFn) -> str:
             value = draw(st.floats(-40, 40))
         elif letter in "XYZ" and draw(st.booleans()):
             value = {"X": 200.0, "Y": 0.0, "Z": 220.0}[letter] + draw(st.floats(-80, 80))
+        elif letter in "XYZ":
+            value = draw(st.sampled_from([1.0, -2.0, 5.0]))  # a short relative step
         else:
             value = draw(st.floats(-30, 30))
         words.append(letter + draw(_number(round(value, 3))))
@@ -85,7 +93,8 @@ def _run(fw: object, line: str, box_check: bool) -> list[str]:
         fw.advance(0.02)  # type: ignore[attr-defined]
         out += fw.read_output().decode("latin-1").split("\r\n")  # type: ignore[attr-defined]
         if box_check:
-            x, y, z = forward(tuple(fw.joints[:6]), ENVELOPE.dh)[:3]  # type: ignore[attr-defined]
+            q = tuple(fw.joints[:6])  # type: ignore[attr-defined]
+            x, y, z = forward(q, ENVELOPE.dh, TOOL)[:3]
             for (lo, hi), v, name in zip(BOX.values(), (x, y, z), "xyz", strict=True):
                 assert lo - BOX_SLACK <= v <= hi + BOX_SLACK, (line, name, v)
         done = any(r == "ok" or r.startswith(("error", "Error")) for r in out)
@@ -96,6 +105,7 @@ def _run(fw: object, line: str, box_check: bool) -> list[str]:
 
 def _boot() -> tuple[object, MachineState]:
     fw = Firmware("2021", homing_seconds=0.0)
+    fw.settings[47] = TOOL[1]  # the arm's tool offset is the envelope's
     fw.read_output()
     fw.receive(b"$H\n")
     for _ in range(1000):
@@ -116,7 +126,7 @@ def _boot() -> tuple[object, MachineState]:
 
 
 @settings(
-    max_examples=60,
+    max_examples=80,
     deadline=None,
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
 )
