@@ -59,6 +59,7 @@ __all__ = [
     "StatusCorrupted",
     "StatusReceived",
     "UnsolicitedText",
+    "encode_line",
 ]
 
 
@@ -182,10 +183,61 @@ Event = (
 
 # Bytes that a command line may not contain: line ends (a line is one line) and the realtime bytes,
 # which the firmware takes out of the stream wherever they are (PROTOCOL.md section 3).
-_FORBIDDEN_RE = re.compile(rb"[\r\n?!~%]")
+_FORBIDDEN_TEXT_RE = re.compile(r"[\r\n?!~%]")
 _LINE_END_RE = re.compile(rb"[\r\n]")
 _OK = b"ok"
 _STATUS_START = 0x3C  # "<"
+
+
+_REALTIME_HINTS = {"?": "use status()", "!": "use hold()", "~": "use resume()", "%": "use reset()"}
+
+
+def encode_line(line: object, rx_buffer_size: int = 128, *, strip: bool = True) -> bytes:
+    """One command line as the bytes to send (without its line end); the only check of a line's
+    bytes before it is written.
+
+    Accepts ``str``, ``bytes`` or ``bytearray`` of ASCII text; one trailing line end (``"\\n"``,
+    and with ``strip`` also ``"\\r\\n"`` and surrounding blanks) is removed. Raises
+    :class:`MirobotUsageError` for another type, non-ASCII text, a line break inside, a realtime
+    byte (``? ! ~ %``, which the firmware would act on at once), or a line that with its line end
+    is longer than the robot's ``rx_buffer_size``-byte receive buffer.
+    """
+    if isinstance(line, bytes | bytearray):
+        try:
+            text = bytes(line).decode("ascii")
+        except UnicodeDecodeError as err:
+            raise MirobotUsageError(f"line={bytes(line)!r} is not ASCII") from err
+    elif isinstance(line, str):
+        text = line
+    else:
+        raise MirobotUsageError(f"line={line!r} must be str or bytes, not {type(line).__name__}")
+    if not text.isascii():
+        raise MirobotUsageError(f"line={text!r} is not ASCII")
+    if strip:
+        text = text.strip(" \t")
+        if text.endswith("\r\n"):
+            text = text[:-2]
+        elif text.endswith("\n"):
+            text = text[:-1]
+        text = text.strip(" \t")
+    elif text.endswith("\n"):
+        text = text[:-1]
+    bad = _FORBIDDEN_TEXT_RE.search(text)
+    if bad is not None:
+        char = bad.group()
+        if char in "\r\n":
+            raise MirobotUsageError(f"line={text!r} contains a line break: send one line")
+        raise MirobotUsageError(
+            f"line={text!r} contains the realtime byte {char!r}, which the firmware would "
+            f"act on at once ({_REALTIME_HINTS[char]})"
+        )
+    data = text.encode("ascii")
+    if len(data) + 1 > rx_buffer_size:
+        raise MirobotUsageError(
+            f"line={text!r} is {len(data) + 1} bytes with its line end, more than the "
+            f"robot's {rx_buffer_size}-byte receive buffer"
+        )
+    return data
 
 
 class MirobotConnection:
@@ -297,28 +349,8 @@ class MirobotConnection:
         :meth:`fits` and waits for acknowledgements (character counting is the caller's pacing).
         The line must be written right after this call, before any further ``receive_data``.
         """
-        if isinstance(line, str):
-            if not line.isascii():
-                raise MirobotUsageError(f"command line is not ASCII: {line!r}")
-            data = line.encode("ascii")
-        elif isinstance(line, bytes | bytearray):
-            data = bytes(line)
-            if not data.isascii():
-                raise MirobotUsageError(f"command line is not ASCII: {data!r}")
-        else:
-            raise MirobotUsageError(f"command line must be str or bytes, not {type(line).__name__}")
-        if data.endswith(b"\n"):
-            data = data[:-1]
-        bad = _FORBIDDEN_RE.search(data)
-        if bad is not None:
-            what = "a line end" if bad.group() in b"\r\n" else f"the realtime byte {bad.group()!r}"
-            raise MirobotUsageError(f"command line contains {what}: {data!r}")
+        data = encode_line(line, self.rx_buffer_size, strip=False)
         wire = data + b"\n"
-        if len(wire) > self.rx_buffer_size:
-            raise MirobotUsageError(
-                f"command line is {len(wire)} bytes with its line end, longer than the robot's "
-                f"{self.rx_buffer_size}-byte receive buffer: {data!r}"
-            )
         pending = PendingLine(self._next_id, data, wire)
         self._next_id += 1
         self._pending.append(pending)

@@ -7,7 +7,9 @@
   ``@pytest.mark.mirobot_emulator(firmware=..., time_scale=..., extra_args=...)`` marker (the
   plugin's marker); ``firmware`` there overrides the ``profile`` parameter. Default time scale 0:
   every motion completes at once.
-* ``arm``: a connected :class:`~mirobot_async.Mirobot` on ``emu`` (closed afterwards).
+* ``wire_spy``: a :class:`~mirobot_async.testing.WireSpy` (every byte written and received);
+* ``arm``: a connected :class:`~mirobot_async.Mirobot` on ``emu`` (closed afterwards), its
+  transport watched by ``wire_spy`` (the public ``open_transport`` seam).
 * ``ready_arm``: ``arm`` unlocked (``$X`` + ``M50``), so motion works on both profiles.
 
 Every test module of the client also checks that no task is left behind (``no_leftover_tasks``).
@@ -22,7 +24,7 @@ from typing import Any
 import pytest
 
 from mirobot_async import Mirobot
-from mirobot_async.testing import EmulatorProcess
+from mirobot_async.testing import EmulatorProcess, WireSpy
 
 PROFILES = ("2021", "classic")
 
@@ -54,9 +56,15 @@ async def emu(request: pytest.FixtureRequest, profile: str) -> AsyncIterator[Emu
 
 
 @pytest.fixture
-async def arm(emu: EmulatorProcess) -> AsyncIterator[Mirobot]:
-    """A client connected to ``emu``."""
-    async with Mirobot.connect(emu.url) as connected:
+def wire_spy() -> WireSpy:
+    """Records every chunk the ``arm`` fixture's client writes and receives."""
+    return WireSpy()
+
+
+@pytest.fixture
+async def arm(emu: EmulatorProcess, wire_spy: WireSpy) -> AsyncIterator[Mirobot]:
+    """A client connected to ``emu`` through ``wire_spy``."""
+    async with Mirobot.connect(emu.url, open_transport=wire_spy.opener) as connected:
         yield connected
 
 

@@ -16,14 +16,13 @@ from mirobot_async import (
     MirobotResetError,
     MirobotUsageError,
 )
-from mirobot_async.protocol import LineRejected
-from mirobot_async.testing import EmulatorProcess
+from mirobot_async.testing import EmulatorProcess, WireSpy
 
 pytestmark = [pytest.mark.timeout(60), pytest.mark.usefixtures("no_leftover_tasks")]
 
 
 async def test_stream_writes_nothing_after_the_failing_reply_arrived(
-    ready_arm: Mirobot, emu: EmulatorProcess
+    ready_arm: Mirobot, emu: EmulatorProcess, wire_spy: WireSpy
 ) -> None:
     arm = ready_arm
     lines = ["M3 S0"] * 30 + ["G4 P0.3", "FOO BAR"] + ["M3 S0"] * 60
@@ -31,25 +30,24 @@ async def test_stream_writes_nothing_after_the_failing_reply_arrived(
     written = 0
     written_when_error_arrived: int | None = None
     written_after_error = 0
-    original_write = arm._write_line
-    original_on_reply = arm._on_reply
 
-    def write_spy(data: bytes, command: str, exclusive: bool) -> Any:
+    def write_spy(chunk: bytes) -> None:
         nonlocal written, written_after_error
+        if not chunk.endswith(b"\n"):
+            return  # a realtime byte, not a line
         written += 1
         if written_when_error_arrived is not None:
             written_after_error += 1
-        return original_write(data, command, exclusive)
 
-    def reply_spy(event: Any) -> None:
+    def receive_spy(chunk: bytes) -> None:
+        # runs right after the client handled the chunk (its replies dispatched)
         nonlocal written_when_error_arrived
-        original_on_reply(event)
-        if written_when_error_arrived is None and isinstance(event, LineRejected):
+        if written_when_error_arrived is None and b"rror" in chunk:
             written_when_error_arrived = written
 
-    arm._write_line = write_spy  # type: ignore[method-assign]
-    arm._on_reply = reply_spy  # type: ignore[method-assign]
     before = int((await emu.control("stats")).split("lines_in=")[1].split()[0])
+    wire_spy.write_hooks.append(write_spy)
+    wire_spy.receive_hooks.append(receive_spy)
     result = await arm.stream(lines)
     assert result.stopped and len(result.errors) == 1
     assert result.errors[0].number == failing
@@ -64,30 +62,15 @@ async def test_stream_writes_nothing_after_the_failing_reply_arrived(
     assert after - before == result.sent
 
 
-def _spy_writes(arm: Mirobot) -> list[bytes]:
-    """Record every chunk written to the link."""
-    link = arm._link
-    assert link is not None
-    written: list[bytes] = []
-    original = link.write
-
-    def spy(data: bytes) -> None:
-        written.append(bytes(data))
-        original(data)
-
-    link.write = spy  # type: ignore[method-assign]
-    return written
-
-
 BAD_TIMEOUTS: list[Any] = ["x", -1, math.nan, -math.inf, True]
 
 
 @pytest.mark.parametrize("bad", BAD_TIMEOUTS, ids=repr)
 async def test_bad_timeouts_are_refused_before_anything_is_written(
-    ready_arm: Mirobot, bad: Any
+    ready_arm: Mirobot, wire_spy: WireSpy, bad: Any
 ) -> None:
     arm = ready_arm
-    written = _spy_writes(arm)
+    mark = wire_spy.mark()
     for call in (arm.hold, arm.resume, arm.reset, arm.status, arm.wait_idle, arm.settings):
         with pytest.raises(MirobotUsageError, match="timeout"):
             await call(timeout=bad)
@@ -97,7 +80,7 @@ async def test_bad_timeouts_are_refused_before_anything_is_written(
         await arm.stream(["M3 S0"], timeout=bad)
     with pytest.raises(MirobotUsageError, match="timeout"):
         await anext(aiter(arm.statuses(timeout=bad)))
-    assert written == []
+    assert wire_spy.since(mark) == []
     assert (await arm.status()).state is not None  # still usable
 
 
@@ -114,16 +97,13 @@ async def test_a_late_status_reply_is_not_credited_to_a_newer_request(
     await arm.set_pump(0)
     arm.status_retry_interval = 0.2
     arm.liveness_interval = 10.0
-    loop = asyncio.get_running_loop()
     await emu.control("delay 900")
     try:
         first = asyncio.create_task(arm.status())
         await asyncio.sleep(0.5)
         pump = asyncio.create_task(arm.set_pump(500))
         await asyncio.sleep(0)  # the line is written
-        started = loop.time()
-        report, asked_at = await arm._fetch_status(fresh=True, timeout=5.0)
-        assert asked_at >= started
+        report = await arm.status(fresh=True, timeout=5.0)
         assert report.pump_pwm == 500, report
         await first
         await pump
@@ -132,42 +112,44 @@ async def test_a_late_status_reply_is_not_credited_to_a_newer_request(
 
 
 async def test_no_line_is_written_while_a_second_concurrent_reset_awaits_its_banner(
-    ready_arm: Mirobot,
+    ready_arm: Mirobot, wire_spy: WireSpy
 ) -> None:
     """Reset A's banner starts; reset B is called then (it needs a banner of its own): A ends
     first, and a line sent then must wait for B's banner instead of being lost to B's reset."""
     arm = ready_arm
     loop = asyncio.get_running_loop()
-    original_on_reset = arm._on_reset
     second: list[asyncio.Task[tuple[str, ...]]] = []
 
-    def on_reset(event: Any) -> None:
-        original_on_reset(event)
-        if not second:
+    def on_receive(chunk: bytes) -> None:
+        if not second and arm.stats.resets > resets_before:  # A's banner has started
             second.append(loop.create_task(arm.reset(timeout=5.0)))
 
-    arm._on_reset = on_reset  # type: ignore[method-assign]
+    percent_written = 0
+    b_wrote_its_reset = asyncio.Event()
+
+    def on_write(chunk: bytes) -> None:
+        nonlocal percent_written
+        percent_written += chunk == b"%"
+        if percent_written == 2:
+            b_wrote_its_reset.set()
+
+    resets_before = arm.stats.resets
+    wire_spy.receive_hooks.append(on_receive)
+    wire_spy.write_hooks.append(on_write)
     await arm.reset(timeout=5.0)
     assert second
     reset_b = second[0]
-    assert not reset_b.done()
-    assert arm._resetting  # B still waits for its banner: nothing may be written
-    writes: list[str] = []
-    original_write = arm._write_line
-
-    def write_spy(data: bytes, command: str, exclusive: bool) -> Any:
-        writes.append(command)
-        return original_write(data, command, exclusive)
-
-    arm._write_line = write_spy  # type: ignore[method-assign]
+    async with asyncio.timeout(5):
+        await b_wrote_its_reset.wait()  # B started after A's banner had: its own "%"
+    assert not reset_b.done()  # B still waits for its banner: nothing may be written
+    mark = wire_spy.mark()
     # Held back until B's banner, then failed as documented for lines waiting for their turn.
     with pytest.raises(MirobotResetError, match="not sent"):
         await arm.send("M50", timeout=5.0)
-    assert writes == []
+    assert wire_spy.lines(mark) == []
     await reset_b
-    assert not arm._resetting
     await arm.send("M50", timeout=5.0)
-    assert writes == ["M50"]
+    assert wire_spy.lines(mark) == [b"M50\n"]
 
 
 class _PortSpy:

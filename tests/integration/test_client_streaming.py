@@ -6,7 +6,6 @@ import asyncio
 import contextlib
 import logging
 from collections.abc import AsyncIterator
-from typing import Any
 
 import pytest
 
@@ -18,6 +17,7 @@ from mirobot_async import (
     MotionRefusedError,
     State,
 )
+from mirobot_async.testing import WireSpy
 
 pytestmark = [pytest.mark.timeout(60), pytest.mark.usefixtures("no_leftover_tasks")]
 
@@ -44,19 +44,16 @@ async def test_ten_thousand_lines_each_acknowledged_once_in_order(ready_arm: Mir
 
 
 async def test_streaming_keeps_the_receive_buffer_full_but_never_overfull(
-    ready_arm: Mirobot,
+    ready_arm: Mirobot, wire_spy: WireSpy
 ) -> None:
     arm = ready_arm
     peak = 0
-    original = arm._write_line
 
-    def spy(data: bytes, command: str, exclusive: bool) -> Any:
+    def spy(chunk: bytes) -> None:
         nonlocal peak
-        slot = original(data, command, exclusive)
-        peak = max(peak, arm.bytes_in_flight)
-        return slot
+        peak = max(peak, arm.bytes_in_flight)  # the line being written is counted already
 
-    arm._write_line = spy  # type: ignore[method-assign]
+    wire_spy.write_hooks.append(spy)
     result = await arm.stream(f"M4 E{i % 1001}" for i in range(2_000))
     assert result.acknowledged == 2_000
     assert 100 < peak <= 128
@@ -135,16 +132,17 @@ async def test_stream_reports_bad_lines_without_sending_them(ready_arm: Mirobot)
     assert (await arm.status()).pump_pwm == 3
 
 
-async def test_settings_lines_in_a_stream_are_sent_response(ready_arm: Mirobot) -> None:
+async def test_settings_lines_in_a_stream_are_sent_response(
+    ready_arm: Mirobot, wire_spy: WireSpy
+) -> None:
     arm = ready_arm
     in_flight_at_write: list[tuple[str, int]] = []
-    original = arm._write_line
 
-    def spy(data: bytes, command: str, exclusive: bool) -> Any:
-        in_flight_at_write.append((command, arm.pending_count))
-        return original(data, command, exclusive)
+    def spy(chunk: bytes) -> None:
+        if chunk.endswith(b"\n"):  # a line (registered just before it is written)
+            in_flight_at_write.append((chunk.decode().strip(), arm.pending_count - 1))
 
-    arm._write_line = spy  # type: ignore[method-assign]
+    wire_spy.write_hooks.append(spy)
     lines = [f"M3 S{i}" for i in range(20)] + ["$24=1400"] + [f"M4 E{i}" for i in range(20)]
     result = await arm.stream(lines)
     assert result.ok

@@ -39,104 +39,51 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-import os
-import queue
-import selectors
 import signal
-import subprocess
 import sys
-import threading
-import time
 from collections.abc import AsyncIterator, Iterator, Sequence
 from typing import TYPE_CHECKING, Any
 
-from mirobot_async.errors import MirobotError, MirobotTimeoutError, MirobotUsageError
+from mirobot_async.errors import MirobotTimeoutError, MirobotUsageError
+from mirobot_async.testing.control import (
+    CONTROL_TIMEOUT,
+    DEFAULT_FIRMWARE,
+    DEFAULT_TIME_SCALE,
+    STARTUP_TIMEOUT,
+    STOP_TIMEOUT,
+    EmulatorError,
+    control_reply,
+    control_result,
+    control_text,
+    emulator_command,
+)
+from mirobot_async.testing.sync import SyncEmulatorProcess, run_emulator
+
+_log = logging.getLogger("mirobot_async.testing")
 
 if TYPE_CHECKING:
     import pytest
+
+    from mirobot_async.testing.spy import WireSpy
+
+
+def __getattr__(name: str) -> Any:
+    if name == "WireSpy":  # imported on first use (it needs the client's wire module)
+        from mirobot_async.testing.spy import WireSpy
+
+        return WireSpy
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 __all__ = [
     "EmulatorError",
     "EmulatorProcess",
     "SyncEmulatorProcess",
+    "WireSpy",
     "emulator_command",
     "run_emulator",
     "start_emulator",
 ]
-
-_log = logging.getLogger("mirobot_async.testing")
-
-DEFAULT_FIRMWARE = "2021"
-DEFAULT_TIME_SCALE = 0.0
-STARTUP_TIMEOUT = 30.0
-"""Seconds to wait for the emulator's first line (its port path)."""
-STOP_TIMEOUT = 5.0
-"""Seconds to wait for the emulator to exit after SIGTERM before it is killed."""
-CONTROL_TIMEOUT = 5.0
-"""Seconds to wait for the ``ack`` of a control command."""
-
-
-class EmulatorError(MirobotError):
-    """The emulator process could not be started, died, or refused a control command."""
-
-
-def emulator_command(
-    firmware: str = DEFAULT_FIRMWARE,
-    time_scale: float = DEFAULT_TIME_SCALE,
-    extra_args: Sequence[str] = (),
-) -> list[str]:
-    """The argument vector that starts the emulator with this Python interpreter."""
-    if firmware not in ("2021", "classic"):
-        raise MirobotUsageError(f"firmware={firmware!r} must be '2021' or 'classic'")
-    scale = float(time_scale)
-    if not scale >= 0 or scale == float("inf"):
-        raise MirobotUsageError(f"time_scale={time_scale!r} must be a finite number >= 0")
-    if isinstance(extra_args, str):
-        raise MirobotUsageError("extra_args must be a sequence of strings, not one string")
-    return [
-        sys.executable,
-        "-m",
-        "mirobot_emulator",
-        "--firmware",
-        firmware,
-        "--time-scale",
-        repr(scale),
-        *extra_args,
-    ]
-
-
-# --------------------------------------------------------------------------------------------
-# Shared by the asyncio and the synchronous handles
-
-
-def _control_reply(raw: bytes) -> str | None:
-    """The emulator's answer to a control command if stdout line ``raw`` is one (``ack ...``
-    or ``error ...``), else ``None`` (anything else it prints is logged at debug level)."""
-    text = raw.decode("utf-8", "replace").strip()
-    if text.startswith(("ack ", "error ")) or text in ("ack", "error"):
-        return text
-    if text:
-        _log.debug("emulator: %s", text)
-    return None
-
-
-def _control_text(command: str) -> str:
-    """``command`` as sent on the control channel: one non-empty line."""
-    text = command.strip()
-    if not text or "\n" in text:
-        raise MirobotUsageError(f"command={command!r} must be one non-empty line")
-    return text
-
-
-def _control_result(text: str, reply: str | None) -> str:
-    """The ``ack`` line answering ``text``; :class:`EmulatorError` for a refusal or no answer
-    (``None``: the emulator's stdout ended)."""
-    if reply is None:
-        raise EmulatorError(f"the emulator exited before answering {text!r}")
-    if reply.startswith("error"):
-        raise EmulatorError(f"the emulator refused {text!r}: {reply}")
-    return reply
-
 
 # --------------------------------------------------------------------------------------------
 # asyncio
@@ -217,7 +164,7 @@ class EmulatorProcess:
         assert stdout is not None
         try:
             while line := await stdout.readline():
-                reply = _control_reply(line)
+                reply = control_reply(line)
                 if reply is not None:
                     self._replies.put_nowait(reply)
         except (OSError, ValueError):  # pragma: no cover - pipe torn down
@@ -237,7 +184,7 @@ class EmulatorProcess:
         answered in order; concurrent calls are serialised. Cancellation is safe (a late answer
         is skipped by the next call only if it has no reply waiting: prefer not to cancel).
         """
-        text = _control_text(command)
+        text = control_text(command)
         async with self._control_lock:
             stdin = self._process.stdin
             if stdin is None or self._process.returncode is not None or stdin.is_closing():
@@ -253,7 +200,7 @@ class EmulatorProcess:
                 raise EmulatorError(f"cannot send {text!r}: {err}") from err
             if reply is None:
                 self._replies.put_nowait(None)  # keep reporting the end to later calls
-            return _control_result(text, reply)
+            return control_result(text, reply)
 
     def kill(self) -> None:
         """SIGKILL the emulator now (its port disappears, like a pulled cable); does not wait."""
@@ -356,170 +303,6 @@ async def start_emulator(
         yield emulator.url
     finally:
         await emulator.stop()
-
-
-# --------------------------------------------------------------------------------------------
-# Synchronous (pytest fixtures, scripts without an event loop)
-
-
-class SyncEmulatorProcess:
-    """A running emulator subprocess driven without asyncio (used by the pytest fixtures).
-
-    ``url``, :meth:`control`, :meth:`kill` and :meth:`stop` as in :class:`EmulatorProcess`, but
-    blocking (with timeouts). A daemon thread drains the emulator's stdout.
-    """
-
-    def __init__(
-        self,
-        firmware: str = DEFAULT_FIRMWARE,
-        time_scale: float = DEFAULT_TIME_SCALE,
-        *,
-        extra_args: Sequence[str] = (),
-        startup_timeout: float = STARTUP_TIMEOUT,
-    ) -> None:
-        self.command = tuple(emulator_command(firmware, time_scale, extra_args))
-        self._replies: queue.Queue[str | None] = queue.Queue()
-        self._control_lock = threading.Lock()
-        self._process = subprocess.Popen(
-            self.command,
-            stdin=subprocess.PIPE,
-            stdout=subprocess.PIPE,
-        )
-        try:
-            self.url = self._first_line(startup_timeout)
-        except BaseException:
-            self._process.kill()
-            self._finish(STOP_TIMEOUT)
-            raise
-        self._thread = threading.Thread(
-            target=self._drain, name=f"mirobot-emulator-stdout-{self.pid}", daemon=True
-        )
-        self._thread.start()
-
-    def _first_line(self, timeout: float) -> str:
-        stdout = self._process.stdout
-        assert stdout is not None
-        deadline = time.monotonic() + timeout
-        data = b""
-        with selectors.DefaultSelector() as selector:
-            selector.register(stdout, selectors.EVENT_READ)
-            while b"\n" not in data:
-                remaining = deadline - time.monotonic()
-                if remaining <= 0:
-                    raise EmulatorError(f"the emulator printed no port path within {timeout:g} s")
-                if not selector.select(remaining):
-                    continue
-                chunk = os.read(stdout.fileno(), 1)  # byte by byte: leave the rest to the thread
-                if not chunk:
-                    raise EmulatorError(
-                        f"the emulator exited before printing its port path: "
-                        f"{' '.join(self.command)}"
-                    )
-                data += chunk
-        return data.decode("utf-8", "replace").strip()
-
-    def _drain(self) -> None:
-        stdout = self._process.stdout
-        assert stdout is not None
-        buffer = b""
-        try:
-            while chunk := os.read(stdout.fileno(), 4096):
-                buffer += chunk
-                while b"\n" in buffer:
-                    raw, buffer = buffer.split(b"\n", 1)
-                    reply = _control_reply(raw)
-                    if reply is not None:
-                        self._replies.put(reply)
-        except (OSError, ValueError):  # pragma: no cover - pipe closed under us
-            pass
-        finally:
-            self._replies.put(None)
-
-    @property
-    def pid(self) -> int:
-        """The emulator's process id."""
-        return self._process.pid
-
-    @property
-    def returncode(self) -> int | None:
-        """The exit status once the process has exited, else ``None``."""
-        return self._process.poll()
-
-    def control(self, command: str, *, timeout: float = CONTROL_TIMEOUT) -> str:
-        """Send a control command; return its ``ack`` line (as :meth:`EmulatorProcess.control`)."""
-        text = _control_text(command)
-        with self._control_lock:
-            stdin = self._process.stdin
-            if stdin is None or stdin.closed or self._process.poll() is not None:
-                raise EmulatorError(f"cannot send {text!r}: the emulator is not running")
-            try:
-                stdin.write(text.encode("utf-8") + b"\n")
-                stdin.flush()
-            except OSError as err:
-                raise EmulatorError(f"cannot send {text!r}: {err}") from err
-            try:
-                reply = self._replies.get(timeout=timeout)
-            except queue.Empty as err:
-                raise MirobotTimeoutError(f"the emulator's answer to {text!r}", timeout) from err
-            if reply is None:
-                self._replies.put(None)  # keep reporting the end to later calls
-            return _control_result(text, reply)
-
-    def kill(self) -> None:
-        """SIGKILL the emulator now (like a pulled cable); does not wait."""
-        if self._process.poll() is None:
-            with contextlib.suppress(ProcessLookupError):
-                self._process.kill()
-
-    def stop(self, timeout: float = STOP_TIMEOUT) -> int:
-        """SIGTERM, wait up to ``timeout`` s, SIGKILL; close the pipes. Idempotent."""
-        if self._process.poll() is None:
-            with contextlib.suppress(ProcessLookupError):
-                self._process.send_signal(signal.SIGTERM)
-        returncode = self._finish(timeout)
-        self._thread.join(timeout)
-        if self._process.stdout is not None:
-            self._process.stdout.close()
-        return returncode
-
-    def _finish(self, timeout: float) -> int:
-        process = self._process
-        if process.stdin is not None and not process.stdin.closed:
-            with contextlib.suppress(OSError):
-                process.stdin.close()
-        try:
-            return process.wait(timeout)
-        except subprocess.TimeoutExpired:
-            _log.warning("emulator %d did not exit after SIGTERM; killing it", process.pid)
-            process.kill()
-            return process.wait()
-        finally:
-            if not hasattr(self, "_thread") and process.stdout is not None:
-                process.stdout.close()
-
-    def __enter__(self) -> SyncEmulatorProcess:
-        return self
-
-    def __exit__(self, *exc_info: object) -> None:
-        self.stop()
-
-
-@contextlib.contextmanager
-def run_emulator(
-    firmware: str = DEFAULT_FIRMWARE,
-    time_scale: float = DEFAULT_TIME_SCALE,
-    *,
-    extra_args: Sequence[str] = (),
-    startup_timeout: float = STARTUP_TIMEOUT,
-) -> Iterator[SyncEmulatorProcess]:
-    """Synchronous twin of :func:`start_emulator`, yielding the :class:`SyncEmulatorProcess`."""
-    emulator = SyncEmulatorProcess(
-        firmware, time_scale, extra_args=extra_args, startup_timeout=startup_timeout
-    )
-    try:
-        yield emulator
-    finally:
-        emulator.stop()
 
 
 # --------------------------------------------------------------------------------------------

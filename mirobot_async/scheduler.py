@@ -1,0 +1,452 @@
+"""The line scheduler: when a line may be written, and what its reply means.
+
+Lines are written in call order (one FIFO lock) and only when they fit in the robot's 128-byte
+receive buffer (GRBL character counting). ``$`` lines are written only when nothing else is in
+flight, and nothing follows them until they are answered (the ``$`` barrier). Each written line
+gets a :class:`Slot` whose future gets its reply. A call waiting for a reply checks the robot's
+liveness after :attr:`LineScheduler.liveness_interval` without progress: a quiet robot that
+answered a ``?`` written well after the oldest unanswered line has lost that line's reply, and
+the line is given up (:class:`MirobotTimeoutError`); the following replies keep their lines.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import math
+import re
+from collections.abc import Awaitable, Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Final
+
+from mirobot_async.condition import RobotCondition
+from mirobot_async.deadline import clip, within
+from mirobot_async.errors import (
+    MirobotAlarmError,
+    MirobotCommandError,
+    MirobotResetError,
+    MirobotTimeoutError,
+    MotionRefusedError,
+)
+from mirobot_async.guard import EnvelopeGuard, NeedPosition, NullGuard, Tracked
+from mirobot_async.poller import StatusPoller
+from mirobot_async.protocol import LineAcknowledged, LineRejected, PendingLine, ResetDetected
+from mirobot_async.replies import State, StatusReport
+from mirobot_async.wire import Wire
+
+if TYPE_CHECKING:
+    from mirobot_async.envelope import LineCheck
+
+__all__ = ["QUIET", "LineScheduler", "Slot", "StreamStopped"]
+
+_log = logging.getLogger("mirobot_async.client")
+
+QUIET: Final = frozenset({State.IDLE, State.ALARM, State.CHECK})
+_DWELL_RE: Final = re.compile(rb"G0*4(?![0-9.])")
+_P_WORD_RE: Final = re.compile(rb"P([+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+))")
+
+Outcome = LineAcknowledged | LineRejected | BaseException
+
+
+@dataclass(slots=True, eq=False)
+class Slot:
+    """A line written to the robot and owed a reply; ``fut`` is cancelled if the caller leaves."""
+
+    pending: PendingLine
+    command: str
+    fut: asyncio.Future[Outcome]
+    sent_at: float
+    tracked: Tracked | None = None  # what the envelope guard assumed when it was written
+    # Called synchronously when the reply (or failure) is settled, before anything else runs.
+    watch: Callable[[Slot], None] | None = None
+
+    @property
+    def check(self) -> LineCheck | None:
+        """The envelope's verdict on the line (its target), if it was checked."""
+        return None if self.tracked is None else self.tracked.check
+
+    def settle(self, outcome: Outcome) -> None:
+        """Give the slot its outcome and tell its watcher at once (no loop iteration between)."""
+        self.fut.set_result(outcome)
+        if self.watch is not None:
+            self.watch(self)
+
+
+class StreamStopped(Exception):
+    """Raised by :meth:`LineScheduler.submit` when a stream's ``should_stop`` says so."""
+
+
+def dwell_seconds(line: bytes) -> float:
+    """Seconds of a ``G4 P<s>`` dwell in ``line`` (0 when it is not a dwell)."""
+    compact = line.upper().replace(b" ", b"").replace(b"\t", b"")
+    if _DWELL_RE.search(compact) is None:
+        return 0.0
+    match = _P_WORD_RE.search(compact)
+    if match is None:
+        return 0.0
+    try:
+        return max(0.0, float(match.group(1)))
+    except ValueError:  # pragma: no cover - the regex only matches numbers
+        return 0.0
+
+
+def outcome_output(slot: Slot) -> tuple[str, ...]:
+    """The output of a settled slot, or the error its outcome means."""
+    result = slot.fut.result()
+    if isinstance(result, BaseException):
+        raise result
+    if isinstance(result, LineRejected):
+        if "alarm lock" in result.text.lower():
+            raise MirobotAlarmError(slot.command, result.text, result.code, output=result.output)
+        raise MirobotCommandError(slot.command, result.text, result.code, output=result.output)
+    refusal = result.refusal
+    if refusal is not None:
+        raise MotionRefusedError(
+            slot.command, refusal.text, refusal.reason, axis=refusal.axis, output=result.output
+        )
+    return result.output
+
+
+class LineScheduler:
+    """Slots, pacing and liveness of the lines of one connection."""
+
+    def __init__(
+        self,
+        wire: Wire,
+        condition: RobotCondition,
+        poller: StatusPoller,
+        guard: EnvelopeGuard | NullGuard,
+        require_firmware: Callable[[float | None, float | None], Awaitable[object]],
+    ) -> None:
+        self._wire = wire
+        self._condition = condition
+        self._poller = poller
+        self._guard = guard
+        self._require_firmware = require_firmware
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self.slots: dict[int, Slot] = {}
+        self._send_lock = asyncio.Lock()
+        self._barrier: int | None = None  # id of an in-flight "$" line (send-response)
+        self._dwell_until = -math.inf
+        self.liveness_interval = 1.0
+        self.reply_grace = 0.5
+        self.status_timeout = 2.0
+
+    def start(self, loop: asyncio.AbstractEventLoop) -> None:
+        """Use ``loop`` (the connection's)."""
+        self._loop = loop
+
+    @property
+    def rx_buffer_size(self) -> int:
+        """The robot's receive buffer in bytes (the longest line with its line end)."""
+        return self._wire.rx_buffer_size
+
+    def _now(self) -> float:
+        assert self._loop is not None
+        return self._loop.time()
+
+    # ---- replies and failures (called by the event router) ----
+
+    def on_reply(self, event: LineAcknowledged | LineRejected) -> None:
+        """A final reply for the oldest pending line."""
+        stats = self._wire.stats
+        if isinstance(event, LineAcknowledged):
+            stats.lines_acknowledged += 1
+            if event.refusal is not None:
+                stats.lines_refused += 1
+        else:
+            stats.lines_rejected += 1
+        slot = self.slots.pop(event.line.id, None)
+        if self._barrier == event.line.id:
+            self._barrier = None
+        if slot is None:
+            return
+        self._poller.on_line_reply(slot.sent_at)
+        if slot.tracked is not None:
+            if isinstance(event, LineRejected):
+                self._guard.line_failed(slot.tracked, rejected=True)
+            elif event.refusal is not None:
+                self._guard.line_failed(slot.tracked, rejected=False)
+        if slot.fut.done():
+            stats.replies_discarded += 1
+            _log.debug("discarding the reply to %r (its caller left)", slot.command)
+        else:
+            slot.settle(event)
+
+    def on_reset(self, event: ResetDetected) -> None:
+        """A banner started: ``event.failed`` lines were not run."""
+        failed = event.failed
+        self._barrier = None
+        self._dwell_until = -math.inf
+        if failed:
+            # Every caller still waiting gets MirobotResetError: say it loudly only if some
+            # line has nobody left to tell.
+            unseen = any((slot := self.slots.get(p.id)) is None or slot.fut.done() for p in failed)
+            (_log.warning if unseen else _log.info)(
+                "the robot reset: %d pending line(s) were not run", len(failed)
+            )
+        for pending in failed:
+            slot = self.slots.pop(pending.id, None)
+            if slot is not None and not slot.fut.done():
+                slot.settle(MirobotResetError(slot.command))
+
+    def on_banner(self) -> None:
+        """A banner ended: lines may be written again."""
+
+    def fail_waiting(self, error: Callable[[Slot], BaseException], *, forget: bool) -> bool:
+        """Every slot still awaited fails with ``error(slot)``; True if one was awaited. With
+        ``forget`` the slots are dropped (a dead link), else kept to match late replies."""
+        told = False
+        for slot in self.slots.values():
+            if not slot.fut.done():
+                told = True
+                slot.settle(error(slot))
+        if forget:
+            self.slots.clear()
+        return told
+
+    @property
+    def awaited(self) -> bool:
+        """True while some caller awaits a reply."""
+        return any(not slot.fut.done() for slot in self.slots.values())
+
+    # ---- writing ----
+
+    def _ready(self, exclusive: bool, nbytes: int) -> bool:
+        conn = self._wire.conn
+        if self._condition.resetting or conn.in_banner:
+            return False
+        if self._barrier is not None:
+            if self._barrier in self.slots:
+                return False
+            self._barrier = None
+        if exclusive:
+            return conn.pending_count == 0
+        return conn.fits(nbytes)
+
+    async def submit(
+        self,
+        data: bytes,
+        command: str,
+        *,
+        deadline: float | None,
+        timeout: float | None,
+        motion: bool,
+        check_envelope: bool = True,
+        what: str | None = None,
+        warn_unchecked: bool = True,
+        should_stop: Callable[[], bool] | None = None,
+        watch: Callable[[Slot], None] | None = None,
+        idle: bool = False,
+    ) -> Slot:
+        """Wait for this line's turn and for room in the receive buffer, then write it.
+
+        ``should_stop`` (a stream's) is asked right before the write, with no await in between:
+        if true, :class:`StreamStopped` is raised and nothing is written. ``watch`` is set on the
+        slot as the line is written (see :attr:`Slot.watch`).
+
+        The envelope guard checks the line under the send lock, against the position and modes
+        predicted from every line written before it, again if they were invalidated while it
+        waited; a violation raises MirobotUsageError and nothing of the line is written.
+
+        With ``idle`` the line is written only when nothing is in flight and a status received
+        since shows the robot at rest (the firmware refuses ``$$`` with ``Not idle`` while the
+        arm moves); nothing else is written in between (the send lock is held).
+        """
+        condition, guard = self._condition, self._guard
+        condition.check_sendable(command, motion=motion)
+        if guard.needs_firmware(data):
+            await self._require_firmware(deadline, timeout)
+        exclusive = data.startswith(b"$")
+        nbytes = len(data) + 1
+        epoch = condition.reset_epoch
+        verdict: LineCheck | None = None
+        checked_epoch: int | None = None
+        room = f"room in the robot's receive buffer to send {command!r}"
+        checking = check_envelope and guard.envelope is not None
+        at_rest = False
+        async with within(deadline, room, timeout, command=command) as limit, self._send_lock:
+            while True:
+                condition.check_sendable(command, motion=motion)
+                if condition.reset_epoch != epoch:
+                    raise MirobotResetError(
+                        command, "the robot reset while it waited to be sent; not sent"
+                    )
+                if should_stop is not None and should_stop():
+                    raise StreamStopped
+                if checking and checked_epoch != guard.epoch:
+                    position_epoch = guard.epoch
+                    found = guard.verdict(data, what)
+                    if isinstance(found, NeedPosition):
+                        limit.what = (
+                            f"the arm to come to rest (its position, for the safety envelope) "
+                            f"before sending {command!r}"
+                        )
+                        await self._learn_position(command, deadline)
+                        limit.what = room
+                        continue  # re-check everything after the awaits
+                    verdict = found
+                    checked_epoch = position_epoch
+                    continue
+                if self._ready(exclusive, nbytes):
+                    if idle and not at_rest:
+                        limit.what = f"the robot to be at rest before sending {command!r}"
+                        report, _ = await self._poller.fetch(
+                            fresh=False, timeout=clip(self.status_timeout, deadline, self._now())
+                        )
+                        at_rest = report.state in QUIET and not self._wire.conn.pending_count
+                        limit.what = room
+                        continue
+                    if should_stop is not None and should_stop():
+                        raise StreamStopped  # a reply received meanwhile stopped it
+                    slot = self._write(data, command, exclusive)
+                    slot.watch = watch  # no reply can be dispatched before this
+                    slot.tracked = guard.track_written(
+                        slot.pending.id,
+                        command,
+                        data,
+                        verdict,
+                        checked=check_envelope,
+                        what=what,
+                        warn_unchecked=warn_unchecked,
+                    )
+                    return slot
+                await self.wait_progress(deadline)
+
+    def _write(self, data: bytes, command: str, exclusive: bool) -> Slot:
+        """Register ``data`` with the state machine and write it (synchronous: no gap)."""
+        assert self._loop is not None
+        pending = self._wire.write_line(data)
+        now = self._loop.time()
+        slot = Slot(pending, command, self._loop.create_future(), now)
+        self.slots[pending.id] = slot
+        if exclusive:
+            self._barrier = pending.id
+        dwell = dwell_seconds(data) if b"4" in data else 0.0
+        if dwell:
+            self._dwell_until = max(self._dwell_until, now) + dwell
+        return slot
+
+    async def _learn_position(self, command: str, deadline: float | None) -> None:
+        """Wait until nothing is in flight and a status shows the arm at rest; adopt it."""
+        conn = self._wire.conn
+        while True:
+            while conn.pending_count:
+                await self.wait_progress(deadline)
+                self._condition.check_sendable(command, motion=False)
+            report, _ = await self._poller.fetch(
+                fresh=False,
+                timeout=clip(self.status_timeout, deadline, self._now()),
+                what=f"a status report (the arm's position for the safety envelope, {command!r})",
+            )
+            if conn.pending_count or conn.in_banner or report.state not in QUIET:
+                continue  # still moving (or a banner): poll again
+            self._guard.adopt_status(report)
+            return
+
+    # ---- waiting ----
+
+    async def wait_progress(self, deadline: float | None) -> None:
+        """Wait for any progress; after :attr:`liveness_interval` without any, check liveness."""
+        if not await self._wire.wait_progress(self.liveness_interval):
+            await self.check_liveness(deadline)
+
+    async def check_liveness(self, deadline: float | None) -> None:
+        """Ask for a status; if the robot is quiet, give up on lines whose reply was lost."""
+        now = self._now()
+        if deadline is not None and deadline <= now:
+            return  # the caller's own deadline decides
+        report, asked_at = await self._poller.fetch(
+            fresh=True,
+            timeout=clip(self.status_timeout, deadline, now),
+            what="a status reply (checking that the robot is alive while waiting for a reply)",
+        )
+        if report.state in QUIET:
+            self._expire_lost_replies(asked_at, report.state)
+
+    def _expire_lost_replies(self, asked_at: float, state: State) -> None:
+        conn = self._wire.conn
+        if conn.in_banner or asked_at < self._dwell_until + self.reply_grace:
+            return
+        expired = False
+        while conn.pending_count:
+            oldest = conn.pending_lines[0]
+            slot = self.slots.get(oldest.id)
+            if slot is not None and asked_at - slot.sent_at < self.reply_grace:
+                break
+            conn.expire_oldest()
+            self.slots.pop(oldest.id, None)
+            if self._barrier == oldest.id:
+                self._barrier = None
+            self._wire.stats.replies_lost += 1
+            expired = True
+            self._guard.forget("lost")  # did it run? Unknown: forget position and modes
+            command = oldest.line.decode("ascii", "replace")
+            _log.warning(
+                "no reply to %r although the robot is %s and answered a later status request: "
+                "giving up on it",
+                command,
+                state.value,
+            )
+            if slot is not None and not slot.fut.done():
+                elapsed = self._now() - slot.sent_at
+                slot.settle(
+                    MirobotTimeoutError(
+                        f"the reply to {command!r} (lost: the robot is {state.value} and answered "
+                        "a later status request)",
+                        round(elapsed, 3),
+                        command=command,
+                    )
+                )
+        if expired:
+            self._wire.notify()
+
+    async def await_slot(
+        self, slot: Slot, deadline: float | None, timeout: float | None
+    ) -> tuple[str, ...]:
+        """Wait for the reply of ``slot`` (liveness-checked); return its output or raise what
+        it means. Cancellation leaves the slot: its reply is consumed and discarded."""
+        fut = slot.fut
+        try:
+            while not fut.done():
+                now = self._now()
+                if deadline is not None and now >= deadline:
+                    raise MirobotTimeoutError(
+                        f"the reply to {slot.command!r}", timeout, command=slot.command
+                    )
+                wait = self.liveness_interval
+                if deadline is not None:
+                    wait = min(wait, deadline - now)
+                await asyncio.wait((fut,), timeout=wait)
+                if fut.done() or (deadline is not None and self._now() >= deadline):
+                    continue
+                try:
+                    await self.check_liveness(deadline)
+                except MirobotTimeoutError:
+                    if fut.done() or (deadline is not None and self._now() >= deadline):
+                        continue
+                    raise
+        finally:
+            if not fut.done():
+                fut.cancel()  # the caller left: the reply will be consumed and discarded
+        return outcome_output(slot)
+
+    async def wait_answered(self, deadline: float | None) -> None:
+        """Wait until every line written before this call is answered (or given up)."""
+        waiting_for = set(self.slots)
+        while waiting_for & self.slots.keys():
+            await self.wait_progress(deadline)
+            self._condition.check_sendable(None, motion=False)
+
+    async def baseline(self, deadline: float | None) -> StatusReport | None:
+        """A status to compute a relative target from, if the arm is at rest with nothing in
+        flight (``None`` otherwise)."""
+        conn = self._wire.conn
+        if conn.pending_count:
+            return None
+        report, _ = await self._poller.fetch(
+            fresh=False, timeout=clip(self.status_timeout, deadline, self._now())
+        )
+        if report.state not in QUIET or conn.pending_count:
+            return None
+        return report

@@ -1,0 +1,92 @@
+"""What the asyncio and the synchronous emulator handles share: the command line, the control
+channel's replies, and the error class."""
+
+from __future__ import annotations
+
+import logging
+import sys
+from collections.abc import Sequence
+
+from mirobot_async.errors import MirobotError, MirobotUsageError
+
+__all__ = [
+    "CONTROL_TIMEOUT",
+    "DEFAULT_FIRMWARE",
+    "DEFAULT_TIME_SCALE",
+    "STARTUP_TIMEOUT",
+    "STOP_TIMEOUT",
+    "EmulatorError",
+    "control_reply",
+    "control_result",
+    "control_text",
+    "emulator_command",
+]
+
+_log = logging.getLogger("mirobot_async.testing")
+
+DEFAULT_FIRMWARE = "2021"
+DEFAULT_TIME_SCALE = 0.0
+STARTUP_TIMEOUT = 30.0
+"""Seconds to wait for the emulator's first line (its port path)."""
+STOP_TIMEOUT = 5.0
+"""Seconds to wait for the emulator to exit after SIGTERM before it is killed."""
+CONTROL_TIMEOUT = 5.0
+"""Seconds to wait for the ``ack`` of a control command."""
+
+
+class EmulatorError(MirobotError):
+    """The emulator process could not be started, died, or refused a control command."""
+
+
+def emulator_command(
+    firmware: str = DEFAULT_FIRMWARE,
+    time_scale: float = DEFAULT_TIME_SCALE,
+    extra_args: Sequence[str] = (),
+) -> list[str]:
+    """The argument vector that starts the emulator with this Python interpreter."""
+    if firmware not in ("2021", "classic"):
+        raise MirobotUsageError(f"firmware={firmware!r} must be '2021' or 'classic'")
+    scale = float(time_scale)
+    if not scale >= 0 or scale == float("inf"):
+        raise MirobotUsageError(f"time_scale={time_scale!r} must be a finite number >= 0")
+    if isinstance(extra_args, str):
+        raise MirobotUsageError("extra_args must be a sequence of strings, not one string")
+    return [
+        sys.executable,
+        "-m",
+        "mirobot_emulator",
+        "--firmware",
+        firmware,
+        "--time-scale",
+        repr(scale),
+        *extra_args,
+    ]
+
+
+def control_reply(raw: bytes) -> str | None:
+    """The emulator's answer to a control command if stdout line ``raw`` is one (``ack ...``
+    or ``error ...``), else ``None`` (anything else it prints is logged at debug level)."""
+    text = raw.decode("utf-8", "replace").strip()
+    if text.startswith(("ack ", "error ")) or text in ("ack", "error"):
+        return text
+    if text:
+        _log.debug("emulator: %s", text)
+    return None
+
+
+def control_text(command: str) -> str:
+    """``command`` as sent on the control channel: one non-empty line."""
+    text = command.strip()
+    if not text or "\n" in text:
+        raise MirobotUsageError(f"command={command!r} must be one non-empty line")
+    return text
+
+
+def control_result(text: str, reply: str | None) -> str:
+    """The ``ack`` line answering ``text``; :class:`EmulatorError` for a refusal or no answer
+    (``None``: the emulator's stdout ended)."""
+    if reply is None:
+        raise EmulatorError(f"the emulator exited before answering {text!r}")
+    if reply.startswith("error"):
+        raise EmulatorError(f"the emulator refused {text!r}: {reply}")
+    return reply

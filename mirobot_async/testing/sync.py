@@ -1,0 +1,193 @@
+"""The emulator driven without asyncio: :class:`SyncEmulatorProcess` and :func:`run_emulator`
+(used by the pytest fixtures and by scripts without an event loop)."""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import queue
+import selectors
+import signal
+import subprocess
+import threading
+import time
+from collections.abc import Iterator, Sequence
+
+from mirobot_async.errors import MirobotTimeoutError
+from mirobot_async.testing.control import (
+    CONTROL_TIMEOUT,
+    DEFAULT_FIRMWARE,
+    DEFAULT_TIME_SCALE,
+    STARTUP_TIMEOUT,
+    STOP_TIMEOUT,
+    EmulatorError,
+    control_reply,
+    control_result,
+    control_text,
+    emulator_command,
+)
+
+__all__ = ["SyncEmulatorProcess", "run_emulator"]
+
+_log = logging.getLogger("mirobot_async.testing")
+
+
+class SyncEmulatorProcess:
+    """A running emulator subprocess driven without asyncio (used by the pytest fixtures).
+
+    ``url``, :meth:`control`, :meth:`kill` and :meth:`stop` as in :class:`EmulatorProcess`, but
+    blocking (with timeouts). A daemon thread drains the emulator's stdout.
+    """
+
+    def __init__(
+        self,
+        firmware: str = DEFAULT_FIRMWARE,
+        time_scale: float = DEFAULT_TIME_SCALE,
+        *,
+        extra_args: Sequence[str] = (),
+        startup_timeout: float = STARTUP_TIMEOUT,
+    ) -> None:
+        self.command = tuple(emulator_command(firmware, time_scale, extra_args))
+        self._replies: queue.Queue[str | None] = queue.Queue()
+        self._control_lock = threading.Lock()
+        self._process = subprocess.Popen(
+            self.command,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+        )
+        try:
+            self.url = self._first_line(startup_timeout)
+        except BaseException:
+            self._process.kill()
+            self._finish(STOP_TIMEOUT)
+            raise
+        self._thread = threading.Thread(
+            target=self._drain, name=f"mirobot-emulator-stdout-{self.pid}", daemon=True
+        )
+        self._thread.start()
+
+    def _first_line(self, timeout: float) -> str:
+        stdout = self._process.stdout
+        assert stdout is not None
+        deadline = time.monotonic() + timeout
+        data = b""
+        with selectors.DefaultSelector() as selector:
+            selector.register(stdout, selectors.EVENT_READ)
+            while b"\n" not in data:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    raise EmulatorError(f"the emulator printed no port path within {timeout:g} s")
+                if not selector.select(remaining):
+                    continue
+                chunk = os.read(stdout.fileno(), 1)  # byte by byte: leave the rest to the thread
+                if not chunk:
+                    raise EmulatorError(
+                        f"the emulator exited before printing its port path: "
+                        f"{' '.join(self.command)}"
+                    )
+                data += chunk
+        return data.decode("utf-8", "replace").strip()
+
+    def _drain(self) -> None:
+        stdout = self._process.stdout
+        assert stdout is not None
+        buffer = b""
+        try:
+            while chunk := os.read(stdout.fileno(), 4096):
+                buffer += chunk
+                while b"\n" in buffer:
+                    raw, buffer = buffer.split(b"\n", 1)
+                    reply = control_reply(raw)
+                    if reply is not None:
+                        self._replies.put(reply)
+        except (OSError, ValueError):  # pragma: no cover - pipe closed under us
+            pass
+        finally:
+            self._replies.put(None)
+
+    @property
+    def pid(self) -> int:
+        """The emulator's process id."""
+        return self._process.pid
+
+    @property
+    def returncode(self) -> int | None:
+        """The exit status once the process has exited, else ``None``."""
+        return self._process.poll()
+
+    def control(self, command: str, *, timeout: float = CONTROL_TIMEOUT) -> str:
+        """Send a control command; return its ``ack`` line (as :meth:`EmulatorProcess.control`)."""
+        text = control_text(command)
+        with self._control_lock:
+            stdin = self._process.stdin
+            if stdin is None or stdin.closed or self._process.poll() is not None:
+                raise EmulatorError(f"cannot send {text!r}: the emulator is not running")
+            try:
+                stdin.write(text.encode("utf-8") + b"\n")
+                stdin.flush()
+            except OSError as err:
+                raise EmulatorError(f"cannot send {text!r}: {err}") from err
+            try:
+                reply = self._replies.get(timeout=timeout)
+            except queue.Empty as err:
+                raise MirobotTimeoutError(f"the emulator's answer to {text!r}", timeout) from err
+            if reply is None:
+                self._replies.put(None)  # keep reporting the end to later calls
+            return control_result(text, reply)
+
+    def kill(self) -> None:
+        """SIGKILL the emulator now (like a pulled cable); does not wait."""
+        if self._process.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                self._process.kill()
+
+    def stop(self, timeout: float = STOP_TIMEOUT) -> int:
+        """SIGTERM, wait up to ``timeout`` s, SIGKILL; close the pipes. Idempotent."""
+        if self._process.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                self._process.send_signal(signal.SIGTERM)
+        returncode = self._finish(timeout)
+        self._thread.join(timeout)
+        if self._process.stdout is not None:
+            self._process.stdout.close()
+        return returncode
+
+    def _finish(self, timeout: float) -> int:
+        process = self._process
+        if process.stdin is not None and not process.stdin.closed:
+            with contextlib.suppress(OSError):
+                process.stdin.close()
+        try:
+            return process.wait(timeout)
+        except subprocess.TimeoutExpired:
+            _log.warning("emulator %d did not exit after SIGTERM; killing it", process.pid)
+            process.kill()
+            return process.wait()
+        finally:
+            if not hasattr(self, "_thread") and process.stdout is not None:
+                process.stdout.close()
+
+    def __enter__(self) -> SyncEmulatorProcess:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.stop()
+
+
+@contextlib.contextmanager
+def run_emulator(
+    firmware: str = DEFAULT_FIRMWARE,
+    time_scale: float = DEFAULT_TIME_SCALE,
+    *,
+    extra_args: Sequence[str] = (),
+    startup_timeout: float = STARTUP_TIMEOUT,
+) -> Iterator[SyncEmulatorProcess]:
+    """Synchronous twin of :func:`start_emulator`, yielding the :class:`SyncEmulatorProcess`."""
+    emulator = SyncEmulatorProcess(
+        firmware, time_scale, extra_args=extra_args, startup_timeout=startup_timeout
+    )
+    try:
+        yield emulator
+    finally:
+        emulator.stop()
