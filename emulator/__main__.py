@@ -59,7 +59,8 @@ def _build_parser() -> argparse.ArgumentParser:
         "--listen",
         metavar="HOST:PORT",
         help="serve on a TCP socket instead of a pty (socket://HOST:PORT for pyserial); "
-        "port 0 picks a free one; HOST defaults to 127.0.0.1; one client at a time",
+        "port 0 picks a free one; HOST defaults to 127.0.0.1; one client at a time "
+        "(default where there are no ptys: 127.0.0.1:0)",
     )
     parser.add_argument(
         "--baud",
@@ -120,6 +121,7 @@ def _log(message: str) -> None:
 def _options(args: argparse.Namespace, parser: argparse.ArgumentParser) -> ServerOptions:
     from .faults import FaultSpecError, parse_fault
     from .server import ServerOptions, parse_listen
+    from .server.options import DEFAULT_LISTEN_HOST
 
     try:
         faults = tuple(parse_fault(spec) for spec in args.fault)
@@ -134,6 +136,11 @@ def _options(args: argparse.Namespace, parser: argparse.ArgumentParser) -> Serve
     if args.homing_seconds is not None and not 0 <= args.homing_seconds < float("inf"):
         parser.error("--homing-seconds must be a finite number >= 0")
     listen = None
+    if args.listen is None and not args.link:
+        from .server.pty_port import pty_available
+
+        if not pty_available():  # e.g. Windows: TCP is the only port there is
+            listen = parse_listen(f"{DEFAULT_LISTEN_HOST}:0")
     if args.listen is not None:
         if args.link:
             parser.error("--link makes a symlink to a pty: it cannot be used with --listen")

@@ -6,11 +6,15 @@ from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import Any
 
-__all__ = ["READ_CHUNK", "Arrival", "Port"]
+__all__ = ["OPEN_SETTLE_S", "READ_CHUNK", "Arrival", "Port"]
 
 READ_CHUNK = 1024
 """Bytes read from the port at most at once: each input byte can make output (a ``?`` makes a
 status line of ~170 bytes), so a read is kept small enough for the output it can cause."""
+OPEN_SETTLE_S = 0.05
+"""A client that opened the port is given this long to flush its input (pyserial does at open)
+before the open takes effect (``--reset-on-open``: the banner would be flushed away), unless it
+sends a byte first."""
 
 
 @dataclass(slots=True)
@@ -49,7 +53,10 @@ class Port(ABC):
 
     @abstractmethod
     def on_ready(self, fileobj: Any, events: int, room: int) -> Arrival:
-        """A watched file object is ready; read at most ``room`` bytes of client data."""
+        """A watched file object is ready; read at most ``room`` bytes of client data.
+
+        ``fileobj`` None: look for input that may have come before the loop started.
+        """
 
     def poll(self, now: float) -> Arrival:
         """Timed events due at ``now`` (none by default)."""

@@ -36,16 +36,18 @@ except ImportError:  # not POSIX: the pty mode is not offered there, the TCP mod
 
 import contextlib
 
-from .port import READ_CHUNK, Arrival, Port
+from .port import OPEN_SETTLE_S, READ_CHUNK, Arrival, Port
 
-__all__ = ["OPEN_SETTLE_S", "PtyPort"]
+__all__ = ["PtyPort", "pty_available"]
 
-OPEN_SETTLE_S = 0.05
-"""After a client configured the port, wait at most this long for its flush before the open
-takes effect."""
 EIO_RETRY_S = 0.05  # no slave open at all (after a close fault): look again this much later
 TIOCPKT_FLUSHREAD = 0x01  # the same on Linux and the BSDs
 TIOCPKT_IOCTL = 0x40
+
+
+def pty_available() -> bool:
+    """True where pseudo-terminals can be served (POSIX with ``termios``)."""
+    return hasattr(os, "openpty") and "termios" in globals()
 
 
 def _extproc_flag() -> int | None:
@@ -75,6 +77,8 @@ class PtyPort(Port):
 
     def open(self) -> str:
         """Create the pty in raw (and, where possible, packet) mode; return the slave's path."""
+        if not pty_available():
+            raise OSError("no pseudo-terminals on this platform: serve on TCP (--listen)")
         master, slave = os.openpty()
         try:
             tty.setraw(slave)  # before packet mode: the termios changes must not make packets

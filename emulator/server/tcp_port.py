@@ -2,11 +2,13 @@
 
 Portable (plain sockets, no pty, no ``fcntl``/``termios``). One client at a time, as on a serial
 port: a second connection while one is served gets one line saying the port is busy and is
-closed. A connection is an open of the port (``--reset-on-open`` resets the firmware then); when
-the client goes away the robot keeps its state, and output meanwhile is lost (nobody is on the
-other end of the cable). ``TCP_NODELAY`` is set: every write goes out at once, as on a serial
-line. What a client writes is read only while the emulator has room for it (bounded input), so
-a client writing faster than the emulator takes bytes is blocked by TCP's flow control.
+closed. A connection is an open of the port; it takes effect (``--reset-on-open`` resets the
+firmware then) at the client's first byte or :data:`~.port.OPEN_SETTLE_S` after it connected,
+so that pyserial's open-time flush does not swallow the banner. When the client goes away the
+robot keeps its state, and output meanwhile is lost (nobody is on the other end of the cable).
+``TCP_NODELAY`` is set: every write goes out at once, as on a serial line. What a client writes
+is read only while the emulator has room for it (bounded input), so a client writing faster
+than the emulator takes bytes is blocked by TCP's flow control.
 """
 
 from __future__ import annotations
@@ -14,10 +16,11 @@ from __future__ import annotations
 import contextlib
 import selectors
 import socket
+import time
 from collections.abc import Callable
 from typing import Any
 
-from .port import READ_CHUNK, Arrival, Port
+from .port import OPEN_SETTLE_S, READ_CHUNK, Arrival, Port
 
 __all__ = ["BUSY_MESSAGE", "TcpPort", "socket_url"]
 
@@ -39,6 +42,7 @@ class TcpPort(Port):
         self._log = log or (lambda message: None)
         self._listener: socket.socket | None = None
         self._conn: socket.socket | None = None
+        self._open_since: float | None = None  # connected; the open not yet in effect
         self.refused = 0
         """Connections refused because a client was already connected."""
 
@@ -84,6 +88,8 @@ class TcpPort(Port):
         return watched
 
     def on_ready(self, fileobj: Any, events: int, room: int) -> Arrival:
+        if fileobj is None:
+            return Arrival()
         if fileobj is self._listener:
             return self._accept()
         if fileobj is self._conn and events & selectors.EVENT_READ and room > 0:
@@ -91,7 +97,6 @@ class TcpPort(Port):
         return Arrival()
 
     def _accept(self) -> Arrival:
-        arrival = Arrival()
         while self._listener is not None:
             try:
                 conn, peer = self._listener.accept()
@@ -107,9 +112,18 @@ class TcpPort(Port):
             with contextlib.suppress(OSError):
                 conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             self._conn = conn
+            self._open_since = time.monotonic()
             self._log(f"client connected from {_peer_text(peer)}")
-            arrival.opened += 1
-        return arrival
+        return Arrival()
+
+    def poll(self, now: float) -> Arrival:
+        if self._open_since is not None and now >= self._open_since + OPEN_SETTLE_S:
+            self._open_since = None
+            return Arrival(opened=1)
+        return Arrival()
+
+    def next_time(self) -> float | None:
+        return None if self._open_since is None else self._open_since + OPEN_SETTLE_S
 
     def _refuse(self, conn: socket.socket, peer: Any) -> None:
         self.refused += 1
@@ -134,12 +148,15 @@ class TcpPort(Port):
         if not data:
             self._drop("client disconnected")
             return Arrival(closed=True)
-        return Arrival(data=data)
+        opened = 0 if self._open_since is None else 1
+        self._open_since = None
+        return Arrival(opened=opened, data=data)
 
     def _drop(self, reason: str) -> None:
         if self._conn is not None:
             self._log(reason)
             conn, self._conn = self._conn, None
+            self._open_since = None
             conn.close()
 
     def write(self, data: bytes | bytearray) -> int:

@@ -1,8 +1,10 @@
-"""The emulator as a real process on a real pty, driven with raw pyserial (not our client).
+"""The emulator as a real process on a real pty or TCP socket, driven with raw pyserial.
 
 Every test starts ``python -m mirobot_emulator`` with stdin/stdout pipes, reads the device path
-from the first stdout line, and talks to the port with ``serial.Serial``. Waits are conditions
-with timeouts (read until a line appears); every process and port is closed in ``finally``.
+(or ``socket://HOST:PORT`` with ``--listen``) from the first stdout line, and talks to the port
+with ``serial.serial_for_url`` (not our client, except in the TCP test of the real client).
+Waits are conditions with timeouts (read until a line appears); every process and port is
+closed in ``finally``.
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ import os
 import re
 import selectors
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -27,7 +30,10 @@ MODULE = (sys.executable, "-m", "mirobot_emulator")
 SCRIPT = Path(sys.executable).parent / "mirobot-emulator"
 PROFILES = ("classic", "2021")
 BANNER_LAST = "Using reset pos!"
+LISTEN = ("--listen", "127.0.0.1:0")  # TCP on the loopback, a free port
+TRANSPORTS = {"pty": (), "tcp": LISTEN}
 STEP = 0.01  # status angles are whole motor steps (~0.005 deg): a target is met within this
+HARD_LIMIT = re.compile(r"(?:[01]{8})?ALARM: Hard limit")  # the axis bitmask first (issue 11)
 STATUS_RE = re.compile(
     r"<(?P<state>[A-Za-z]+),Angle\(ABCDXYZ\):(?P<angles>[-0-9.,]+),"
     r"Cartesian coordinate\(XYZ RxRyRz\):(?P<pose>[-0-9.,]+),"
@@ -54,7 +60,7 @@ class Emulator:
         self._selector.register(self.proc.stdout, selectors.EVENT_READ)
         self.path = self.stdout_line(timeout=10)
         self.path_seen = time.monotonic()
-        assert self.path.startswith("/dev/"), self.path
+        assert self.path.startswith(("/dev/", "socket://")), self.path
 
     def stdout_line(self, timeout: float = 5.0) -> str:
         assert self.proc.stdout is not None
@@ -79,8 +85,8 @@ class Emulator:
         self.proc.stdin.flush()
         return self.stdout_line(timeout)
 
-    def port(self, timeout: float = 0.05) -> serial.Serial:
-        return serial.Serial(self.path, 115200, timeout=timeout)
+    def port(self, timeout: float = 0.05) -> serial.SerialBase:
+        return serial.serial_for_url(self.path, 115200, timeout=timeout)
 
     def stop(self, sig: int = signal.SIGTERM, timeout: float = 5.0) -> tuple[int, str]:
         """Signal the process, wait for it; return (exit status, stderr)."""
@@ -134,7 +140,7 @@ def emulator() -> Iterator[Callable[..., Emulator]]:
 
 # ----------------------------------------------------------------------------- serial helpers
 def read_until(
-    port: serial.Serial, predicate: Callable[[str], bool], timeout: float = 3.0
+    port: serial.SerialBase, predicate: Callable[[str], bool], timeout: float = 3.0
 ) -> list[str]:
     """Read lines until one satisfies ``predicate``; return all lines read (without endings)."""
     lines: list[str] = []
@@ -155,7 +161,7 @@ def is_status(line: str) -> bool:
     return line.startswith("<") and line.endswith(">")
 
 
-def status(port: serial.Serial, timeout: float = 3.0) -> re.Match[str]:
+def status(port: serial.SerialBase, timeout: float = 3.0) -> re.Match[str]:
     port.write(b"?")
     line = read_until(port, is_status, timeout)[-1]
     match = STATUS_RE.fullmatch(line)
@@ -169,7 +175,7 @@ def joints(match: re.Match[str]) -> list[float]:
     return [a[-3], a[-2], a[-1], a[0], a[1], a[2]]
 
 
-def wait_idle(port: serial.Serial, timeout: float = 5.0) -> re.Match[str]:
+def wait_idle(port: serial.SerialBase, timeout: float = 5.0) -> re.Match[str]:
     deadline = time.monotonic() + timeout
     while True:
         match = status(port)
@@ -178,7 +184,7 @@ def wait_idle(port: serial.Serial, timeout: float = 5.0) -> re.Match[str]:
         assert time.monotonic() < deadline, f"not Idle within {timeout} s: {match[0]}"
 
 
-def command(port: serial.Serial, line: str, timeout: float = 3.0) -> list[str]:
+def command(port: serial.SerialBase, line: str, timeout: float = 3.0) -> list[str]:
     """Send a line, read until its final reply (ok or an error); return the lines read."""
     port.write(line.encode() + b"\n")
     return read_until(
@@ -188,7 +194,7 @@ def command(port: serial.Serial, line: str, timeout: float = 3.0) -> list[str]:
     )
 
 
-def unlock(port: serial.Serial, profile: str) -> None:
+def unlock(port: serial.SerialBase, profile: str) -> None:
     if profile == "2021":  # starts in Alarm: $X leaves it
         command(port, "$X")
     replies = command(port, "M50")
@@ -206,9 +212,14 @@ def test_startup_to_first_status_is_fast(emulator: Callable[..., Emulator]) -> N
     assert elapsed < 1.0
 
 
+@pytest.mark.parametrize("transport", TRANSPORTS)
 @pytest.mark.parametrize("profile", PROFILES)
-def test_banner_on_open_with_reset_on_open(emulator: Callable[..., Emulator], profile: str) -> None:
-    emu = emulator("--firmware", profile, "--reset-on-open", "--time-scale", "0")
+def test_banner_on_open_with_reset_on_open(
+    emulator: Callable[..., Emulator], profile: str, transport: str
+) -> None:
+    emu = emulator(
+        "--firmware", profile, "--reset-on-open", "--time-scale", "0", *TRANSPORTS[transport]
+    )
     for _ in range(2):  # every open resets
         with emu.port() as port:
             lines = read_until(port, lambda text: BANNER_LAST in text)
@@ -369,7 +380,7 @@ def test_bad_arguments_exit_2() -> None:
 
 
 # ----------------------------------------------------------------------------- wire timing
-def _received_rate(port: serial.Serial, expected: int, timeout: float) -> tuple[float, bytes]:
+def _received_rate(port: serial.SerialBase, expected: int, timeout: float) -> tuple[float, bytes]:
     """Read ``expected`` bytes; return (bytes per second after the first chunk, data)."""
     data = b""
     first = last = 0.0
@@ -386,8 +397,9 @@ def _received_rate(port: serial.Serial, expected: int, timeout: float) -> tuple[
     return (len(data) - first_len) / (last - first), data
 
 
-def test_baud_paces_output(emulator: Callable[..., Emulator]) -> None:
-    emu = emulator("--baud", "9600", "--time-scale", "0")
+@pytest.mark.parametrize("transport", TRANSPORTS)
+def test_baud_paces_output(emulator: Callable[..., Emulator], transport: str) -> None:
+    emu = emulator("--baud", "9600", "--time-scale", "0", *TRANSPORTS[transport])
     with emu.port(timeout=0.5) as port:
         port.write(b"\n" * 400)  # 400 bytes in (0.42 s), 400 x "ok\r\n" = 1600 bytes out (1.67 s)
         rate, data = _received_rate(port, 1600, timeout=6)
@@ -396,8 +408,9 @@ def test_baud_paces_output(emulator: Callable[..., Emulator]) -> None:
     assert rate == pytest.approx(960, rel=0.15)
 
 
-def test_baud_paces_input(emulator: Callable[..., Emulator]) -> None:
-    emu = emulator("--baud", "9600", "--time-scale", "0")
+@pytest.mark.parametrize("transport", TRANSPORTS)
+def test_baud_paces_input(emulator: Callable[..., Emulator], transport: str) -> None:
+    emu = emulator("--baud", "9600", "--time-scale", "0", *TRANSPORTS[transport])
     line = b"(" + b"x" * 62 + b")\n"  # 64 bytes in, "ok\r\n" out: input-bound
     with emu.port(timeout=0.5) as port:
         port.write(b"\n")
@@ -413,8 +426,9 @@ def test_baud_paces_input(emulator: Callable[..., Emulator]) -> None:
     assert elapsed == pytest.approx(640 / 960, rel=0.15)
 
 
-def test_usb_latency_holds_short_output(emulator: Callable[..., Emulator]) -> None:
-    emu = emulator("--usb-latency-ms", "80", "--time-scale", "0")
+@pytest.mark.parametrize("transport", TRANSPORTS)
+def test_usb_latency_holds_short_output(emulator: Callable[..., Emulator], transport: str) -> None:
+    emu = emulator("--usb-latency-ms", "80", "--time-scale", "0", *TRANSPORTS[transport])
     with emu.port(timeout=0.5) as port:
         delays = []
         for _ in range(3):
@@ -428,8 +442,9 @@ def test_usb_latency_holds_short_output(emulator: Callable[..., Emulator]) -> No
 
 
 # ----------------------------------------------------------------------------- faults (flags)
-def test_fault_drop_ok(emulator: Callable[..., Emulator]) -> None:
-    emu = emulator("--fault", "drop-ok:2", "--fault", "drop-ok:3")
+@pytest.mark.parametrize("transport", TRANSPORTS)
+def test_fault_drop_ok(emulator: Callable[..., Emulator], transport: str) -> None:
+    emu = emulator("--fault", "drop-ok:2", "--fault", "drop-ok:3", *TRANSPORTS[transport])
     with emu.port() as port:
         port.write(b"\n\n\n\n?")
         lines = read_until(port, is_status)
@@ -496,7 +511,7 @@ def test_fault_hard_limit(emulator: Callable[..., Emulator]) -> None:
     emu = emulator("--firmware", "classic", "--fault", "hard-limit:0.3")
     with emu.port() as port:
         lines = read_until(port, lambda text: "Hard limit" in text, timeout=5)
-        assert lines[-1] == "ALARM: Hard limit", lines
+        assert HARD_LIMIT.fullmatch(lines[-1]), lines
         assert read_until(port, lambda text: text != "") == ["[Reset to continue]"]
         # Nothing but "%" is processed now ("?" is not answered either).
         port.write(b"%")
@@ -511,8 +526,9 @@ def test_fault_reset(emulator: Callable[..., Emulator]) -> None:
         assert any("Qinnew Robot" in text for text in lines), lines
 
 
-def test_fault_close(emulator: Callable[..., Emulator]) -> None:
-    emu = emulator("--fault", "close:0.3")
+@pytest.mark.parametrize("transport", TRANSPORTS)
+def test_fault_close(emulator: Callable[..., Emulator], transport: str) -> None:
+    emu = emulator("--fault", "close:0.3", *TRANSPORTS[transport])
     with emu.port(timeout=0.1) as port:
         deadline = time.monotonic() + 5
         with pytest.raises(serial.SerialException):
@@ -551,8 +567,9 @@ def test_control_corrupt_and_ignore_status(emulator: Callable[..., Emulator]) ->
         assert status(port)
 
 
-def test_control_stall(emulator: Callable[..., Emulator]) -> None:
-    emu = emulator()
+@pytest.mark.parametrize("transport", TRANSPORTS)
+def test_control_stall(emulator: Callable[..., Emulator], transport: str) -> None:
+    emu = emulator(*TRANSPORTS[transport])
     with emu.port(timeout=0.05) as port:
         assert emu.command("stall 0.5") == "ack stall 0.5"
         started = time.monotonic()
@@ -563,21 +580,23 @@ def test_control_stall(emulator: Callable[..., Emulator]) -> None:
     assert 0.45 <= elapsed < 1.5
 
 
-@pytest.mark.parametrize("profile", PROFILES)
+@pytest.mark.parametrize(("profile", "transport"), [("classic", "pty"), ("2021", "tcp")])
 def test_control_hard_limit_reset_and_close(
-    emulator: Callable[..., Emulator], profile: str
+    emulator: Callable[..., Emulator], profile: str, transport: str
 ) -> None:
-    emu = emulator("--firmware", profile)
+    emu = emulator("--firmware", profile, *TRANSPORTS[transport])
     with emu.port() as port:
         assert emu.command("hard-limit 2") == "ack hard-limit 2"
         lines = read_until(port, lambda text: "Hard limit" in text)
-        assert lines == ["ALARM: Hard limit"], lines
+        assert len(lines) == 1 and HARD_LIMIT.fullmatch(lines[0]), lines
         assert emu.command("reset") == "ack reset"
         lines = read_until(port, lambda text: BANNER_LAST in text)
         assert any("Qinnew Robot" in text for text in lines), lines
         assert emu.command("close") == "ack close"
-        with pytest.raises(serial.SerialException):
-            port.read(1)
+        deadline = time.monotonic() + 5
+        with pytest.raises(serial.SerialException):  # after what was in transit, if anything
+            while time.monotonic() < deadline:
+                port.read(1)
     assert emu.proc.wait(timeout=5) == 0  # exits by itself
     code, err = emu.stop()
     assert code == 0, err
@@ -628,3 +647,95 @@ def test_control_motion_ends_reports_the_end_of_motion(emulator: Callable[..., E
     assert last_run_asked - 0.002 <= end <= idle_seen + 0.002, (last_run_asked, end, idle_seen)
     assert idle_seen - end < 0.020
     assert emu.command("motion-ends now").startswith("error motion-ends now:")
+
+
+# ----------------------------------------------------------------------------- reset on open
+@pytest.mark.parametrize("transport", TRANSPORTS)
+def test_reset_on_open_resets_on_open_not_on_a_flush(
+    emulator: Callable[..., Emulator], transport: str
+) -> None:
+    """The vendor's newer SDK flushes the input before each status poll: that is no open."""
+    emu = emulator(
+        "--firmware", "2021", "--reset-on-open", "--time-scale", "0", *TRANSPORTS[transport]
+    )
+    with emu.port() as port:
+        read_until(port, lambda text: BANNER_LAST in text)
+        command(port, "$X")  # 2021 starts in Alarm: a reset would bring it back
+        for _ in range(3):
+            port.reset_input_buffer()
+            assert status(port)["state"] == "Idle"
+        port.reset_input_buffer()
+        port.write(b"\n")
+        assert read_until(port, lambda text: text != "") == ["ok"]  # no banner came first
+    assert "ports_opened=1 " in emu.command("stats")
+    with emu.port() as port:  # a real open resets
+        read_until(port, lambda text: BANNER_LAST in text)
+        assert status(port)["state"] == "Alarm"
+    assert "ports_opened=2 " in emu.command("stats")
+
+
+# ----------------------------------------------------------------------------- TCP
+def test_tcp_binds_the_loopback_and_picks_a_port(emulator: Callable[..., Emulator]) -> None:
+    emu = emulator("--listen", "0", "--firmware", "classic", "--time-scale", "0")
+    match = re.fullmatch(r"socket://127\.0\.0\.1:(\d+)", emu.path)
+    assert match and int(match[1]) > 0, emu.path
+    with emu.port() as port:
+        unlock(port, "classic")
+        command(port, "M21 G90 G1 X10 F2000")
+        assert joints(wait_idle(port))[0] == pytest.approx(10.0, abs=STEP)
+
+
+def test_tcp_serves_one_client_at_a_time(emulator: Callable[..., Emulator]) -> None:
+    emu = emulator(*LISTEN, "--firmware", "classic", "--time-scale", "0")
+    host, port_text = emu.path.removeprefix("socket://").rsplit(":", 1)
+    with emu.port() as port:
+        unlock(port, "classic")
+        command(port, "M21 G90 G1 X15 F2000")
+        with socket.create_connection((host, int(port_text)), timeout=3) as second:
+            refusal = b""
+            while chunk := second.recv(4096):  # the emulator closes it after one line
+                refusal += chunk
+        assert refusal == b"mirobot-emulator: port busy: another client is connected\r\n"
+        assert joints(wait_idle(port))[0] == pytest.approx(15.0, abs=STEP)  # undisturbed
+    stats = emu.command("stats")
+    assert "refused_clients=1 " in stats and "ports_opened=1 " in stats, stats
+    with emu.port() as port:  # the first client gone, the next one is served: same robot
+        port.write(b"?")
+        first = read_until(port, lambda text: text != "")[-1]
+        match = STATUS_RE.fullmatch(first)
+        assert match, first
+        assert joints(match)[0] == pytest.approx(15.0, abs=STEP)
+
+
+@pytest.mark.parametrize(
+    ("args", "words"),
+    [
+        (("--listen", "127.0.0.1:70000"), b"0..65535"),
+        (("--listen", "localhost:http"), b"port number"),
+        (("--listen", "::1:0"), b"brackets"),
+        (("--listen", "127.0.0.1:0", "--link", "/tmp/never-made"), b"--link"),
+    ],
+)
+def test_listen_argument_errors_exit_2(args: tuple[str, ...], words: bytes) -> None:
+    proc = subprocess.run([*MODULE, *args], capture_output=True, timeout=10, check=False)
+    assert proc.returncode == 2, proc.stderr
+    assert words in proc.stderr, proc.stderr
+    assert proc.stdout == b""
+
+
+async def test_the_real_client_over_tcp(emulator: Callable[..., Emulator]) -> None:
+    from mirobot_async import Mirobot
+
+    emu = emulator(*LISTEN, "--firmware", "classic", "--time-scale", "100")
+    async with Mirobot.connect(emu.path) as arm:
+        homed = await arm.home(timeout=20)
+        assert homed.joints == pytest.approx((0.0,) * 6, abs=STEP)
+        moved = await arm.move_joints(j1=10, speed=3000)
+        assert moved is not None and moved.joints[0] == pytest.approx(10.0, abs=STEP)
+        result = await arm.stream([f"M21 G90 G1 X{i % 5} F3000" for i in range(300)])
+        assert (result.sent, result.acknowledged, result.errors) == (300, 300, [])
+        idle = await arm.wait_idle(timeout=20)
+        assert idle.joints[0] == pytest.approx(4.0, abs=STEP)
+        lines_sent = arm.stats.lines_sent
+    stats = dict(word.split("=") for word in emu.command("stats").split()[2:])
+    assert int(stats["lines_in"]) == lines_sent
