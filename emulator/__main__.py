@@ -38,8 +38,8 @@ def _build_parser() -> argparse.ArgumentParser:
         "socket. The first line of stdout is the device path (or socket://HOST:PORT); stdin "
         "takes fault-injection commands (drop-ok [N], corrupt-status [N], ignore-status [N], "
         "stall S, hard-limit [AXIS], reset, close, split-bytes [on|off], delay MS, "
-        "time-scale X; stats and motion-ends for the server's counters), each answered "
-        "'ack <command>'.",
+        "time-scale X; stats, motion-ends and starvations for the server's counters), each "
+        "answered 'ack <command>'.",
     )
     parser.add_argument(
         "--firmware",

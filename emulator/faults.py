@@ -3,7 +3,7 @@
 Real arms misbehave in a few recurring ways (issue 7): an ``ok`` never arrives, a status line is
 printed with a duplicated fragment, a ``?`` is ignored, the output stalls, a limit switch trips,
 the controller resets on its own (banner in the middle of the stream), the USB cable is pulled.
-This module describes those faults and applies the ones that act on data; the pty server
+This module describes those faults and applies the ones that act on data; the server
 (:mod:`mirobot_emulator.server`) applies the ones that act on the link or on the firmware.
 
 Nothing here does I/O or reads a clock: the server passes the time in.
@@ -23,7 +23,7 @@ Fault specifications (command line, ``--fault SPEC``, repeatable)::
     delay:MS                  hold every output line MS milliseconds before writing it (order
                               preserved)
 
-Timed faults count wall-clock seconds since the server opened its pty (not simulated seconds).
+Timed faults count wall-clock seconds since the server opened its port (not simulated seconds).
 The link faults (``split-bytes``, ``delay``) act from the start, on every line after the power-on
 banner; the control channel turns them on, off or changes them while running.
 
@@ -43,6 +43,9 @@ Control commands (the server's stdin, one per line; each answered ``ack <command
                          (bytes and lines received from the client, bytes written, oks dropped,
                          statuses corrupted, ...), so that tests can see what really crossed
                          the wire
+
+The server also answers queries of its own on the same channel (``motion-ends``,
+``starvations``: see :mod:`mirobot_emulator.server.control`).
 
 An "ok line" is a line that is exactly ``ok``; an ``ok`` glued to other text (``in homeing
 moving...ok``) is not counted or dropped. A "status line" is a line starting with ``<``.

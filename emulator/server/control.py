@@ -12,12 +12,51 @@ from __future__ import annotations
 
 import os
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 
-__all__ = ["QUERIES", "ControlReader"]
+__all__ = ["QUERIES", "ControlReader", "answer_query", "planner_counters"]
 
-QUERIES = frozenset({"motion-ends"})
-"""Commands that ask the server something and change nothing (answered with their result)."""
+QUERIES = frozenset({"motion-ends", "starvations"})
+"""Commands that ask the server something and change nothing (answered with their result):
+
+``motion-ends``  ``ack motion-ends T ...``: the wall-clock ends of motion, oldest first;
+``starvations``  ``ack starvations N``: the times the firmware's planner stood still for want
+                 of blocks, then more came (lines arrived too late to blend); the planner's other
+                 counters are in ``stats``.
+"""
+
+
+def planner_counters(firmware: object) -> dict[str, int]:
+    """The planner's public counters, if the firmware model exposes its planner (else empty).
+
+    ``starvations`` (stopped for want of blocks, then more came), ``run_outs`` (ran empty at
+    all) and ``starved_ms`` (simulated milliseconds stood still in starvations, rounded).
+    """
+    planner = getattr(firmware, "planner", None)
+    starvations = getattr(planner, "starvations", None)
+    if not isinstance(starvations, int):
+        return {}
+    counters = {"starvations": starvations}
+    run_outs = getattr(planner, "run_outs", None)
+    if isinstance(run_outs, int):
+        counters["run_outs"] = run_outs
+    starved = getattr(planner, "starved_seconds", None)
+    if isinstance(starved, int | float):
+        counters["starved_ms"] = round(starved * 1000)
+    return counters
+
+
+def answer_query(words: list[str], motion_end_walls: Iterable[float], firmware: object) -> str:
+    """The answer line to a query (``words[0]`` in :data:`QUERIES`)."""
+    kind, text = words[0].lower(), " ".join(words)
+    if len(words) > 1:
+        return f"error {text}: {kind} takes no argument"
+    if kind == "motion-ends":
+        return " ".join(["ack motion-ends", *(f"{t:.6f}" for t in motion_end_walls)])
+    counters = planner_counters(firmware)
+    if "starvations" not in counters:
+        return f"error {text}: this firmware model does not count its planner's starvations"
+    return f"ack starvations {counters['starvations']}"
 
 
 class ControlReader:

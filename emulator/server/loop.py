@@ -28,7 +28,7 @@ from ..faults import (
     parse_command,
 )
 from .clock import Simulation
-from .control import ControlReader
+from .control import QUERIES, ControlReader, answer_query, planner_counters
 from .link import InputPath, OutputPath
 from .options import FirmwareLike, ServerOptions
 from .port import Arrival, Port
@@ -335,14 +335,10 @@ class EmulatorServer:
     def _handle_command(self, text: str, reply: Callable[[str], None] | None) -> None:
         answer = reply or self._on_reply or (lambda line: None)
         words = text.split()
-        if words and words[0].lower() == "motion-ends":
-            # A query of the server itself (not a fault): the ends of motion, wall clock.
-            if len(words) > 1:
-                answer(f"error {text.strip()}: motion-ends takes no argument")
-                return
+        if words and words[0].lower() in QUERIES:  # asks the server, changes nothing
             if self.sim is not None and self.port.is_open:
-                self._guard(self.sim.sync, time.monotonic())
-            answer(" ".join(["ack motion-ends", *(f"{t:.6f}" for t in self.motion_end_walls)]))
+                self._guard(self.sim.sync, time.monotonic())  # the present, not the last step
+            answer(answer_query(words, self.motion_end_walls, self.firmware))
             return
         try:
             command = parse_command(text)
@@ -384,6 +380,7 @@ class EmulatorServer:
         rx_lost = getattr(firmware, "rx_lost", None)
         if isinstance(rx_lost, int):
             counters["rx_lost"] = rx_lost
+        counters.update(planner_counters(firmware))
         return counters
 
     def stats_text(self) -> str:

@@ -21,6 +21,7 @@ from collections.abc import Callable, Iterator
 import psutil
 import pytest
 from mirobot_emulator.faults import Fault, parse_fault
+from mirobot_emulator.firmware import Firmware
 from mirobot_emulator.server import ServerOptions, VirtualMirobot
 from mirobot_emulator.server.link import INPUT_HOLD_LIMIT, OUTPUT_HOLD_LIMIT
 from mirobot_emulator.server.port import READ_CHUNK
@@ -318,3 +319,38 @@ def test_the_cli_serves_tcp_without_posix_modules(args: tuple[str, ...]) -> None
             proc.communicate(timeout=10)
     assert proc.returncode == 0, err
     assert b"Traceback" not in err, err
+
+
+# ----------------------------------------------------------------------------- control queries
+class _PlannerCounters:
+    starvations = 3
+    run_outs = 5
+    starved_seconds = 0.25
+
+
+class _FirmwareWithPlanner(Firmware):
+    """The firmware model with a public planner exposing the counters (as issue 12 asks)."""
+
+    planner = _PlannerCounters()
+
+
+class _FirmwareWithoutPlanner(Firmware):
+    planner = None
+
+
+def test_starvations_are_answered_from_the_planners_public_counters() -> None:
+    options = ServerOptions(firmware="classic", time_scale=0)
+    with VirtualMirobot(options, firmware_factory=lambda: _FirmwareWithPlanner("classic")) as robot:
+        assert robot.command("starvations") == "ack starvations 3"
+        counters = stats(robot)
+        assert (counters["starvations"], counters["run_outs"], counters["starved_ms"]) == (
+            3,
+            5,
+            250,
+        )
+        assert robot.command("starvations now").startswith("error starvations now:")
+    with VirtualMirobot(
+        options, firmware_factory=lambda: _FirmwareWithoutPlanner("classic")
+    ) as robot:
+        assert robot.command("starvations").startswith("error starvations: ")
+        assert "starvations" not in stats(robot)
