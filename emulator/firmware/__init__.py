@@ -42,6 +42,9 @@ What is modelled (checked against the oracle where it says so)
 * The parser's own position (``ModalState.joints``): targets are measured from it, the planner
   moves from where queued motion ends; a line with ``M20`` or ``M21`` first sets it to the
   machine position, where the arm is now (oracle: eight queued ``M21 G91 X1`` end at 1.005).
+* Startup lines (oracle): ``$N0=``/``$N1=`` execute the line to check it (stored only when it
+  is accepted); after a reset out of Alarm each stored line runs, printed with its reply glued
+  on (``G91ok``).
 * Status angles are whole motor steps, the pose is the FK of those angles (oracle:
   ``reports.step_position``); during a ``G4`` dwell the state is ``Idle`` (oracle).
 
@@ -49,12 +52,11 @@ Not modelled
 ------------
 GRBL's look-ahead details (see :mod:`mirobot_emulator.motion`); probing (``G38.x``: the oracle
 prints ``ALARM: Probe fail``; here ``Unsupported command``) and ``G43`` without ``.1``; arcs in
-the classic firmware's real arc plane (its axes 0..2 are J4..J6); stored startup lines
-(``$N0=``) are kept but never executed; the limit-switch physics of homing (homing cannot fail
-except by ``%``); ``$50`` tool presets; the ``$36`` point count; EEPROM persistence (settings
-live as long as the object); the 500 ms stall GRBL adds after printing an alarm; the firmware
-bugs visible in the open source (a stale modal-group bit for ``M3``/``M20``, parser positions
-updated by refused moves, ``M20``/``M50`` executed by lines that then fail).
+the classic firmware's real arc plane (its axes 0..2 are J4..J6); the limit-switch physics of
+homing (homing cannot fail except by ``%``); ``$50`` tool presets; the ``$36`` point count;
+EEPROM persistence (settings live as long as the object); the 500 ms stall GRBL adds after
+printing an alarm; the firmware's float32 arithmetic (its status pose can differ from ours in
+the last digit); parser positions updated by refused moves.
 
 ASSUMED points implemented (each in one constant or function, named here)
 -------------------------------------------------------------------------

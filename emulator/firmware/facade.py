@@ -60,8 +60,8 @@ class Firmware:
         """How many such instants there have been (``motion_end_times`` keeps the last ones)."""
         self._m = Machine(profile, self.homing_seconds)
         self.settings: dict[int, float] = self._m.settings
-        self._system = SystemCommands(self._m, self.reset)
         self._gcode = GcodeExecutor(self._m)
+        self._system = SystemCommands(self._m, self.reset, self._gcode.execute)
         self._m.reset_condition(interrupted=False)
         self._m.parser_init(feed=200.0)
         self._m.emit_lines(banner(self._m))
@@ -155,6 +155,18 @@ class Firmware:
         m.reset_condition(interrupted=interrupted)
         m.parser_init(feed=200.0)
         m.emit_lines(banner(m))
+        self._run_startup_lines()
+
+    def _run_startup_lines(self) -> None:
+        """After a reset out of Alarm, the stored ``$N0``/``$N1`` lines run, each printed with
+        its reply glued on (oracle: ``G91ok``)."""
+        m = self._m
+        if m.alarm:
+            return
+        for text in m.startup_lines:
+            if text:
+                m.out += text.encode("latin-1", "replace")
+                self._gcode.execute(text)
 
     def trigger_hard_limit(self, axis: int = 1) -> None:
         """Fault injection: a limit switch (``axis``, informative) closes now.

@@ -18,13 +18,14 @@ class GcodeExecutor:
     def __init__(self, machine: Machine) -> None:
         self.m = machine
 
-    def execute(self, line: str) -> None:
+    def execute(self, line: str) -> int:
+        """Run ``line`` and print its replies; its GRBL status (0 when accepted)."""
         m = self.m
         scanned, status = scan(line, m.profile)
         if status:
             self._early_effects(scanned)
             m.error(status)
-            return
+            return status
         # oracle: a line with M20 or M21 first sets the parser's position to the machine's
         # (where the arm is now, not where queued motion ends)
         origin = m.machine_position() if scanned.coord_mode is not None else m.modal.joints
@@ -32,8 +33,9 @@ class GcodeExecutor:
         if isinstance(checked, int):
             self._early_effects(scanned)
             m.error(checked)
-            return
+            return checked
         self._run(checked)
+        return 0
 
     def _early_effects(self, g: GBlock) -> None:
         """A failing line's ``M50``/``M20``/``M21`` words still act on classic (oracle:

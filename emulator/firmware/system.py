@@ -27,11 +27,15 @@ FREE_MEMORY: Final = 2036
 
 
 class SystemCommands:
-    """Executes a line starting with ``$``; ``reset`` is the soft reset (``$C`` off, ``$RST``)."""
+    """Executes a line starting with ``$``; ``reset`` is the soft reset (``$C`` off, ``$RST``),
+    ``run_gcode`` runs a G-code line and returns its status (``$N0=``)."""
 
-    def __init__(self, machine: Machine, reset: Callable[[], None]) -> None:
+    def __init__(
+        self, machine: Machine, reset: Callable[[], None], run_gcode: Callable[[str], int]
+    ) -> None:
         self.m = machine
         self.reset = reset
+        self.run_gcode = run_gcode
 
     def _idle_or_alarm(self) -> bool:
         return self.m.state in ("Idle", "Alarm")
@@ -145,8 +149,13 @@ class SystemCommands:
         if not 0 <= n < N_STARTUP_LINE:
             m.error(c.INVALID_STATEMENT)
             return
-        m.startup_lines[n] = line[i + 1 :]
-        m.emit("ok")
+        text = line[i + 1 :]
+        # oracle: the line is executed (and replies) to prove it valid; stored only then
+        if not text:
+            m.emit("ok")
+        elif self.run_gcode(text):
+            return
+        m.startup_lines[n] = text
 
     def _store_setting(self, line: str) -> None:
         m = self.m

@@ -162,3 +162,13 @@ def test_a_reset_ends_the_line_in_progress_with_ok() -> None:
     out = lines(fw, "G4 P0\n", math.inf)
     assert out == ["00010000ALARM: Hard limit", "[Reset to continue]"]
     assert lines(fw, "%")[:2] == ["ok", ""]
+
+
+def test_startup_lines_are_checked_when_stored_and_run_after_a_reset() -> None:
+    fw = Firmware("classic")
+    fw.read_output()
+    assert lines(fw, "$N0=G91\n$G\n")[1] == "[G0 G54 G17 G21 G91 G94 M0 M5 M9 T0 F200. S0.]"
+    assert lines(fw, "$N1=Q1\n") == ["error: Unsupported command"]  # not stored
+    assert lines(fw, "$N1=M3S100\n") == ["ok"]
+    out = lines(fw, "%")
+    assert out[-3:] == ["Using reset pos!", "G91ok", "M3S100ok"]  # oracle, after the banner
