@@ -56,7 +56,7 @@ the classic firmware's real arc plane (its axes 0..2 are J4..J6); the limit-swit
 homing (homing cannot fail except by ``%``); ``$50`` tool presets; the ``$36`` point count;
 EEPROM persistence (settings live as long as the object); the 500 ms stall GRBL adds after
 printing an alarm; the firmware's float32 arithmetic (its status pose can differ from ours in
-the last digit); parser positions updated by refused moves.
+the last digit).
 
 ASSUMED points implemented (each in one constant or function, named here)
 -------------------------------------------------------------------------
@@ -75,7 +75,9 @@ ASSUMED points implemented (each in one constant or function, named here)
 * Only a valid line has effects: ``M20``/``M21``/``M50`` act and print only when the whole line
   is accepted (so ``M20 G1 X200`` with feed 0 prints just the error, as in the vectors).
 * ``M20`` ``G91`` increments add to the last *commanded* pose; a line with ``M20`` first sets it
-  to the FK of the machine position.
+  to the FK of the machine position. ``GcodeExecutor._refused_target``: a locked refusal still
+  moves the parser's position to the target, an unreachable Cartesian target still becomes the
+  commanded pose (oracle); a soft-limit refusal moves neither (ASSUMED in ``M20``).
 * The 2021 base offset ``$41..$43`` is added to absolute ``M20`` X/Y/Z targets (open firmware);
   the status report prints the pose in the robot frame (FK with the ``$46..$48`` tool offset).
 * ``geometry.IK_CHECKS_JOINT_RANGES``: the IK is the firmware branch with no joint range check

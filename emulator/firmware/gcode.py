@@ -92,6 +92,17 @@ class GcodeExecutor:
                 out.append(m.info(c.TEXT_M21))
         return out
 
+    def _refused_target(self, line: CheckedLine, text: str) -> None:
+        """Oracle: a move refused because the axes are locked still moves the parser's
+        position to its target (``G91 X10`` locked, ``M50``, ``G91 X1`` -> 10.999), and so does
+        an unreachable Cartesian target for the commanded pose (``M20 G91 G0 X500`` then
+        ``G91 G0 X-300`` is unreachable too); a soft-limit refusal leaves both."""
+        m = self.m
+        if text == c.TEXT_LOCKED and not line.cart:
+            m.modal.joints = line.target
+        elif line.cart and text in (c.TEXT_LOCKED, c.TEXT_UNREACHABLE):
+            m.modal.cart = pose6(line.target[:6])
+
     def _store_offsets(self, line: CheckedLine) -> None:
         """``G10 L2``/``L20``, ``G92``, ``G92.1``, ``G28.1``, ``G30.1`` (oracle: as GRBL 0.9j)."""
         m = self.m
@@ -177,6 +188,7 @@ class GcodeExecutor:
                 out += c.refusal_lines(refusal.text)
                 if refusal.text in c.TEXTS_WITHOUT_LINE_END:
                     ok = out.pop() + ok
+                self._refused_target(line, refusal.text)
             else:
                 m.modal.joints = line.target if not line.cart else end_q
                 blocks += new_blocks

@@ -172,3 +172,17 @@ def test_startup_lines_are_checked_when_stored_and_run_after_a_reset() -> None:
     assert lines(fw, "$N1=M3S100\n") == ["ok"]
     out = lines(fw, "%")
     assert out[-3:] == ["Using reset pos!", "G91ok", "M3S100ok"]  # oracle, after the banner
+
+
+def test_refused_targets_that_still_move_the_parser() -> None:
+    fw = Firmware("classic")
+    fw.read_output()
+    lines(fw, "G91 X10\nM50\n")  # refused: locked
+    lines(fw, "G91 X1\n", math.inf)
+    assert angles(fw)[0] == pytest.approx(10.999, abs=1e-9)  # oracle: from 10, not 0
+    lines(fw, "G90 X170\n")  # refused: soft limit X, the parser stays at 11
+    lines(fw, "G91 X1\n", math.inf)
+    assert angles(fw)[0] == pytest.approx(12.004, abs=1e-9)
+    unreachable = ["", "GOAL OUT OF WORKSPACE, THERE IS NO VAILD VALUS FOR  THETA3!ok"]
+    assert lines(fw, "M20 G91 G0 X500\n") == unreachable
+    assert lines(fw, "G91 G0 X-300\n") == unreachable  # from x = 700 or so, not from 200
