@@ -276,6 +276,8 @@ class Pair:
     ours: Device
     exchanges: list[Exchange] = field(default_factory=list)
     banner: Exchange | None = None
+    first_write: float = 0.0
+    """Wall time just before the last :meth:`stream` wrote its first byte to our emulator."""
 
     @classmethod
     def spawn(
@@ -368,6 +370,7 @@ class Pair:
         while time.monotonic() < deadline and not all(s.done() for s in senders):
             for sender in senders:
                 sender.step()
+        self.first_write = senders[1].first_write
         exchange = Exchange(
             b"".join(payloads), self.oracle.take(), self.ours.take(), note="streamed"
         )
@@ -407,6 +410,7 @@ class _Streamer:
         self.next = 0
         self.in_flight: list[int] = []
         self.answered = 0
+        self.first_write = 0.0  # wall time just before the first byte was written
 
     def done(self) -> bool:
         return self.answered >= len(self.payloads)
@@ -420,6 +424,8 @@ class _Streamer:
         while self.next < len(self.payloads) and (
             sum(self.in_flight) + len(self.payloads[self.next]) <= self.window
         ):
+            if not self.next:
+                self.first_write = time.monotonic()
             self.device.write(self.payloads[self.next])
             self.in_flight.append(len(self.payloads[self.next]))
             self.next += 1

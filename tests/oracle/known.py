@@ -31,10 +31,9 @@ KNOWN_DIFFERENCES: dict[str, str] = {
         "forward kinematics rounding: at J1=1.992 J2=0.997 the oracle prints X 203.644, ours "
         "203.643 (last digit; the firmware's float32 arithmetic)"
     ),
-    "test_diff_fuzz::test_random_lines": (
-        "status pose: the oracle prints a negative zero '-0.000' for Rx/Rz after Cartesian moves "
-        "(ours '0.000'), and its float32 forward kinematics differs in the last digit "
-        "(Z 166.975 vs ours 166.976)"
+    "test_diff_motion::test_move[cart-g1-fk-digit]": (
+        "forward kinematics rounding: after M20 G90 G1 X199 Y3 Z167 the oracle prints Z "
+        "166.975, ours 166.976 (last digit; the firmware's float32 arithmetic)"
     ),
     "test_diff_timing::test_program_time[cart-g1-200-segments]": (
         "200 short M20 G1 segments: oracle 10.14 s simulated, ours 8.5-9.0 s (-11..-16 %; "

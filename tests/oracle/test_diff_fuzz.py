@@ -2,10 +2,12 @@
 
 Each example gets a freshly powered-on pair (the next one is started while the current example
 runs, so that costs little); ``%`` is not an equivalent reset (the power-on lock and settings
-survive it). Lines are sent one at a time, each waiting for its reply. Replies that depend on the
-instant (``$`` commands refused while moving) are made deterministic by a ``G4 P0`` before each
-``$`` line; an example ends with ``G4 P0`` and ``?`` at rest. Shrinking is off to keep the time
-bounded: a failing example is reported as generated.
+survive it). Lines are sent one at a time, each waiting for its reply, with a ``G4 P0`` (wait
+until motion ends) between them: what a line does while the arm moves depends on the instant
+(``$`` commands are refused; M20/M21 resynchronise relative moves to the machine position), and
+the planner's interplay is covered by the burst and stream scenarios. An example ends with
+``G4 P0`` and ``?`` at rest. Shrinking is off to keep the time bounded: a failing example is
+reported as generated, and all differing examples are reported together.
 """
 
 from __future__ import annotations
@@ -130,8 +132,8 @@ def test_random_lines(pairs: Iterator[Pair]) -> None:
     def example(unlock: bool, lines: list[str]) -> None:
         pair = next(pairs)
         lines = ["M50", *lines] if unlock else lines
-        for line in lines:
-            if line.startswith("$"):
+        for i, line in enumerate(lines):
+            if i:
                 pair.settle()
             pair.send(line + "\n", timeout=30)
         pair.settle()

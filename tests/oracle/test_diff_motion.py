@@ -53,6 +53,7 @@ MOVES: dict[str, list[str]] = {
     "cart-abs-g1": ["M20 G90 G1 X180 Y20 Z120 A0 B0 C0 F2000"],
     "cart-rel-g0": ["M20 G91 G0 X-10 Y10 Z-10 A5 B0 C0 F2000"],
     "cart-rel-g1": ["M20 G91 G1 X-10 Y10 Z-10 F1000"],
+    "cart-g1-fk-digit": ["M20 G90 G1 X199 Y3 Z167 A0 B0 C0 F1000"],
     "cart-orientation": ["M20 G90 G0 X200 Y0 Z170 A10 B-10 C20 F2000"],
     "modal-words": ["G91", "M21", "F1800", "X3", "Y3", "G90", "X0 Y0"],
     "pump-valve": ["M3 S1000", "M3 S0", "M4 E65", "M4 E40", "M3 S500", "M5"],

@@ -4,10 +4,12 @@ Each program is streamed (character counting) after the arm has settled, followe
 whose ``ok`` comes once the planner is empty. Its time runs from the ``ok`` of its first line
 (the first block is planned and starts) to the end of motion. On the oracle both instants come
 from its simulated-time log (the end: the dwell's ``ok``). On ours the end is its last
-``motion-ends`` instant (mapped exactly from its simulated clock) and the start is the wall time
-at which that first ``ok`` was read, both times the time scale; the reading latency (well under
-a millisecond, times the time scale) is the only inexactness. The replies are compared
-byte for byte too.
+``motion-ends`` instant (mapped exactly from its simulated clock); its start lies between the
+wall time just before the first byte was written and the wall time its ``ok`` was read (usually
+well under a millisecond apart), times the time scale. The test passes when that interval comes
+within the tolerance of the oracle's time, and demands the interval be narrower than the
+tolerance (else the measurement itself is reported as too imprecise, e.g. on an overloaded
+host). The replies are compared byte for byte too.
 """
 
 from __future__ import annotations
@@ -51,8 +53,9 @@ def first_ok_wall(exchange_start: int, pair: Pair) -> float:
 
 def program_times(
     pair: Pair, workdir: Path, program: list[str], scale: float
-) -> tuple[float, float]:
-    """(oracle, ours) simulated seconds of ``program``, measured as the module docstring says."""
+) -> tuple[float, float, float]:
+    """Simulated seconds of ``program``: the oracle's, and ours as an interval (shortest,
+    longest), measured as the module docstring says."""
     pair.lines("M50")
     pair.settle()
     logged_before = pair.oracle.received.count(b"\n")
@@ -65,7 +68,7 @@ def program_times(
     ends = motion_ends(pair.ours)
     start = first_ok_wall(ours_start, pair)
     assert ends and ends[-1] > start, f"no end of motion after the program's start: {ends}"
-    return oracle, (ends[-1] - start) * scale
+    return oracle, (ends[-1] - start) * scale, (ends[-1] - pair.first_write) * scale
 
 
 @pytest.mark.parametrize("name", PROGRAMS)
@@ -73,11 +76,13 @@ def test_program_time(tmp_path: Path, name: str) -> None:
     program, relative, absolute, scale = PROGRAMS[name]
     pair = Pair.spawn(tmp_path, time_scale=scale).connect()
     try:
-        oracle, ours = program_times(pair, tmp_path, program, scale)
+        oracle, shortest, longest = program_times(pair, tmp_path, program, scale)
         pair.status()
         allowed = max(relative * oracle, absolute)
-        assert abs(ours - oracle) <= allowed, (
-            f"{name}: oracle {oracle:.3f} s, ours {ours:.3f} s simulated "
+        off = max(shortest - oracle, oracle - longest, 0.0)
+        ours = (shortest + longest) / 2
+        assert off <= allowed and longest - shortest <= allowed, (
+            f"{name}: oracle {oracle:.3f} s, ours {shortest:.3f}..{longest:.3f} s simulated "
             f"({(ours / oracle - 1) * 100:+.1f} %, allowed {allowed * 1000:.0f} ms)"
         )
         pair.check()
