@@ -1,27 +1,34 @@
 """The client's side of the safety envelope: line checks and position prediction.
 
 :class:`EnvelopeGuard` checks each line against the :class:`~mirobot_async.envelope.Envelope`
-right before it is written, starting from the position and modal state predicted from every
-line written before it, and keeps that prediction up to date (see the client's module docstring,
-"Safety envelope", for the policy). :class:`NullGuard` is the same interface when there is no
-envelope: every line passes and nothing is tracked. No I/O here: the line scheduler learns the
-position (a status at rest) when :meth:`EnvelopeGuard.verdict` asks for it.
+right before it is written, starting from the machine state predicted from every line written
+before it (:class:`~mirobot_async.prediction.MachineState`: modal words including the units,
+position, the 2021 base offset ``$41..$43`` and gate lift ``$49``), and keeps that prediction up
+to date. The check is default-deny (:func:`~mirobot_async.prediction.predict`): a line passes
+only when its exact effect is predicted. What is unknown at connect stays unknown until a line
+states it (``G21``, ``M20``...), a status at rest shows it (the position) or a settings listing
+gives it (the base offset). :class:`NullGuard` is the same interface when there is no envelope:
+every line passes and nothing is tracked. No I/O here: the line scheduler learns the position (a
+status at rest) when :meth:`EnvelopeGuard.verdict` asks for it.
 """
 
 from __future__ import annotations
 
 import logging
-import re
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Final, Protocol
 
 from mirobot_async.condition import RobotCondition
 from mirobot_async.errors import MirobotUsageError
+from mirobot_async.line import parse_line
+from mirobot_async.modal import LineCheck, MotionModes, update_modes
 from mirobot_async.replies import State, StatusReport
 from mirobot_async.wire import ClientStats
 
 if TYPE_CHECKING:  # imported when an envelope is used (it needs numpy)
-    from mirobot_async.envelope import Envelope, LineCheck, MotionModes
+    from mirobot_async.envelope import Envelope
+    from mirobot_async.prediction import MachineState
 
 __all__ = [
     "NEED_POSITION",
@@ -35,7 +42,6 @@ __all__ = [
 
 _log = logging.getLogger("mirobot_async.client")
 
-_HOMING_RE: Final = re.compile(rb"^\$H[H0-7E]?$")
 _QUIET: Final = frozenset({State.IDLE, State.ALARM, State.CHECK})
 
 
@@ -50,22 +56,12 @@ NEED_POSITION: Final = NeedPosition()
 
 
 @dataclass(frozen=True, slots=True)
-class _Position:
-    """Where the arm is (or will be once every line written has run)."""
-
-    joints: tuple[float, ...]
-    pose: tuple[float, ...]
-    rail: float | None
-
-
-@dataclass(frozen=True, slots=True)
 class Tracked:
     """What the prediction assumed when a line was written (to undo it if the line fails)."""
 
     line_id: int
     check: LineCheck | None  # the envelope's verdict on the line (its target), if it had one
-    modes_before: MotionModes
-    position_before: _Position | None
+    state_before: MachineState  # the predicted machine state before the line
     moved: bool
     modes_changed: bool
 
@@ -83,6 +79,8 @@ class Guard(Protocol):
     def verdict(self, data: bytes, what: str | None) -> LineCheck | NeedPosition | None: ...
 
     def adopt_status(self, report: StatusReport) -> None: ...
+
+    def adopt_settings(self, settings: Mapping[int, float]) -> None: ...
 
     def track_written(
         self,
@@ -124,6 +122,9 @@ class NullGuard:
     def adopt_status(self, report: StatusReport) -> None:
         """Nothing to predict."""
 
+    def adopt_settings(self, settings: Mapping[int, float]) -> None:
+        """Nothing to predict."""
+
     def track_written(
         self,
         line_id: int,
@@ -152,16 +153,20 @@ class EnvelopeGuard:
     """Checks lines against ``envelope`` and predicts where they leave the arm."""
 
     def __init__(self, envelope: Envelope, condition: RobotCondition, stats: ClientStats) -> None:
-        from mirobot_async.envelope import MotionModes
+        from mirobot_async.prediction import MachineState
 
         self._envelope = envelope
         self._classic: Envelope | None = None  # the envelope with dh=DH_CLASSIC
         self._condition = condition
         self._stats = stats
-        self._modes: MotionModes = MotionModes.unknown()
-        self._position: _Position | None = None
+        # Everything unknown at connect: the modes (units too), the position, the base offset.
+        self._state: MachineState = MachineState(MotionModes.unknown())
+        self._base_offset: tuple[float, float, float] | None = None  # learned from $$ (2021)
+        self._gate_lift: float | None = None
         self.epoch = 0  # bumped when the prediction or the modes are invalidated
         self._last_line_id: int | None = None
+        self._moves = False  # whether the last prediction moves the arm
+        self._verdicts: tuple[LineCheck, MachineState] | None = None  # the last verdict's state
 
     @property
     def envelope(self) -> Envelope:
@@ -177,33 +182,54 @@ class EnvelopeGuard:
             self._classic = replace(envelope, dh=DH_CLASSIC)
         return self._classic
 
+    @property
+    def modes(self) -> MotionModes:
+        """The modal words as predicted after every line written (``None`` parts: unknown)."""
+        return self._state.modes
+
     def needs_firmware(self, data: bytes) -> bool:
         """True when the firmware (the kinematic model) must be known before checking ``data``."""
         return self._condition.firmware is None and not data.startswith(b"$")
 
-    def _check(self, data: bytes, position: _Position | None, what: str | None) -> LineCheck:
-        return self.envelope.check_line(
-            data,
-            None if position is None else position.joints,
-            None if position is None else position.pose,
-            self._modes,
-            current_rail=None if position is None else position.rail,
-            what=what,
-        )
+    def _machine(self) -> MachineState:
+        """The predicted state with what the firmware profile decides filled in."""
+        firmware = self._condition.firmware
+        state = self._state
+        if firmware == "classic":  # no base offset, no gate moves
+            return replace(state, base_offset=(0.0, 0.0, 0.0), gate_lift=None, firmware=firmware)
+        if state.base_offset is None and self._base_offset is not None:
+            state = replace(state, base_offset=self._base_offset)
+        if state.gate_lift is None and self._gate_lift is not None:
+            state = replace(state, gate_lift=self._gate_lift)
+        return replace(state, firmware=firmware)
+
+    def _predict(self, data: bytes, state: MachineState, what: str | None) -> MachineState:
+        """The state after ``data``; raises MirobotUsageError when the envelope refuses it."""
+        from mirobot_async.prediction import Prediction, predict
+
+        result = predict(self.envelope, data, state, what=what)
+        if not isinstance(result, Prediction):
+            raise result.error()
+        self._moves = result.moves
+        return result.state
 
     def verdict(self, data: bytes, what: str | None) -> LineCheck | NeedPosition | None:
-        """The envelope's verdict on ``data`` from the predicted position, or
+        """The envelope's verdict on ``data`` from the predicted state, or
         :data:`NEED_POSITION`; raises :class:`MirobotUsageError` ("refused by the safety
         envelope ...; nothing was sent") for a line it refuses."""
+        state = self._machine()
         try:
-            if self._position is None and not _HOMING_RE.match(data):
+            if state.joints is None and not parse_line(data).is_homing:
                 # Lines that do not move need no position; the others wait for one.
                 try:
-                    verdict = self._check(data, None, what)
+                    after = self._predict(data, state, what)
                 except MirobotUsageError:
                     return NEED_POSITION
-                return verdict if not verdict.moves else NEED_POSITION
-            return self._check(data, self._position, what)
+                return _line_check(after, False) if not self._moves else NEED_POSITION
+            after = self._predict(data, state, what)
+            check = _line_check(after, self._moves)
+            self._verdicts = (check, after)
+            return check
         except MirobotUsageError as err:
             self._stats.envelope_refusals += 1
             raise MirobotUsageError(
@@ -212,11 +238,25 @@ class EnvelopeGuard:
 
     def adopt_status(self, report: StatusReport) -> None:
         """A status at rest with nothing in flight: where the arm is (unless predicted)."""
-        if self._position is not None or report.state not in _QUIET:
+        state = self._state
+        if state.joints is not None or report.state not in _QUIET:
             return
-        self._position = _Position(report.joints, report.pose, report.rail)
-        if self._modes.cartesian is None and report.motion_mode is not None:
-            self._modes = replace(self._modes, cartesian=report.motion_mode == 1)
+        modes = state.modes
+        if modes.cartesian is None and report.motion_mode is not None:
+            modes = replace(modes, cartesian=report.motion_mode == 1)
+        self._state = replace(
+            state, modes=modes, joints=report.joints, pose=report.pose, rail=report.rail
+        )
+
+    def adopt_settings(self, settings: Mapping[int, float]) -> None:
+        """A ``$$`` listing: the 2021 base offset ``$41..$43`` and gate lift ``$49``."""
+        if all(n in settings for n in (41, 42, 43)):
+            offset = (float(settings[41]), float(settings[42]), float(settings[43]))
+            self._base_offset = offset
+            self._state = replace(self._state, base_offset=offset)
+        if 49 in settings:
+            self._gate_lift = float(settings[49])
+            self._state = replace(self._state, gate_lift=self._gate_lift)
 
     def track_written(
         self,
@@ -229,47 +269,52 @@ class EnvelopeGuard:
         what: str | None,
         warn_unchecked: bool,
     ) -> Tracked | None:
-        """Update the predicted position and modes for a line just written."""
-        modes_before, position_before = self._modes, self._position
-        if not checked:  # sent with check_envelope=False: follow it if the envelope can
-            verdict = self._follow_unchecked(data, command, position_before, what, warn_unchecked)
-        if verdict is not None:
-            self._modes = verdict.modes
-            moved = verdict.moves
-            if moved:
-                joints, pose = verdict.joints, verdict.pose
-                self._position = (
-                    None
-                    if joints is None or pose is None
-                    else _Position(joints, pose, verdict.rail)
-                )
+        """Update the predicted state for a line just written."""
+        before = self._state
+        after: MachineState | None = None
+        if checked and verdict is not None:
+            if self._verdicts is not None and self._verdicts[0] is verdict:
+                after, self._moves = self._verdicts[1], verdict.moves
+            else:
+                after = self._follow(data, what)
+        elif not checked:  # sent with check_envelope=False: follow it if the envelope can
+            after = self._follow_unchecked(data, command, before, what, warn_unchecked)
+        if after is not None:
+            moved = self._moves
+            self._state = after
         else:
-            from mirobot_async.envelope import update_modes
-
-            self._modes = update_modes(data, modes_before)
-            self._position = None
+            modes = update_modes(data, before.modes)
+            self._state = replace(before, modes=modes, joints=None, pose=None, rail=None)
+            if _may_change_offset(data):
+                self._state = replace(self._state, base_offset=None, gate_lift=None)
+                self._base_offset = self._gate_lift = None
             moved = True
         self._last_line_id = line_id
-        return Tracked(
-            line_id, verdict, modes_before, position_before, moved, self._modes != modes_before
-        )
+        check = None if after is None else _line_check(after, moved)
+        return Tracked(line_id, check, before, moved, self._state.modes != before.modes)
+
+    def _follow(self, data: bytes, what: str | None) -> MachineState | None:
+        try:
+            return self._predict(data, self._machine(), what)
+        except MirobotUsageError:
+            return None
 
     def _follow_unchecked(
         self,
         data: bytes,
         command: str,
-        position: _Position | None,
+        before: MachineState,
         what: str | None,
         warn_unchecked: bool,
-    ) -> LineCheck | None:
+    ) -> MachineState | None:
         problem: str | None = None
-        verdict: LineCheck | None = None
+        after: MachineState | None = None
         try:
-            verdict = self._check(data, position, what)
+            after = self._predict(data, self._machine(), what)
         except MirobotUsageError as err:
             problem = str(err)
         name = what or repr(command)
-        if problem is not None and position is not None:
+        if problem is not None and before.joints is not None:
             _log.warning(
                 "%s was sent WITHOUT the safety envelope check (check_envelope=False); "
                 "the envelope would have refused it: %s",
@@ -287,34 +332,36 @@ class EnvelopeGuard:
             (_log.warning if warn_unchecked else _log.debug)(
                 "%s was sent WITHOUT the safety envelope check (check_envelope=False)", name
             )
-        return verdict
+        return after
 
     def line_failed(self, tracked: Tracked, *, rejected: bool) -> None:
         """A line was rejected (error: nothing of it ran) or its motion refused (modes ran)."""
         if not tracked.moved and not (rejected and tracked.modes_changed):
             return
+        before = tracked.state_before
         if tracked.line_id == self._last_line_id:  # nothing was written after it: undo it
             if rejected:
-                self._modes = tracked.modes_before
-            self._position = tracked.position_before
+                self._state = before
+            else:
+                self._state = replace(
+                    self._state, joints=before.joints, pose=before.pose, rail=before.rail
+                )
             self.epoch += 1
         else:
-            from mirobot_async.envelope import MotionModes
-
             self._forget(MotionModes.unknown() if rejected else None)
 
     def forget(self, why: str) -> None:
         """The arm may be elsewhere than predicted: ``why`` is ``"alarm"`` (modes kept),
-        ``"reset"`` (power-on modes) or ``"lost"`` (a lost reply: modes unknown)."""
-        from mirobot_async.envelope import MotionModes
-
+        ``"reset"`` (power-on modes: GRBL re-initialises the parser, G21 included) or ``"lost"``
+        (a lost reply: modes unknown)."""
         modes = {"reset": MotionModes(), "lost": MotionModes.unknown()}.get(why)
         self._forget(modes)
 
     def _forget(self, modes: MotionModes | None) -> None:
-        self._position = None
+        state = replace(self._state, joints=None, pose=None, rail=None)
         if modes is not None:
-            self._modes = modes
+            state = replace(state, modes=modes)
+        self._state = state
         self.epoch += 1
 
     def warn_stream_unchecked(self) -> None:
@@ -323,6 +370,20 @@ class EnvelopeGuard:
             "stream(check_envelope=False): its lines are sent WITHOUT the safety envelope "
             "check (each line the envelope would have refused is named below)"
         )
+
+
+def _line_check(state: MachineState, moves: bool) -> LineCheck:
+    return LineCheck(state.modes, moves, state.joints, state.pose, state.rail, state.base_offset)
+
+
+def _may_change_offset(data: bytes) -> bool:
+    """An unchecked ``$`` line that may change the base offset or the gate lift."""
+    dollar = parse_line(data).dollar
+    if dollar is None:
+        return False
+    if dollar.kind in ("restore", "unknown"):
+        return True
+    return dollar.kind == "setting" and dollar.number in (41, 42, 43, 49)
 
 
 def make_guard(
