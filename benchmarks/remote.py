@@ -2,10 +2,11 @@
 
 ``python benchmarks/remote.py [--arms 16] [--seconds 2] [--paths direct,socket,rfc2217,listen]``
 
-Starts ``--arms`` emulator processes (firmware 2021, time scale 0: every line is acknowledged at
-once, so the figures are the host's and the link's, not the arm's) and one ser2net process in
-front of all their ptys on loopback (a raw TCP and an RFC 2217 port per arm, as one lab host
-serving many arms would). For each path, all arms are connected from this one event loop, then:
+For each path it starts ``--arms`` fresh emulator processes (firmware 2021, time scale 0: every
+line is acknowledged at once, so the figures are the host's and the link's, not the arm's) and,
+for the ser2net paths, one ser2net process in front of all their ptys on loopback (one port per
+arm, as one lab host serving many arms would). All arms are connected from this one event loop,
+then:
 
 * **lines/s**: every arm streams ``M3 S<n>`` lines for ``--seconds`` at once; the aggregate is
   the acknowledged lines of all arms over the wall time;
@@ -16,7 +17,8 @@ Paths: ``direct`` (the pty), ``socket`` (``socket://`` through ser2net's raw TCP
 ``rfc2217`` (``rfc2217://...?ign_set_control`` through ser2net's telnet RFC 2217 accepter),
 ``listen`` (``socket://`` to emulators serving TCP themselves, ``--listen 127.0.0.1:0``).
 Prints one markdown table with the machine in its header. Needs ser2net (``apt-get install
-ser2net``) for the two ser2net paths; they are left out, with a note, without it. About 30 s.
+ser2net``) for the two ser2net paths; they are left out, with a note, without it.
+Takes 30-60 s (mostly starting 4 x 16 emulator processes).
 """
 
 from __future__ import annotations
