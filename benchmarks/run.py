@@ -13,6 +13,7 @@ import argparse
 import asyncio
 import contextlib
 import gc
+import os
 import statistics
 import sys
 import time
@@ -478,6 +479,10 @@ async def run_all(config: Config) -> Table:
     return table
 
 
+def _loads() -> str:
+    return ", ".join(f"{x:.2f}" for x in os.getloadavg())
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smoke run of a few seconds")
@@ -490,8 +495,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not args.item10:
         table = asyncio.run(run_all(config))
         parts.append(table.render(header))
-    else:
-        parts.append(header)
+    else:  # item 10 alone: its own tables say how it ran
+        parts.append(header.split("\n\n")[0] + f"\n\nLoad average at the start {_loads()}.")
     item10 = Item10Config.make(args.quick)
     runs, latencies = asyncio.run(measure_item10(item10))
     parts.append(render_item10(item10, runs, latencies))
