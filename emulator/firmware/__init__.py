@@ -126,6 +126,10 @@ ASSUMED points implemented (each in one constant or function, named here)
   so always on 2021; the banner's numbers are the integer parts of the DH settings, the base
   offsets and the FK at zero joints. The second banner line is the device logs' ``Qinnew Robot
   ...`` (the oracle prints ``Wlkata Robot ...--Modified by Thor Zhou``).
+* ``scanner.STALE_GROUP_WORDS``: ``M3``/``M4``/``M5``/``M20``/``M21``/``M50`` take the modal
+  group of the G or M word before them in the line, so any modal word before them is a
+  ``Modal group violation`` (oracle: ``G91 M3``, ``M8 M5``, ``G90 M21``; ``G4`` names none);
+  ASSUMED the same on 2021. ``M40``/``M41`` (calibration) are not modelled.
 * ``$I``: ``[0.9j.20160303:<stored info>--ZDX&LEAH(201306)]`` on classic (oracle); 2021 the same
   GRBL build without the suffix (ASSUMED).
 * ``reports.fmt``: status reports follow the ``$10`` mask like the open firmware (bit 0 angles

@@ -12,6 +12,12 @@ from . import codes as c
 AXIS_WORDS: Final = "XYZABCD"  # index = joint (M21: J1..J6, rail) or pose component (M20)
 _VALUE_WORDS: Final = frozenset("FIJKLNPRSETXYZABCD")
 _NON_NEGATIVE_WORDS: Final = frozenset("FNPTSE")
+STALE_GROUP_WORDS: Final = "M3 M4 M5 M20 M21 M50"
+"""Oracle: these words take the modal group of the G or M word before them in the line (a
+stale group), so any modal word before them is a ``Modal group violation`` (``G91 M3``,
+``M8 M5``, ``M3 M20``), while ``M3 G91``, ``M5 M8`` and ``G4 P0 M3`` are fine (``G4`` names
+no group). ASSUMED the same on 2021."""
+
 NONMODAL_AXIS_COMMANDS: Final = frozenset({10, 28, 30, 92})
 """Non-modal commands that take the axis words (then no motion mode may)."""
 
@@ -86,7 +92,7 @@ def scan(line: str, profile: str) -> tuple[GBlock, int]:
     """The words of ``line`` and 0, or the words before the first scanning error and its GRBL
     status (the classic firmware acts on the ``M20``/``M21``/``M50`` scanned before it)."""
     g = GBlock()
-    groups: set[str] = set()
+    groups = _Groups()
     i = 0
     n = len(line)
     while i < n:
@@ -110,30 +116,45 @@ def scan(line: str, profile: str) -> tuple[GBlock, int]:
     return g, 0
 
 
-def _m_word(g: GBlock, code: int, mantissa: int, groups: set[str]) -> int:
+class _Groups:
+    """The modal groups a line has used, and the last one named (see :data:`STALE_GROUP_WORDS`)."""
+
+    def __init__(self) -> None:
+        self.seen: set[str] = set()
+        self.last = "none yet"
+
+    def claim(self, group: str, *, names: bool = True) -> int:
+        """Use ``group`` once in the line: 0, or the modal-group violation. ``names``: it
+        becomes the group the stale words take (not for ``G4``, oracle)."""
+        if group in self.seen:
+            return c.MODAL_GROUP_VIOLATION
+        self.seen.add(group)
+        if names:
+            self.last = group
+        return 0
+
+
+def _m_word(g: GBlock, code: int, mantissa: int, groups: _Groups) -> int:
     if mantissa:
         return c.COMMAND_VALUE_NOT_INTEGER
     if code in (0, 1, 2, 30):
         group = "M4"
         g.flow = code
     elif code in (3, 4, 5):
-        group = "M7"
+        group = groups.last  # oracle: see STALE_GROUP_WORDS
         g.spindle = code
     elif code in (8, 9):
         group = "M8"
         g.coolant = code
     elif code in (20, 21):
-        group = "M20"
+        group = groups.last
         g.coord_mode = code
     elif code == 50:
-        group = "M50"
+        group = groups.last
         g.unlock = True
     else:
         return c.UNSUPPORTED_COMMAND
-    if group in groups:
-        return c.MODAL_GROUP_VIOLATION
-    groups.add(group)
-    return 0
+    return groups.claim(group)
 
 
 def _value_word(g: GBlock, letter: str, value: float) -> int:
@@ -147,7 +168,7 @@ def _value_word(g: GBlock, letter: str, value: float) -> int:
     return 0
 
 
-def _g_word(g: GBlock, code: int, mantissa: int, groups: set[str], profile: str) -> int:
+def _g_word(g: GBlock, code: int, mantissa: int, groups: _Groups, profile: str) -> int:
     if code in (38, 43) and not (code == 43 and mantissa == 10):
         return c.UNSUPPORTED_COMMAND  # probing and G43 are not modelled
     if code in (4, 10, 28, 30, 53, 92):
@@ -204,7 +225,4 @@ def _g_word(g: GBlock, code: int, mantissa: int, groups: set[str], profile: str)
         return c.UNSUPPORTED_COMMAND
     if mantissa:
         return c.COMMAND_VALUE_NOT_INTEGER
-    if group in groups:
-        return c.MODAL_GROUP_VIOLATION
-    groups.add(group)
-    return 0
+    return groups.claim(group, names=g.nonmodal != 4 or group != "G0")

@@ -82,14 +82,14 @@ def check_line(
             return c.VALUE_WORD_MISSING
         used.add("P")
     # [19] G10 and G92 need their words
+    if g.nonmodal in (10, 92) and not axis_letters:
+        return c.NO_AXIS_WORDS  # oracle: 'G10' alone -> 26, 'G10 C6' -> 28
     if g.nonmodal == 10:
         if "L" not in words or "P" not in words:
             return c.VALUE_WORD_MISSING
         if words["L"] not in (2.0, 20.0) or words["P"] not in range(7):
             return c.UNSUPPORTED_COMMAND
         used |= {"L", "P"}
-    if g.nonmodal in (10, 92) and not axis_letters:
-        return c.NO_AXIS_WORDS
     # [12] units; [19] target (absolute targets add the work offsets, except with G53)
     scale = MM_PER_INCH if units == 20 else 1.0
     base: tuple[float, ...]

@@ -1101,7 +1101,10 @@ def test_status_mask() -> None:
 def test_parser_state_and_help() -> None:
     fw = boot("classic", homed=True)
     assert send(fw, "$G\n") == ["[G0 G54 G17 G21 G90 G94 M0 M5 M9 T0 F0. S0.]", "ok"]
-    assert send(fw, "G91 G1 F300 M3 S50\n$G\n") == [
+    # oracle: M3 after another modal word is a modal group violation (its stale group), so M3
+    # comes first here; 'G91 M3' -> 'error: Modal group violation'
+    assert send(fw, "G91 M3\n") == ["error: Modal group violation"]
+    assert send(fw, "M3 S50 G91 G1 F300\n$G\n") == [
         "ok",
         "[G1 G54 G17 G21 G91 G94 M0 M3 M9 T0 F300. S50.]",
         "ok",

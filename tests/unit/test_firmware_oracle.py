@@ -186,3 +186,21 @@ def test_refused_targets_that_still_move_the_parser() -> None:
     unreachable = ["", "GOAL OUT OF WORKSPACE, THERE IS NO VAILD VALUS FOR  THETA3!ok"]
     assert lines(fw, "M20 G91 G0 X500\n") == unreachable
     assert lines(fw, "G91 G0 X-300\n") == unreachable  # from x = 700 or so, not from 200
+
+
+@pytest.mark.parametrize(
+    ("line", "reply"),
+    [
+        ("G91 M3", "error: Modal group violation"),
+        ("M8 M5", "error: Modal group violation"),
+        ("M3 M20", "error: Modal group violation"),
+        ("G90 M21", "error: Modal group violation"),
+        ("M3 G91", "ok"),
+        ("M5 M8", "ok"),
+        ("G4 P0 M3", "ok"),
+        ("F100 M20", "ok"),
+    ],
+)
+def test_m3_m20_m50_take_the_group_of_the_word_before_them(line: str, reply: str) -> None:
+    fw = unlocked()
+    assert lines(fw, line + "\n") == [reply]
