@@ -197,7 +197,8 @@ def test_run_reads_the_program_from_stdin() -> None:
     proc = mirobot("run", "-", *FAST, stdin="; from a pipe\nM21 G90\nG0 X20 Y10 Z0 A0 B0 C0\n")
     assert proc.returncode == 0, proc.stderr
     joints = next(line for line in proc.stdout.splitlines() if line.startswith("joints"))
-    assert [float(v) for v in joints.split()[1:3]] == [20.0, 10.0]
+    j1, j2 = (float(v) for v in joints.split()[1:3])
+    assert abs(j1 - 20) < 0.02 and abs(j2 - 10) < 0.02  # within a motor step
     proc = mirobot("run", "-", *FAST, stdin="; nothing\n")
     assert proc.returncode == 2
     assert proc.stderr.strip() == "mirobot: error: <stdin>: no commands in the input"
