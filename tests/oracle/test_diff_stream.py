@@ -100,6 +100,18 @@ def test_burst_fills_receive_buffer(pair: Pair) -> None:
     pair.check()
 
 
+def test_burst_fills_planner(pair: Pair) -> None:
+    """40 joint moves (about 800 bytes, far more than the receive buffer and the planner hold)
+    written at once: the receive ring overflows and drops bytes (the oracle answers 25 lines),
+    so the reply is read until one wall second of silence."""
+    pair.lines("M50")
+    burst = "".join(f"M21 G90 X{i % 3} Y{i % 2} F2000\n" for i in range(40))
+    pair.send(burst, Until(quiet=1.0), timeout=60)
+    pair.settle()
+    pair.status()
+    pair.check()
+
+
 def test_stream_fills_planner(pair: Pair) -> None:
     """30 short joint moves streamed with character counting (more than the planner holds):
     every line answered, same end."""
