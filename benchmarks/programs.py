@@ -167,10 +167,18 @@ class IdealRun:
 
     seconds: float
     starvations: int
+    stopping_seconds: float = 0.0
+    """The same model fed one line at a time, each after the previous motion ended (the best
+    a ``wait=True`` loop can do): equal to ``seconds`` when the planner does not blend."""
 
 
-def _drive(fw: Firmware, lines: list[str]) -> None:
-    """Feed ``lines`` with character counting, advancing the model's clock only when waiting."""
+def _drive(fw: Firmware, lines: list[str], *, stop: bool = False) -> None:
+    """Feed ``lines`` with character counting, advancing the model's clock only when waiting
+    (``stop``: one line at a time, each after the previous one's motion ended)."""
+    if stop:
+        for text in lines:
+            _drive(fw, [text])
+        return
     encoded = [text.encode("ascii") + b"\n" for text in lines]
     unanswered: list[int] = []
     sent = 0
@@ -202,4 +210,9 @@ def ideal_run(program: Program, profile: str = "2021") -> IdealRun:
     start, ends_before = fw.now, fw.motion_ends
     _drive(fw, program.lines)
     end = fw.motion_end_times[-1] if fw.motion_ends > ends_before else start
-    return IdealRun(end - start, max(0, fw.motion_ends - ends_before - 1))
+    stopping = Firmware(profile)
+    _drive(stopping, ["M50", *program.setup])
+    stop_start = stopping.now
+    _drive(stopping, program.lines, stop=True)
+    stop_end = stopping.motion_end_times[-1] if stopping.motion_ends else stop_start
+    return IdealRun(end - start, max(0, fw.motion_ends - ends_before - 1), stop_end - stop_start)

@@ -358,6 +358,7 @@ def _p(samples: Sequence[float], q: float) -> float:
 def render_item10(config: Item10Config, runs: list[Run], lat: dict[int, LatencyFigures]) -> str:
     """Item 10's tables (markdown) and their notes."""
     scale = config.time_scale
+    stopping: list[str] = []
     out = [
         "**Item 10: a real program** (2021 profile, link paced at 115200 baud, "
         f"time scale {scale:g}{'' if scale == 1 else ': NOT real time, do not quote'})",
@@ -366,6 +367,9 @@ def render_item10(config: Item10Config, runs: list[Run], lat: dict[int, LatencyF
         "| Tail ms | Load |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
+    for key, ideal in {run.program.key: run.ideal for run in runs}.items():
+        blends = ideal.stopping_seconds / ideal.seconds if ideal.seconds else 1.0
+        stopping.append(f"({key}) {ideal.stopping_seconds / scale:.2f} s, x{blends:.3f}")
     for run in runs:
         motion = run.ideal.seconds / scale
         if run.wall is None:
@@ -428,5 +432,8 @@ def render_item10(config: Item10Config, runs: list[Run], lat: dict[int, LatencyF
         "without and with a concurrent `statuses(interval=0.1)` consumer; target: one status "
         "report's wire time (~190 B, 16.5 ms) + the USB latency + 5 ms (issue 12).",
         "- Load: the 1-minute load average when the run started (shared machine).",
+        "- The firmware model fed one line at a time, each after the previous motion ended (the "
+        "best a wait=True loop can do) takes, in wall seconds, x its motion time (x1.000: the "
+        "emulator's planner does not blend these lines): " + "; ".join(stopping) + ".",
     ]
     return "\n".join(out)
