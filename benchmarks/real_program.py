@@ -30,7 +30,7 @@ import serial
 from programs import IdealRun, Program, full_programs, ideal_run, quick_programs
 
 from mirobot_async import Mirobot
-from mirobot_async.testing import EmulatorProcess
+from mirobot_async.testing import EmulatorError, EmulatorProcess
 
 MOTION_ENDS_POLL_S = 0.5
 """The emulator keeps its last 64 ends of motion: fetch them this often during a run."""
@@ -126,13 +126,14 @@ class MotionEnds:
 
 
 async def starvation_counter(emulator: EmulatorProcess) -> int | None:
-    """The emulator's own starvation counter from ``stats``, None while it has none."""
-    words = (await emulator.control("stats")).split()[2:]
-    for word in words:
-        name, _, value = word.partition("=")
-        if "starv" in name and value.isdigit():
-            return int(value)
-    return None
+    """The emulator's own starvation counter (control query ``starvations``), None while its
+    firmware model does not expose one (the query is refused)."""
+    try:
+        reply = await emulator.control("starvations")
+    except EmulatorError:
+        return None
+    words = reply.split()
+    return int(words[2]) if len(words) > 2 and words[2].isdigit() else None
 
 
 async def prepare(url: str, program: Program) -> None:
@@ -425,7 +426,8 @@ def render_item10(config: Item10Config, runs: list[Run], lat: dict[int, LatencyF
         "- Starvations: the emulator's ends of motion (control command `motion-ends`) inside the "
         "run, minus the final one: the times its planner ran empty while lines remained. "
         "'program: N': the ideal host sees N too (lines that wait for motion). 'counter N': "
-        "the emulator's own starvation counter from `stats`, when it has one.",
+        "the emulator's own starvation counter (control query `starvations`), when its "
+        "firmware model exposes one (minus the first block after the setup move).",
         "- Tail: the client's return minus the last end of motion. The wait loop also gives one "
         "tail per move. Second table: tail of `stream()` + `wait_idle()` of two 0.75 deg joint "
         f"moves ({config.tail_reps} runs) and `send('G90')` round trips ({config.ok_samples}), "
