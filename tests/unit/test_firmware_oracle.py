@@ -199,6 +199,9 @@ def test_refused_targets_that_still_move_the_parser() -> None:
         ("M5 M8", "ok"),
         ("G4 P0 M3", "ok"),
         ("F100 M20", "ok"),
+        ("M21 G93 G17 G91", "error: Modal group violation"),
+        ("M21 G94 N-1", "error: Modal group violation"),
+        ("G10 Z3 M21 D7", "error: Invalid gcode ID:28"),
     ],
 )
 def test_m3_m20_m50_take_the_group_of_the_word_before_them(line: str, reply: str) -> None:
