@@ -19,6 +19,11 @@ stale group), so any modal word before them is a ``Modal group violation`` (``G9
 (non-modal words name no group); first in a line they take the feed-mode group (``M21 G93``
 is a violation). ASSUMED the same on 2021."""
 
+_VALUE_WORD_STALE_GROUPS: Final = {"F": "G0", "S": "G8", "N": "G5"}
+"""The group a value word leaves for the stale words after it (oracle: ``F100 M3 G4``,
+``S100 M3 G49``, ``N1 M3 G93`` are violations, ``S1 M3 G93`` is not). ASSUMED: the other value
+words leave a group no G or M word has (``G93 K1 M50``, ``P0 M3 G4``, ``T1 M3 G91`` are fine)."""
+
 NONMODAL_AXIS_COMMANDS: Final = frozenset({10, 28, 30, 92})
 """Non-modal commands that take the axis words (then no motion mode may)."""
 
@@ -111,7 +116,7 @@ def scan(line: str, profile: str) -> tuple[GBlock, int]:
         elif letter == "M":
             status = _m_word(g, int_value, mantissa, groups)
         else:
-            status = _value_word(g, letter, value)
+            status = _value_word(g, letter, value, groups)
         if status:
             return g, status
     return g, 0
@@ -158,9 +163,10 @@ def _m_word(g: GBlock, code: int, mantissa: int, groups: _Groups) -> int:
     return groups.claim(group)
 
 
-def _value_word(g: GBlock, letter: str, value: float) -> int:
+def _value_word(g: GBlock, letter: str, value: float, groups: _Groups) -> int:
     if letter not in _VALUE_WORDS:
         return c.UNSUPPORTED_COMMAND
+    groups.last = _VALUE_WORD_STALE_GROUPS.get(letter, f"word {letter}")
     if letter in g.words:
         return c.WORD_REPEATED
     if letter in _NON_NEGATIVE_WORDS and value < 0:

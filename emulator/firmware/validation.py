@@ -119,7 +119,7 @@ def check_line(
     # [20] motion modes
     arc: Arc | None = None
     if motion_mode == 80:
-        if axis_letters:
+        if axis_letters and not nonmodal_axes:  # oracle: 'B-5 G54 G92 G18 E50' in G80 -> ok
             return c.AXIS_WORDS_EXIST
     elif axis_command:
         if motion_mode in (2, 3) and geometry.profile == "classic":

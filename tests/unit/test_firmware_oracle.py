@@ -202,6 +202,11 @@ def test_refused_targets_that_still_move_the_parser() -> None:
         ("M21 G93 G17 G91", "error: Modal group violation"),
         ("M21 G94 N-1", "error: Modal group violation"),
         ("G10 Z3 M21 D7", "error: Invalid gcode ID:28"),
+        ("F100 M3 G4 P0", "error: Modal group violation"),
+        ("S100 M3 G49", "error: Modal group violation"),
+        ("N1 M3 G93", "error: Modal group violation"),
+        ("G91 G20 F0 M5 G94", "ok"),
+        ("P0 M3 G4", "ok"),
     ],
 )
 def test_m3_m20_m50_take_the_group_of_the_word_before_them(line: str, reply: str) -> None:
