@@ -128,8 +128,9 @@ ASSUMED points implemented (each in one constant or function, named here)
   ...`` (the oracle prints ``Wlkata Robot ...--Modified by Thor Zhou``).
 * ``scanner.STALE_GROUP_WORDS``: ``M3``/``M4``/``M5``/``M20``/``M21``/``M50`` take the modal
   group of the G or M word before them in the line, so any modal word before them is a
-  ``Modal group violation`` (oracle: ``G91 M3``, ``M8 M5``, ``G90 M21``; non-modal words name
-  none; first in a line they take the feed-mode group: ``M21 G93`` is a violation);
+  ``Modal group violation`` (oracle: ``G91 M3``, ``M8 M5``, ``G90 M21``, ``G4 M5``; a value
+  word in between leaves another group; first in a line they take the feed-mode group:
+  ``M21 G93`` is a violation);
   ASSUMED the same on 2021. ``M40``/``M41`` (calibration) are not modelled.
 * ``$I``: ``[0.9j.20160303:<stored info>--ZDX&LEAH(201306)]`` on classic (oracle); 2021 the same
   GRBL build without the suffix (ASSUMED).

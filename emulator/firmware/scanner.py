@@ -15,9 +15,9 @@ _NON_NEGATIVE_WORDS: Final = frozenset("FNPTSE")
 STALE_GROUP_WORDS: Final = "M3 M4 M5 M20 M21 M50"
 """Oracle: these words take the modal group of the G or M word before them in the line (a
 stale group), so any modal word before them is a ``Modal group violation`` (``G91 M3``,
-``M8 M5``, ``M3 M20``), while ``M3 G91``, ``M5 M8``, ``G4 P0 M3`` and ``G10 Z3 M21`` are fine
-(non-modal words name no group); first in a line they take the feed-mode group (``M21 G93``
-is a violation). ASSUMED the same on 2021."""
+``M8 M5``, ``M3 M20``, ``G4 M5``), while ``M3 G91``, ``M5 M8``, ``G4 P0 M3`` and
+``G10 Z3 M21`` are fine (a value word in between leaves another group); first in a line they
+take the feed-mode group (``M21 G93`` is a violation). ASSUMED the same on 2021."""
 
 _VALUE_WORD_STALE_GROUPS: Final = {"F": "G0", "S": "G8", "N": "G5"}
 """The group a value word leaves for the stale words after it (oracle: ``F100 M3 G4``,
@@ -129,14 +129,13 @@ class _Groups:
         self.seen: set[str] = set()
         self.last = "G5"  # oracle: 'M21 G93' and 'M50 G94' are violations, 'M3 G91' is not
 
-    def claim(self, group: str, *, names: bool = True) -> int:
-        """Use ``group`` once in the line: 0, or the modal-group violation. ``names``: it
-        becomes the group the stale words take (not the non-modal ``G4``/``G10``/... group)."""
+    def claim(self, group: str) -> int:
+        """Use ``group`` once in the line: 0, or the modal-group violation; it becomes the group
+        the stale words after it take."""
         if group in self.seen:
             return c.MODAL_GROUP_VIOLATION
         self.seen.add(group)
-        if names:
-            self.last = group
+        self.last = group
         return 0
 
 
@@ -232,4 +231,4 @@ def _g_word(g: GBlock, code: int, mantissa: int, groups: _Groups, profile: str) 
         return c.UNSUPPORTED_COMMAND
     if mantissa:
         return c.COMMAND_VALUE_NOT_INTEGER
-    return groups.claim(group, names=group != "G0")
+    return groups.claim(group)

@@ -207,6 +207,7 @@ def test_refused_targets_that_still_move_the_parser() -> None:
         ("N1 M3 G93", "error: Modal group violation"),
         ("G91 G20 F0 M5 G94", "ok"),
         ("P0 M3 G4", "ok"),
+        ("G4 M5", "error: Modal group violation"),
     ],
 )
 def test_m3_m20_m50_take_the_group_of_the_word_before_them(line: str, reply: str) -> None:
