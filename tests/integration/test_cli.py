@@ -48,16 +48,25 @@ def emulator_stats(emulator: SyncEmulatorProcess) -> dict[str, int]:
 def mirobot(
     *args: str, cwd: Path | None = None, timeout: float = 45, env: dict[str, str] | None = None
 ) -> subprocess.CompletedProcess[str]:
-    """Run ``python -m mirobot_async ARGS`` to completion."""
-    return subprocess.run(
+    """Run ``python -m mirobot_async ARGS`` to completion. In its own process group: if it
+    hangs, the group (the CLI and its embedded emulator) is killed, not only the CLI."""
+    with subprocess.Popen(
         [sys.executable, "-m", "mirobot_async", *args],
-        capture_output=True,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
         text=True,
-        timeout=timeout,
         cwd=cwd,
         env=env,
         stdin=subprocess.DEVNULL,
-    )
+        start_new_session=True,
+    ) as proc:
+        try:
+            out, err = proc.communicate(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.communicate()
+            raise
+    return subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
 
 
 def spawn(*args: str, cwd: Path | None = None, session: bool = False) -> subprocess.Popen[str]:

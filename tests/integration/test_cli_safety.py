@@ -8,6 +8,7 @@ the bytes it received) while the CLI runs, and the serial port itself once the C
 
 from __future__ import annotations
 
+import os
 import signal
 import subprocess
 import sys
@@ -31,14 +32,23 @@ STOP_WITHIN = 0.5
 
 
 def mirobot(*args: str, stdin: str | None = None) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
+    """Run the CLI to completion; if it hangs, its process group (and so its embedded
+    emulator) is killed."""
+    with subprocess.Popen(
         [sys.executable, "-m", "mirobot_async", *args],
-        capture_output=True,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        stdin=subprocess.PIPE if stdin is not None else subprocess.DEVNULL,
         text=True,
-        timeout=45,
-        input=stdin,
-        stdin=None if stdin is not None else subprocess.DEVNULL,
-    )
+        start_new_session=True,
+    ) as proc:
+        try:
+            out, err = proc.communicate(stdin, timeout=45)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.communicate()
+            raise
+    return subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
 
 
 def spawn(*args: str) -> subprocess.Popen[str]:
