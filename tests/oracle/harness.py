@@ -223,6 +223,19 @@ class Device:
                 stream.close()
 
 
+def pump_both(first: Device, second: Device, timeout: float) -> None:
+    """Wait up to ``timeout`` seconds for either device, then read whatever each has (one
+    select over both, so neither waits behind the other: arrival times stay sharp)."""
+    sel = selectors.DefaultSelector()
+    try:
+        for device in (first, second):
+            sel.register(device.fd, selectors.EVENT_READ, device)
+        for key, _ in sel.select(timeout):
+            key.data.pump(0)
+    finally:
+        sel.close()
+
+
 def spawn_oracle(workdir: Path, *flags: str) -> Device:
     env_dir = str(ORACLE_BUILD)
     argv = ["env", f"MIROBOT_ORACLE_DIR={env_dir}", str(ORACLE_SOURCE / "run.sh"), "-s", "0"]
@@ -370,6 +383,7 @@ class Pair:
         while time.monotonic() < deadline and not all(s.done() for s in senders):
             for sender in senders:
                 sender.step()
+            pump_both(self.oracle, self.ours, 0.005)
         self.first_write = senders[1].first_write
         exchange = Exchange(
             b"".join(payloads), self.oracle.take(), self.ours.take(), note="streamed"
@@ -429,8 +443,6 @@ class _Streamer:
             self.device.write(self.payloads[self.next])
             self.in_flight.append(len(self.payloads[self.next]))
             self.next += 1
-        if not self.done():
-            self.device.pump(0.002)
 
 
 def _short(data: bytes, limit: int = 300) -> str:

@@ -18,10 +18,6 @@ KNOWN_DIFFERENCES: dict[str, str] = {
     "test_diff_homing::test_homing_phases[$H]": _HOMING_RUN,
     "test_diff_homing::test_homing_phases[$HH]": _HOMING_RUN,
     "test_diff_homing::test_homing_phases[$H1]": _HOMING_RUN,
-    "test_diff_basics::test_startup_lines": (
-        "startup lines: after % the oracle runs $N0/$N1 and prints 'G91ok' and 'M3S100ok' after "
-        "the banner ($G then shows G91 M3 S100.); ours runs none and prints nothing"
-    ),
     "test_diff_motion::test_hard_limit": (
         "J1 driven to 165 with $20=0: the oracle stops at 160.515 (harness switch just past 160, "
         "then the deceleration), ours at 160.004; and on % the oracle first prints the 'ok' of "

@@ -8,8 +8,9 @@ from its simulated-time log (the end: the dwell's ``ok``). On ours the end is it
 wall time just before the first byte was written and the wall time its ``ok`` was read (usually
 well under a millisecond apart), times the time scale. The test passes when that interval comes
 within the tolerance of the oracle's time, and demands the interval be narrower than the
-tolerance (else the measurement itself is reported as too imprecise, e.g. on an overloaded
-host). The replies are compared byte for byte too.
+tolerance (else the measurement is repeated on a fresh pair, up to :data:`MEASUREMENTS` times,
+and reported as too imprecise, e.g. on an overloaded host). The replies are compared byte for
+byte too.
 """
 
 from __future__ import annotations
@@ -37,10 +38,10 @@ PROGRAMS: dict[str, tuple[list[str], float, float, float]] = {
     # simulated; long programs faster (the tolerance is then 100 ms or more).
     "joint-single": (["M21 G90 X30 F2000"], 0.01, 0.010, 2.0),
     "joint-six-axes": (["M21 G90 X10 Y-10 Z15 A-20 B-25 C30 F2000"], 0.01, 0.010, 2.0),
-    "joint-short-segments": ([f"M21 G90 X{i * 0.5:g} F2000" for i in range(1, 61)], 0.02, 0.0, 4.0),
+    "joint-short-segments": ([f"M21 G90 X{i * 0.5:g} F2000" for i in range(1, 61)], 0.02, 0.0, 2.0),
     "cart-g0": (["M20 G90 G0 X180 Y20 Z120 A0 B0 C0 F2000"], 0.02, 0.0, 2.0),
     "cart-g1": (["M20 G90 G1 X180 Y20 Z120 A0 B0 C0 F2000"], 0.02, 0.0, 2.0),
-    "cart-g1-200-segments": (circle(200), 0.02, 0.0, 8.0),
+    "cart-g1-200-segments": (circle(200), 0.02, 0.0, 4.0),
 }
 
 
@@ -71,20 +72,27 @@ def program_times(
     return oracle, (ends[-1] - start) * scale, (ends[-1] - pair.first_write) * scale
 
 
+MEASUREMENTS = 3  # fresh attempts when our side's start interval is too wide (a loaded host)
+
+
 @pytest.mark.parametrize("name", PROGRAMS)
 def test_program_time(tmp_path: Path, name: str) -> None:
     program, relative, absolute, scale = PROGRAMS[name]
-    pair = Pair.spawn(tmp_path, time_scale=scale).connect()
-    try:
-        oracle, shortest, longest = program_times(pair, tmp_path, program, scale)
-        pair.status()
+    for attempt in range(MEASUREMENTS):
+        workdir = tmp_path / f"attempt{attempt}"
+        pair = Pair.spawn(workdir, time_scale=scale).connect()
+        try:
+            oracle, shortest, longest = program_times(pair, workdir, program, scale)
+            pair.status()
+            pair.check()
+        finally:
+            pair.close()
         allowed = max(relative * oracle, absolute)
-        off = max(shortest - oracle, oracle - longest, 0.0)
-        ours = (shortest + longest) / 2
-        assert off <= allowed and longest - shortest <= allowed, (
-            f"{name}: oracle {oracle:.3f} s, ours {shortest:.3f}..{longest:.3f} s simulated "
-            f"({(ours / oracle - 1) * 100:+.1f} %, allowed {allowed * 1000:.0f} ms)"
-        )
-        pair.check()
-    finally:
-        pair.close()
+        if longest - shortest <= allowed / 2:
+            break
+    off = max(shortest - oracle, oracle - longest, 0.0)
+    ours = (shortest + longest) / 2
+    assert off <= allowed and longest - shortest <= allowed, (
+        f"{name}: oracle {oracle:.3f} s, ours {shortest:.3f}..{longest:.3f} s simulated "
+        f"({(ours / oracle - 1) * 100:+.1f} %, allowed {allowed * 1000:.0f} ms)"
+    )
