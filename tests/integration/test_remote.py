@@ -320,6 +320,13 @@ async def test_killing_ser2net_fails_pending_calls_promptly(
     await check_link_cut(server.url, server.kill)
 
 
+async def test_arm_unplugged_behind_ser2net_fails_pending_calls_promptly(
+    remote: RemoteFactory, kind: str
+) -> None:
+    emulator, server = await remote(kind, time_scale=1.0)
+    await check_link_cut(server.url, emulator.kill)  # the pty vanishes on the remote host
+
+
 async def test_second_client_through_ser2net_is_refused(remote: RemoteFactory) -> None:
     _, server = await remote("socket")
     async with Mirobot.connect(server.url) as arm:
