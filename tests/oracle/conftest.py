@@ -28,7 +28,7 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             continue
         reason = KNOWN_DIFFERENCES.get(f"{item.path.stem}::{item.name}")
         if reason:
-            item.add_marker(pytest.mark.xfail(strict=True, reason=reason))
+            item.add_marker(pytest.mark.xfail(strict=True, reason=reason, raises=AssertionError))
 
 
 @pytest.hookimpl(wrapper=True)

@@ -49,6 +49,11 @@ START_TIMEOUT = 20.0
 STOP_TIMEOUT = 5.0
 
 
+class HarnessError(RuntimeError):
+    """The oracle itself did not answer as a scenario expects: a scenario or host problem, never
+    a difference (so it is an error even in a test that is expected to fail)."""
+
+
 def oracle_missing() -> str | None:
     """Why the oracle cannot run here (``None`` when it can)."""
     if not (ORACLE_SOURCE / "run.sh").is_file():
@@ -342,8 +347,8 @@ class Pair:
             device.write(raw)
         start = time.monotonic()
         if not self.oracle.read_until(until.met, timeout):
-            raise AssertionError(
-                f"harness: the oracle did not complete {until} after {raw!r} within {timeout} s; "
+            raise HarnessError(
+                f"the oracle did not complete {until} after {raw!r} within {timeout} s; "
                 f"it said {self.oracle.pending()!r}"
             )
         spent = time.monotonic() - start

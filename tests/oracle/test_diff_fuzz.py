@@ -116,6 +116,7 @@ def pairs(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Iterator[Pair]]:
 EXAMPLES = 20
 
 
+@pytest.mark.timeout(240)  # the oracle slows down on a loaded host
 def test_random_lines(pairs: Iterator[Pair]) -> None:
     """Every differing example is collected (none is shrunk) and reported together."""
     found: list[str] = []

@@ -7,6 +7,7 @@ import pytest
 from .harness import Pair, Until
 
 
+@pytest.mark.timeout(240)  # the oracle slows down on a loaded host
 @pytest.mark.parametrize("command", ["$H", "$HH", "$H1"])
 def test_homing_phases(pair: Pair, command: str) -> None:
     """``?`` during the switch search (answered only when it ends, on the oracle), ``?`` during
