@@ -74,6 +74,9 @@ class Guard(Protocol):
     @property
     def envelope(self) -> Envelope | None: ...
 
+    @property
+    def wants_settings(self) -> bool: ...
+
     def needs_firmware(self, data: bytes) -> bool: ...
 
     def verdict(self, data: bytes, what: str | None) -> LineCheck | NeedPosition | None: ...
@@ -110,6 +113,11 @@ class NullGuard:
     def envelope(self) -> Envelope | None:
         """``None``: there is no envelope."""
         return None
+
+    @property
+    def wants_settings(self) -> bool:
+        """Never: no settings are needed."""
+        return False
 
     def needs_firmware(self, data: bytes) -> bool:
         """Never: no kinematic model is needed."""
@@ -187,9 +195,29 @@ class EnvelopeGuard:
         """The modal words as predicted after every line written (``None`` parts: unknown)."""
         return self._state.modes
 
+    @property
+    def wants_settings(self) -> bool:
+        """True on a 2021 arm while the base offset ``$41..$43`` is unknown (a ``$$`` listing
+        handed to :meth:`adopt_settings` gives it)."""
+        return self._condition.firmware == "2021" and self._base_offset is None
+
     def needs_firmware(self, data: bytes) -> bool:
-        """True when the firmware (the kinematic model) must be known before checking ``data``."""
-        return self._condition.firmware is None and not data.startswith(b"$")
+        """True when the firmware (the kinematic model) or, for an absolute Cartesian line on a
+        2021 arm, its base offset (a ``$$`` listing at rest) must be known before checking it."""
+        if data.startswith(b"$"):
+            return False
+        if self._condition.firmware is None:
+            return True
+        if not self.wants_settings or self._state.base_offset is not None:
+            return False
+        parsed = parse_line(data)
+        modes = self._state.modes
+        cartesian = parsed.coordinate_mode == 20 or (
+            parsed.coordinate_mode is None and modes.cartesian is not False
+        )
+        relative = parsed.distance == 91 or (parsed.distance is None and modes.relative is True)
+        axes = parsed.axis_words
+        return cartesian and not relative and any(k in axes for k in "XYZ")
 
     def _machine(self) -> MachineState:
         """The predicted state with what the firmware profile decides filled in."""

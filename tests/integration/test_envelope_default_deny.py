@@ -70,13 +70,23 @@ async def test_base_offset_is_part_of_the_prediction(emu: EmulatorProcess) -> No
 
 
 @only_2021
-async def test_unknown_base_offset_refuses_absolute_cartesian_lines(
+async def test_no_absolute_cartesian_line_before_the_base_offset_is_known(
     emu: EmulatorProcess,
 ) -> None:
+    """Refused while ``$41..$43`` are unknown, or written only after a ``$$`` listing."""
     spy = WireSpy()
     arm = await _connect(emu, spy, Envelope(x=(None, 230)))
     try:
-        await _refused(arm, spy, "M20 G90 G0 G21 X200 Y0 Z200", "base offset")
+        line = "M20 G90 G0 G21 X200 Y0 Z200"
+        mark = spy.mark()
+        try:
+            await arm.send(line)
+        except MirobotUsageError as err:
+            assert "base offset" in str(err)
+            assert spy.lines(mark) == []
+        else:
+            written = spy.lines()  # the listing may have come earlier (e.g. with unlock())
+            assert written.index(b"$$\n") < written.index(line.encode() + b"\n")
     finally:
         await arm.close()
 
