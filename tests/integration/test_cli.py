@@ -69,9 +69,9 @@ def mirobot(
     return subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
 
 
-def spawn(*args: str, cwd: Path | None = None, session: bool = False) -> subprocess.Popen[str]:
-    """Start ``python -m mirobot_async ARGS``; ``session``: in its own process group, as a
-    terminal runs a command (its Ctrl-C then reaches every process of the group)."""
+def spawn(*args: str, cwd: Path | None = None) -> subprocess.Popen[str]:
+    """Start ``python -m mirobot_async ARGS`` in its own process group, as a terminal runs a
+    command (a Ctrl-C there reaches every process of the group; :func:`kill_group` too)."""
     return subprocess.Popen(
         [sys.executable, "-m", "mirobot_async", *args],
         stdout=subprocess.PIPE,
@@ -79,8 +79,15 @@ def spawn(*args: str, cwd: Path | None = None, session: bool = False) -> subproc
         stdin=subprocess.DEVNULL,
         text=True,
         cwd=cwd,
-        start_new_session=session,
+        start_new_session=True,
     )
+
+
+def kill_group(proc: subprocess.Popen[str]) -> None:
+    """Kill a spawned CLI that is still running, with its embedded emulator, and reap it."""
+    if proc.poll() is None:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.communicate()
 
 
 def wait_for(condition: Callable[[], bool], timeout: float, what: str) -> None:
@@ -544,9 +551,7 @@ def test_monitor_waits_for_an_arm_that_stops_answering(tmp_path: Path) -> None:
             proc.send_signal(signal.SIGINT)
             _, err = proc.communicate(timeout=20)
         finally:
-            if proc.poll() is None:
-                proc.kill()
-                proc.communicate()
+            kill_group(proc)
     assert proc.returncode == 0, err
     assert "still waiting (is the arm homing?)" in err, err
     assert "Traceback" not in err and "error" not in err, err
@@ -566,9 +571,7 @@ def test_monitor_stops_cleanly_on_sigint(tmp_path: Path) -> None:
         proc.send_signal(signal.SIGINT)
         out, err = proc.communicate(timeout=20)
     finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.communicate()
+        kill_group(proc)
     assert proc.returncode == 0, err
     assert "Traceback" not in err and "Traceback" not in out, err
     assert "samples written to" in err
@@ -591,7 +594,6 @@ def test_run_interrupted_exits_130_quietly(tmp_path: Path) -> None:
         "--unlock",
         "--time-scale",
         "0.5",
-        session=True,
     )
     try:
         wait_for(
@@ -603,9 +605,7 @@ def test_run_interrupted_exits_130_quietly(tmp_path: Path) -> None:
         os.killpg(proc.pid, signal.SIGINT)
         _, err = proc.communicate(timeout=20)
     finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.communicate()
+        kill_group(proc)
     assert proc.returncode == 130, err
     assert "Traceback" not in err and "error" not in err, err
     stopped = [line for line in err.splitlines() if line.startswith("mirobot: interrupted: ")]
@@ -728,9 +728,7 @@ def test_example_scripts_run_as_written() -> None:
         results = {name: proc.communicate(timeout=40) for name, proc in procs.items()}
     finally:
         for proc in procs.values():
-            if proc.poll() is None:
-                proc.kill()
-                proc.communicate()
+            kill_group(proc)
     for name, (out, err) in results.items():
         assert procs[name].returncode == 0, f"{name}: {err}"
         assert "using an embedded virtual Mirobot" in out
@@ -747,9 +745,7 @@ def test_link_lost_while_monitoring_exits_1_with_one_line(tmp_path: Path) -> Non
             emulator.kill()  # the cable is pulled
             out, err = proc.communicate(timeout=20)
         finally:
-            if proc.poll() is None:
-                proc.kill()
-                proc.communicate()
+            kill_group(proc)
     finally:
         emulator.stop()
     assert proc.returncode == 1

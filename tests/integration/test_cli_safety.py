@@ -52,13 +52,22 @@ def mirobot(*args: str, stdin: str | None = None) -> subprocess.CompletedProcess
 
 
 def spawn(*args: str) -> subprocess.Popen[str]:
+    """Start the CLI in its own process group (see :func:`kill_group`)."""
     return subprocess.Popen(
         [sys.executable, "-m", "mirobot_async", *args],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         stdin=subprocess.DEVNULL,
         text=True,
+        start_new_session=True,
     )
+
+
+def kill_group(proc: subprocess.Popen[str]) -> None:
+    """Kill a spawned CLI that is still running, with its embedded emulator, and reap it."""
+    if proc.poll() is None:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.communicate()
 
 
 def wait_for(condition: Callable[[], bool], timeout: float, what: str) -> float:
@@ -132,9 +141,7 @@ def test_a_signal_stops_the_moving_arm_at_once(
             )
             _, err = proc.communicate(timeout=20)
         finally:
-            if proc.poll() is None:
-                proc.kill()
-                proc.communicate()
+            kill_group(proc)
         assert took < STOP_WITHIN, f"{mode} reached the arm {took:.3f} s after the signal"
         assert proc.returncode == 130, err
         assert "Traceback" not in err and "error" not in err, err
@@ -166,9 +173,7 @@ def test_ctrl_c_while_homing_stops_it_with_a_soft_reset() -> None:
             took = wait_for(lambda: realtime_bytes(sent, stats(emulator), "reset") >= 1, 5, "the %")
             _, err = proc.communicate(timeout=20)
         finally:
-            if proc.poll() is None:
-                proc.kill()
-                proc.communicate()
+            kill_group(proc)
         assert took < STOP_WITHIN, f"% reached the arm {took:.3f} s after the signal"
         assert proc.returncode == 130, err
         assert realtime_bytes(sent, stats(emulator), "hold") == 0  # no feed hold at all
@@ -188,9 +193,7 @@ def test_a_held_arm_is_refused_by_the_pre_flight_check() -> None:
             moving.send_signal(signal.SIGINT)
             _, err = moving.communicate(timeout=20)
         finally:
-            if moving.poll() is None:
-                moving.kill()
-                moving.communicate()
+            kill_group(moving)
         assert moving.returncode == 130, err
         assert "the arm is Hold" in err
         before = stats(emulator)
