@@ -475,7 +475,7 @@ def plot_trace(trace: Trace, output: str | os.PathLike[str], *, title: str | Non
         "(numbered as on the tool path)"
     )
     angles.grid(True, alpha=0.3)
-    angles.legend(loc="lower right", ncols=6, fontsize="small")
+    angles.legend(loc="center left", bbox_to_anchor=(1.0, 0.5), fontsize="small")
 
     duration = trace.seconds[-1]
     clock = "robot time" if trace.robot_time else "wall time"
