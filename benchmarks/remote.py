@@ -2,11 +2,11 @@
 
 ``python benchmarks/remote.py [--arms 16] [--seconds 2] [--paths direct,socket,rfc2217,listen]``
 
-For each path it starts ``--arms`` fresh emulator processes (firmware 2021, time scale 0: every
-line is acknowledged at once, so the figures are the host's and the link's, not the arm's) and,
-for the ser2net paths, one ser2net process in front of all their ptys on loopback (one port per
-arm, as one lab host serving many arms would). All arms are connected from this one event loop,
-then:
+It starts ``--arms`` emulator processes on ptys (firmware 2021, time scale 0: every line is
+acknowledged at once, so the figures are the host's and the link's, not the arm's), and for each
+ser2net path one ser2net process in front of all of them on loopback (one port per arm, as one
+lab host serving many arms would; stopped before the next path), plus ``--arms`` emulators
+serving TCP for ``listen``. For each path all arms are connected from this one event loop, then:
 
 * **lines/s**: every arm streams ``M3 S<n>`` lines for ``--seconds`` at once; the aggregate is
   the acknowledged lines of all arms over the wall time;
@@ -18,7 +18,7 @@ Paths: ``direct`` (the pty), ``socket`` (``socket://`` through ser2net's raw TCP
 ``listen`` (``socket://`` to emulators serving TCP themselves, ``--listen 127.0.0.1:0``).
 Prints one markdown table with the machine in its header. Needs ser2net (``apt-get install
 ser2net``) for the two ser2net paths; they are left out, with a note, without it.
-Takes 30-60 s (mostly starting 4 x 16 emulator processes).
+Takes 30-60 s (mostly starting 2 x 16 emulator processes).
 """
 
 from __future__ import annotations
@@ -289,18 +289,26 @@ async def main(arms: int, seconds: float, paths: Sequence[str]) -> str:
         notes.append("ser2net paths left out: ser2net is not installed (apt-get install ser2net)")
         wanted = [p for p in wanted if p not in ("socket", "rfc2217")]
     with tempfile.TemporaryDirectory(prefix="mirobot-remote-") as tmp:
-        for path in wanted:  # fresh emulators for each path: nothing carries over
-            extra = ("--listen", "127.0.0.1:0") if path == "listen" else ()
-            async with run_emulators(arms, extra) as devices, contextlib.AsyncExitStack() as stack:
-                urls = devices
-                if path in ACCEPTERS:
-                    urls = await stack.enter_async_context(run_ser2net(devices, path, Path(tmp)))
-                print(f"measuring {PATH_NAMES[path]} ...", file=sys.stderr)
-                results.append(await measure(PATH_NAMES[path], urls, seconds))
+        pty_paths = [p for p in wanted if p != "listen"]
+        if pty_paths:  # one set of pty emulators; each ser2net process is gone before the next
+            async with run_emulators(arms) as devices:
+                for path in pty_paths:
+                    async with contextlib.AsyncExitStack() as stack:
+                        urls = devices
+                        if path in ACCEPTERS:
+                            server = run_ser2net(devices, path, Path(tmp))
+                            urls = await stack.enter_async_context(server)
+                        print(f"measuring {PATH_NAMES[path]} ...", file=sys.stderr)
+                        results.append(await measure(PATH_NAMES[path], urls, seconds))
+        if "listen" in wanted:
+            async with run_emulators(arms, ("--listen", "127.0.0.1:0")) as urls:
+                print(f"measuring {PATH_NAMES['listen']} ...", file=sys.stderr)
+                results.append(await measure(PATH_NAMES["listen"], urls, seconds))
     if "rfc2217" in wanted:
         notes.append(
-            "rfc2217:// is read by the client's polled transport (pyserial's RFC 2217 object has "
-            "no file descriptor); pyserial returns at most one byte per non-blocking read()"
+            "rfc2217:// is served by the client's polled transport (pyserial's RFC 2217 object "
+            "has no file descriptor): every arm is polled each millisecond and has its own "
+            "pyserial reader thread"
         )
     return render(results, header, notes)
 
