@@ -375,7 +375,7 @@ class Pair:
         """``%``: the banner, and what follows it (the unlock hint after an alarm)."""
         return self.send(b"%", Until(text=BANNER_END, quiet=0.1))
 
-    def finish(self, quiet: float = 0.3) -> Exchange:
+    def finish(self, quiet: float = 0.15) -> Exchange:
         """Collect whatever either side still prints (``quiet`` wall seconds of silence)."""
         return self.send(b"", Until(quiet=quiet), note="trailing output")
 
