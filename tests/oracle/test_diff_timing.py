@@ -86,7 +86,8 @@ def test_program_time(tmp_path: Path, name: str) -> None:
         try:
             oracle, shortest, longest = program_times(pair, workdir, program, scale)
             pair.status()
-            pair.check()
+            pair.finish()
+            replies = pair.differences()
         finally:
             pair.close()
         allowed = max(relative * oracle, absolute)
@@ -94,7 +95,15 @@ def test_program_time(tmp_path: Path, name: str) -> None:
             break
     off = max(shortest - oracle, oracle - longest, 0.0)
     ours = (shortest + longest) / 2
-    assert off <= allowed and longest - shortest <= allowed, (
-        f"{name}: oracle {oracle:.3f} s, ours {shortest:.3f}..{longest:.3f} s simulated "
-        f"({(ours / oracle - 1) * 100:+.1f} %, allowed {allowed * 1000:.0f} ms)"
+    timing_ok = off <= allowed and longest - shortest <= allowed
+    problems = (
+        []
+        if timing_ok
+        else [
+            f"{name}: oracle {oracle:.3f} s, ours {shortest:.3f}..{longest:.3f} s simulated "
+            f"({(ours / oracle - 1) * 100:+.1f} %, allowed {allowed * 1000:.0f} ms)"
+        ]
     )
+    if replies:
+        problems.append("oracle and emulator differ:\n" + "\n".join(replies))
+    assert not problems, "\n".join(problems)
