@@ -254,6 +254,7 @@ _ERROR_2021_RE = re.compile(
 # Classic GRBL style with a number only ("error:23" as GRBL 1.1 prints it).
 _DIGITS_RE = re.compile(r"[0-9]{1,9}")
 _INFO_RE = re.compile(r"Info\s*[,:]\s*(.*)", re.IGNORECASE | re.DOTALL)
+_SWITCH_ALARM_RE = re.compile(r"[01]{8}ALARM:(.*)", re.IGNORECASE)
 
 
 def _glued_ok(text: str) -> bool:
@@ -284,7 +285,8 @@ def classify_line(line: str | bytes) -> Reply:
       reported corrupted, never text for a command).
     * ``error: <text>`` -> ERROR (``error:23`` gives code 23); ``Error, E113,<text>`` -> ERROR with
       code 113 (spaces after commas optional).
-    * ``ALARM: <text>`` -> ALARM.
+    * ``ALARM: <text>`` -> ALARM, also after the eight switch bits the firmware prints before a
+      hard-limit alarm (``00010000ALARM: Hard limit``).
     * ``Grbl x ['$' for help]`` or ``... based on Grbl ...`` -> BANNER_START;
       ``Using reset pos!`` -> BANNER_END.
     * otherwise the line is text; a glued ``ok`` at its end is removed and sets ``ok=True``; the
@@ -315,6 +317,9 @@ def classify_line(line: str | bytes) -> Reply:
             )
     elif first in "Aa" and s[:6].upper() == "ALARM:":
         return Reply(ReplyKind.ALARM, s[6:].strip(), None, False, raw)
+    elif first in "01" and (m := _SWITCH_ALARM_RE.fullmatch(s)) is not None:
+        # The firmware prints the eight limit-switch bits before a hard-limit alarm (oracle).
+        return Reply(ReplyKind.ALARM, m.group(1).strip(), None, False, raw)
     elif first == "G" and _is_banner_start(s):
         return Reply(ReplyKind.BANNER_START, s, None, False, raw)
     elif first == "U" and s.startswith("Using reset pos"):

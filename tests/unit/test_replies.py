@@ -544,3 +544,11 @@ def test_fuzz_classify_line_never_raises(line: str | bytes) -> None:
 def test_find_refusal(output: tuple[str, ...], expected: Refusal | None) -> None:
     assert find_refusal(output) == expected
     assert find_refusal(list(output)) == expected
+
+
+def test_hard_limit_alarm_after_the_switch_bits_is_an_alarm() -> None:
+    """The firmware prints the tripped switches as eight bits before ``ALARM:`` (oracle)."""
+    reply = classify_line("00010000ALARM: Hard limit")
+    assert reply.kind is ReplyKind.ALARM
+    assert reply.text == "Hard limit"
+    assert classify_line("0001000ALARM: Hard limit").kind is ReplyKind.TEXT
