@@ -104,6 +104,8 @@ class Controller:
         try:
             async with asyncio.timeout(timeout):
                 lines = await asyncio.shield(future)
+        except MirobotTimeoutError:
+            raise  # the node did not answer (NodeSilentError, itself a TimeoutError)
         except TimeoutError as err:
             raise MirobotTimeoutError(
                 f"the controller at @{self.address:02d}", timeout, command=command

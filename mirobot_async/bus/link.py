@@ -234,6 +234,8 @@ class LinkSide:
 
     def _on_data(self, data: bytes) -> None:
         self.stats.bytes_received += len(data)
+        if self.fatal is not None:
+            return  # closed: nobody waits for anything
         holder = self._holder
         if holder is not None:
             holder.last_rx = self._loop.time()
