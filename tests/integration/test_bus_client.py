@@ -74,12 +74,12 @@ class BusEmulator:
             self.process.stdout.close()
 
 
-async def wait_until(predicate: Callable[[], bool], timeout: float = 5.0) -> None:
-    """Yield to the loop until ``predicate()`` holds (AssertionError after ``timeout``)."""
-    deadline = time.monotonic() + timeout
+async def wait_until(predicate: Callable[[], bool], limit: float = 5.0) -> None:
+    """Yield to the loop until ``predicate()`` holds (AssertionError after ``limit`` s)."""
+    deadline = time.monotonic() + limit
     while not predicate():
         if time.monotonic() > deadline:
-            raise AssertionError(f"condition not met within {timeout} s")
+            raise AssertionError(f"condition not met within {limit} s")
         await asyncio.sleep(0.002)
 
 
