@@ -14,6 +14,8 @@ def test_locked_at_power_on(pair: Pair) -> None:
     pair.status()
     pair.lines(MOVE, "M20 G90 G0 X200 Y0 Z180 A0 B0 C0", "M21 G91 X5", "G4 P0")
     pair.status()
+    pair.lines("M20", "M21 G90 G1 Y- F500")  # a modal M20, then a refused line: Motion_MODE?
+    pair.status()
     pair.check()
 
 
