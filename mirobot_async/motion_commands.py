@@ -56,6 +56,7 @@ class MotionCommands(ClientParts):
         await self._lines.await_slot(slot, deadline, timeout)
         if not wait:
             return None
+        epoch = slot.reply_epoch  # (a line in doubt after a reset ran after it)
         known = not relative or baseline is not None or slot.check is not None
         goal = target(baseline, slot.check) if known else None
         return await self._completion.wait(

@@ -69,6 +69,7 @@ class StatusPoller:
         self._waiters: list[_Waiter] = []
         self._asks: deque[float] = deque()  # write times of unanswered "?", oldest first
         self._last_ask = -math.inf
+        self._last_report = -math.inf  # when the last report (even a corrupted one) arrived
         self._timer: asyncio.TimerHandle | None = None
 
     def start(self, loop: asyncio.AbstractEventLoop) -> None:
@@ -91,6 +92,7 @@ class StatusPoller:
         """A well-formed report: credit it, give it to the waiters it satisfies."""
         self._wire.stats.status_reports += 1
         self.last_status = report
+        self._last_report = self._running_loop().time()
         asked_at = self._asks.popleft() if self._asks else -math.inf
         keep: list[_Waiter] = []
         for waiter in self._waiters:
@@ -109,6 +111,7 @@ class StatusPoller:
         _log.warning("dropped a corrupted status line (%s)", reason)
         if self._asks:
             self._asks.popleft()
+        self._last_report = self._running_loop().time()
         self.pump()
 
     def on_line_reply(self, written_at: float) -> None:
@@ -182,8 +185,9 @@ class StatusPoller:
         now = self._running_loop().time()
         newest_fresh = max(w.not_before for w in waiting)
         asks = self._asks
-        if asks and asks[-1] >= newest_fresh:
-            # A "?" that can satisfy everyone is in flight: ask again only if it is late.
+        if asks and asks[-1] >= newest_fresh and asks[-1] > self._last_report:
+            # A "?" that can satisfy everyone is in flight (no report came since it was
+            # written; one that did may have answered it): ask again only if it is late.
             due = self._last_ask + self.retry_interval
             if now < due:
                 self._arm_timer(due)

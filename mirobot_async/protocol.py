@@ -31,10 +31,11 @@ from __future__ import annotations
 
 import re
 from collections import deque
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 from mirobot_async.errors import MirobotProtocolError, MirobotUsageError
+from mirobot_async.outgoing import encode_line
 from mirobot_async.replies import (
     Refusal,
     Reply,
@@ -49,6 +50,7 @@ __all__ = [
     "AlarmRaised",
     "BannerReceived",
     "ConnectionClosed",
+    "DoubtResolved",
     "Event",
     "LineAcknowledged",
     "LineRejected",
@@ -137,9 +139,27 @@ class UnsolicitedText:
 
 @dataclass(frozen=True, slots=True)
 class ResetDetected:
-    """The robot reset (its banner started): the ``failed`` lines were lost and never run."""
+    """The robot reset (its banner started): the ``failed`` lines were lost and never run.
+
+    ``in_doubt`` lines were written after the ``%`` the host asked for (all pending lines, for a
+    reset the host did not ask for): the robot may have received them after it reset, and then
+    ran them. Their replies, if any, follow the banner: the robot runs the lines it received
+    after resetting, which are the last ones written, so ``k`` replies answer the last ``k``
+    lines in doubt. They are settled by :class:`DoubtResolved` and the usual reply events.
+    """
 
     failed: tuple[PendingLine, ...]
+    in_doubt: tuple[PendingLine, ...] = ()
+
+
+@dataclass(frozen=True, slots=True)
+class DoubtResolved:
+    """The lines in doubt after a reset are settled: ``not_run`` were lost with the robot's
+    buffer; the others ran and their :class:`LineAcknowledged` / :class:`LineRejected` events
+    follow this one (emitted once every line in doubt got a reply, or by
+    :meth:`MirobotConnection.resolve_doubt` when the host knows no more replies can come)."""
+
+    not_run: tuple[PendingLine, ...]
 
 
 @dataclass(frozen=True, slots=True)
@@ -174,6 +194,7 @@ Event = (
     | AlarmRaised
     | UnsolicitedText
     | ResetDetected
+    | DoubtResolved
     | BannerReceived
     | ProtocolViolation
     | ConnectionClosed
@@ -181,63 +202,9 @@ Event = (
 
 # ---- the state machine ---------------------------------------------------------------------------
 
-# Bytes that a command line may not contain: line ends (a line is one line) and the realtime bytes,
-# which the firmware takes out of the stream wherever they are (PROTOCOL.md section 3).
-_FORBIDDEN_TEXT_RE = re.compile(r"[\r\n?!~%]")
 _LINE_END_RE = re.compile(rb"[\r\n]")
 _OK = b"ok"
 _STATUS_START = 0x3C  # "<"
-
-
-_REALTIME_HINTS = {"?": "use status()", "!": "use hold()", "~": "use resume()", "%": "use reset()"}
-
-
-def encode_line(line: object, rx_buffer_size: int = 128, *, strip: bool = True) -> bytes:
-    """One command line as the bytes to send (without its line end); the only check of a line's
-    bytes before it is written.
-
-    Accepts ``str``, ``bytes`` or ``bytearray`` of ASCII text; one trailing line end (``"\\n"``,
-    and with ``strip`` also ``"\\r\\n"`` and surrounding blanks) is removed. Raises
-    :class:`MirobotUsageError` for another type, non-ASCII text, a line break inside, a realtime
-    byte (``? ! ~ %``, which the firmware would act on at once), or a line that with its line end
-    is longer than the robot's ``rx_buffer_size``-byte receive buffer.
-    """
-    if isinstance(line, bytes | bytearray):
-        try:
-            text = bytes(line).decode("ascii")
-        except UnicodeDecodeError as err:
-            raise MirobotUsageError(f"line={bytes(line)!r} is not ASCII") from err
-    elif isinstance(line, str):
-        text = line
-    else:
-        raise MirobotUsageError(f"line={line!r} must be str or bytes, not {type(line).__name__}")
-    if not text.isascii():
-        raise MirobotUsageError(f"line={text!r} is not ASCII")
-    if strip:
-        text = text.strip(" \t")
-        if text.endswith("\r\n"):
-            text = text[:-2]
-        elif text.endswith("\n"):
-            text = text[:-1]
-        text = text.strip(" \t")
-    elif text.endswith("\n"):
-        text = text[:-1]
-    bad = _FORBIDDEN_TEXT_RE.search(text)
-    if bad is not None:
-        char = bad.group()
-        if char in "\r\n":
-            raise MirobotUsageError(f"line={text!r} contains a line break: send one line")
-        raise MirobotUsageError(
-            f"line={text!r} contains the realtime byte {char!r}, which the firmware would "
-            f"act on at once ({_REALTIME_HINTS[char]})"
-        )
-    data = text.encode("ascii")
-    if len(data) + 1 > rx_buffer_size:
-        raise MirobotUsageError(
-            f"line={text!r} is {len(data) + 1} bytes with its line end, more than the "
-            f"robot's {rx_buffer_size}-byte receive buffer"
-        )
-    return data
 
 
 class MirobotConnection:
@@ -261,11 +228,14 @@ class MirobotConnection:
         "_bytes_in_flight",
         "_closed",
         "_discarding",
+        "_doubt_replies",
         "_events",
+        "_in_doubt",
         "_next_id",
         "_output",
         "_output_dropped",
         "_pending",
+        "_reset_mark",
         "_status_outstanding",
         "max_output_lines",
         "max_reply_length",
@@ -295,6 +265,9 @@ class MirobotConnection:
         self._status_outstanding = 0
         self._next_id = 0
         self._banner: list[str] | None = None  # lines of a banner being collected
+        self._reset_mark: int | None = None  # first line id written after a requested "%"
+        self._in_doubt: list[PendingLine] = []  # lines that may have run after a reset
+        self._doubt_replies: list[Callable[[PendingLine], Event]] = []  # replies seen for them
 
     # ---- introspection ----
 
@@ -317,6 +290,12 @@ class MirobotConnection:
     def status_requests_outstanding(self) -> int:
         """``?`` bytes sent whose status report has not arrived yet (never below 0)."""
         return self._status_outstanding
+
+    @property
+    def in_doubt_count(self) -> int:
+        """Lines whose fate after a reset is not settled yet (see :class:`ResetDetected`);
+        write nothing until it is 0, or their late replies could not be told apart."""
+        return len(self._in_doubt)
 
     @property
     def closed(self) -> bool:
@@ -363,8 +342,18 @@ class MirobotConnection:
         return b"?"
 
     def request_reset(self) -> bytes:
-        """Return ``b"%"``, the Mirobot's soft reset. Pending lines fail when the banner starts."""
+        """Return ``b"%"``, the Mirobot's soft reset. Lines pending now fail when the banner
+        starts; lines registered after this call are in doubt (see :class:`ResetDetected`)."""
+        if self._reset_mark is None:
+            self._reset_mark = self._next_id
         return b"%"
+
+    def resolve_doubt(self) -> None:
+        """No more replies can come for the lines in doubt (the robot is quiet and answered a
+        status request written well after the banner): settle them now (:class:`DoubtResolved`
+        and a reply event for each line that was answered)."""
+        if self._in_doubt:
+            self._settle_doubt()
 
     def feed_hold(self) -> bytes:
         """Return ``b"!"``: decelerate to a stop (state ``Hold``)."""
@@ -506,8 +495,8 @@ class MirobotConnection:
             text = reply.raw.strip()
             if reply.ok:
                 self._final_ok(text, reply, raw_bytes)
-            elif self._pending:
-                self._add_output(text, raw_bytes)
+            elif self._pending or (self._doubt_open() and kind is not ReplyKind.FEEDBACK):
+                self._add_output(text, raw_bytes)  # ([...] feedback after a reset: its own)
             else:
                 events.append(UnsolicitedText(kind, reply.text))
 
@@ -538,44 +527,70 @@ class MirobotConnection:
 
     def _final_ok(self, text: str, reply: Reply | None, raw_bytes: bytes = _OK) -> None:
         """Acknowledge the oldest pending line; ``text`` is a line with a glued ``ok`` or ``""``."""
-        if not self._pending:
+        if not self._pending and not self._doubt_open():
             if text and reply is not None:
                 self._events.append(UnsolicitedText(reply.kind, reply.text))
             self._events.append(ProtocolViolation("'ok' with no line pending", raw_bytes))
             return
-        line = self._pending.popleft()
-        self._bytes_in_flight -= len(line.wire)
         output = self._output
         self._output_dropped = False
         if text:
             output.append(text)  # even past the cap: one line, and it may hold a refusal
-        if output:
-            out = tuple(output)
-            output.clear()
-            self._events.append(LineAcknowledged(line, out, find_refusal(out)))
-        else:
-            self._events.append(LineAcknowledged(line, (), None))
-
-    def _final_error(self, text: str, code: int | None, raw_bytes: bytes) -> None:
+        out = tuple(output)
+        output.clear()
+        refusal = find_refusal(out) if out else None
         if not self._pending:
-            self._events.append(ProtocolViolation("error reply with no line pending", raw_bytes))
+            self._doubt_reply(lambda line: LineAcknowledged(line, out, refusal))
             return
         line = self._pending.popleft()
         self._bytes_in_flight -= len(line.wire)
+        self._events.append(LineAcknowledged(line, out, refusal))
+
+    def _final_error(self, text: str, code: int | None, raw_bytes: bytes) -> None:
+        if not self._pending and not self._doubt_open():
+            self._events.append(ProtocolViolation("error reply with no line pending", raw_bytes))
+            return
         out = tuple(self._output)
         self._output.clear()
         self._output_dropped = False
+        if not self._pending:
+            self._doubt_reply(lambda line: LineRejected(line, text, code, out))
+            return
+        line = self._pending.popleft()
+        self._bytes_in_flight -= len(line.wire)
         self._events.append(LineRejected(line, text, code, out))
 
+    def _doubt_open(self) -> bool:
+        """True while lines in doubt may still get replies."""
+        return len(self._doubt_replies) < len(self._in_doubt)
+
+    def _doubt_reply(self, make: Callable[[PendingLine], Event]) -> None:
+        self._doubt_replies.append(make)
+        if not self._doubt_open():
+            self._settle_doubt()
+
+    def _settle_doubt(self) -> None:
+        lines, replies = self._in_doubt, self._doubt_replies
+        self._in_doubt, self._doubt_replies = [], []
+        self._bytes_in_flight -= sum(len(line.wire) for line in lines)
+        ran = len(lines) - len(replies)
+        self._events.append(DoubtResolved(tuple(lines[:ran])))
+        self._events.extend(make(line) for line, make in zip(lines[ran:], replies, strict=True))
+
     def _reset(self) -> None:
-        """The robot reset: every pending line is lost, its receive buffer is empty."""
-        failed = tuple(self._pending)
+        """The robot reset: lines written before it are lost; later ones may run (in doubt)."""
+        if self._in_doubt:
+            self._settle_doubt()  # their replies would have come before this banner
+        mark, self._reset_mark = self._reset_mark, None
+        failed = tuple(line for line in self._pending if mark is not None and line.id < mark)
+        doubt = [line for line in self._pending if mark is None or line.id >= mark]
         self._pending.clear()
         self._output.clear()
         self._output_dropped = False
-        self._bytes_in_flight = 0
+        self._in_doubt = doubt
+        self._bytes_in_flight = sum(len(line.wire) for line in doubt)
         self._status_outstanding = 0
-        self._events.append(ResetDetected(failed))
+        self._events.append(ResetDetected(failed, tuple(doubt)))
 
     def _banner_line(self, line: str, last: bool) -> None:
         banner = self._banner

@@ -20,6 +20,7 @@ from mirobot_async.protocol import (
     AlarmRaised,
     BannerReceived,
     ConnectionClosed,
+    DoubtResolved,
     Event,
     LineAcknowledged,
     LineRejected,
@@ -66,6 +67,7 @@ class EventRouter:
     def start(self, loop: asyncio.AbstractEventLoop) -> None:
         """Use ``loop`` (the connection's)."""
         self._loop = loop
+        self._lines.dispatch = self.dispatch
 
     def on_data(self, data: bytes) -> None:
         """The transport received ``data``."""
@@ -102,7 +104,11 @@ class EventRouter:
             assert self._loop is not None
             self._condition.on_reset(self._loop.time())
             self._guard.forget("reset")  # power-on modes; the arm stopped wherever it was
+            if event.in_doubt:
+                self._guard.forget("lost")  # lines in doubt may change the modes
             self._lines.on_reset(event)
+        elif isinstance(event, DoubtResolved):
+            self._lines.on_doubt_resolved(event)
         elif isinstance(event, BannerReceived):
             self._condition.on_banner(event.lines)
             self._poller.on_banner()

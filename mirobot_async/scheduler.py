@@ -30,7 +30,14 @@ from mirobot_async.errors import (
 )
 from mirobot_async.guard import EnvelopeGuard, NeedPosition, NullGuard, Tracked
 from mirobot_async.poller import StatusPoller
-from mirobot_async.protocol import LineAcknowledged, LineRejected, PendingLine, ResetDetected
+from mirobot_async.protocol import (
+    DoubtResolved,
+    Event,
+    LineAcknowledged,
+    LineRejected,
+    PendingLine,
+    ResetDetected,
+)
 from mirobot_async.replies import State, StatusReport
 from mirobot_async.wire import Wire
 
@@ -57,6 +64,7 @@ class Slot:
     fut: asyncio.Future[Outcome]
     sent_at: float
     tracked: Tracked | None = None  # what the envelope guard assumed when it was written
+    reply_epoch: int = -1  # the reset epoch when its reply came (a line may run after a reset)
     # Called synchronously when the reply (or failure) is settled, before anything else runs.
     watch: Callable[[Slot], None] | None = None
 
@@ -131,6 +139,8 @@ class LineScheduler:
         self.liveness_interval = 1.0
         self.reply_grace = 0.5
         self.status_timeout = 2.0
+        # The event router's dispatch, for the events of settling the lines in doubt.
+        self.dispatch: Callable[[Event], None] | None = None
 
     def start(self, loop: asyncio.AbstractEventLoop) -> None:
         """Use ``loop`` (the connection's)."""
@@ -161,6 +171,7 @@ class LineScheduler:
             self._barrier = None
         if slot is None:
             return
+        slot.reply_epoch = self._condition.reset_epoch
         self._poller.on_line_reply(slot.sent_at)
         if slot.tracked is not None:
             if isinstance(event, LineRejected):
@@ -174,10 +185,21 @@ class LineScheduler:
             slot.settle(event)
 
     def on_reset(self, event: ResetDetected) -> None:
-        """A banner started: ``event.failed`` lines were not run."""
+        """A banner started: ``event.failed`` lines were not run; ``event.in_doubt`` lines keep
+        their slots until their fate is known (:meth:`on_doubt_resolved`, or their replies)."""
         failed = event.failed
         self._barrier = None
         self._dwell_until = -math.inf
+        for pending in event.in_doubt:
+            slot = self.slots.get(pending.id)
+            if slot is not None:
+                slot.tracked = None  # the prediction it was written under is void
+        if event.in_doubt:
+            _log.info(
+                "the robot reset: %d line(s) written since may run after it; waiting for their "
+                "replies",
+                len(event.in_doubt),
+            )
         if failed:
             # Every caller still waiting gets MirobotResetError: say it loudly only if some
             # line has nobody left to tell.
@@ -191,7 +213,16 @@ class LineScheduler:
                 slot.settle(MirobotResetError(slot.command))
 
     def on_banner(self) -> None:
-        """A banner ended: lines may be written again."""
+        """A banner ended: lines may be written again (once no line is in doubt)."""
+
+    def on_doubt_resolved(self, event: DoubtResolved) -> None:
+        """Lines in doubt after a reset that did not run: they fail with MirobotResetError."""
+        for pending in event.not_run:
+            slot = self.slots.pop(pending.id, None)
+            if self._barrier == pending.id:
+                self._barrier = None
+            if slot is not None and not slot.fut.done():
+                slot.settle(MirobotResetError(slot.command, "it was lost with the robot's buffer"))
 
     def fail_waiting(self, error: Callable[[Slot], BaseException], *, forget: bool) -> bool:
         """Every slot still awaited fails with ``error(slot)``; True if one was awaited. With
@@ -214,7 +245,7 @@ class LineScheduler:
 
     def _ready(self, exclusive: bool, nbytes: int) -> bool:
         conn = self._wire.conn
-        if self._condition.resetting or conn.in_banner:
+        if self._condition.resetting or conn.in_banner or conn.in_doubt_count:
             return False
         if self._barrier is not None:
             if self._barrier in self.slots:
@@ -366,7 +397,17 @@ class LineScheduler:
 
     def _expire_lost_replies(self, asked_at: float, state: State) -> None:
         conn = self._wire.conn
-        if conn.in_banner or asked_at < self._dwell_until + self.reply_grace:
+        if conn.in_banner:
+            return
+        if conn.in_doubt_count and asked_at >= self._condition.banner_started + self.reply_grace:
+            # A quiet robot answered a "?" written well after the banner: every reply to a
+            # line that ran after the reset has come; the others were lost with its buffer.
+            conn.resolve_doubt()
+            dispatch = self.dispatch
+            assert dispatch is not None
+            for event in conn.events():
+                dispatch(event)
+        if asked_at < self._dwell_until + self.reply_grace:
             return
         expired = False
         while conn.pending_count:

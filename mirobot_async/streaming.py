@@ -104,6 +104,7 @@ class _StreamRun:
     """The state of one running stream, shared by its producer and its consumer."""
 
     scheduler: LineScheduler
+    condition: RobotCondition
     continue_on_error: bool
     deadline: float | None
     timeout: float | None
@@ -114,8 +115,11 @@ class _StreamRun:
     stop: bool = False  # write nothing more
     done: bool = False  # the producer ended
     exhausted: bool = False  # the input ended
+    reset_epoch: int = 0  # the robot's resets when the stream started: it stops at the next
 
     def should_stop(self) -> bool:
+        if self.condition.reset_epoch != self.reset_epoch:
+            self.stop = True  # a reset: the program's modal state is gone, even if no line failed
         return self.stop
 
     def watch(self, slot: Slot) -> None:
@@ -141,7 +145,7 @@ class _StreamRun:
         async_items = aiter(lines) if isinstance(lines, AsyncIterable) else None
         rx_buffer_size = self.scheduler.rx_buffer_size
         try:
-            while not self.stop:
+            while not self.should_stop():
                 if async_items is not None:
                     item = await anext(async_items, _END)
                 else:
@@ -290,7 +294,14 @@ class Stream:
         if not self._check_envelope:
             guard.warn_stream_unchecked()
         run = _StreamRun(
-            scheduler, self._continue, deadline, self._timeout, self._check_envelope, self.result
+            scheduler,
+            condition,
+            self._continue,
+            deadline,
+            self._timeout,
+            self._check_envelope,
+            self.result,
+            reset_epoch=condition.reset_epoch,
         )
         producer = loop.create_task(run.produce(self._lines), name="mirobot-stream-producer")
         results = run.consume(producer)

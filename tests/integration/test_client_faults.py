@@ -25,6 +25,7 @@ from mirobot_async import (
     MirobotLinkLostError,
     MirobotResetError,
     MirobotTimeoutError,
+    MotionRefusedError,
     State,
 )
 from mirobot_async.testing import EmulatorProcess
@@ -201,7 +202,10 @@ async def test_reset_mid_stream(emu: EmulatorProcess, ready_arm: Mirobot, how: s
         await emu.control("reset")
     result = await stream
     assert result.stopped and 18 <= result.sent < len(SLOW_MOVES)
-    assert all(isinstance(r.error, MirobotResetError) for r in result.errors)
+    # Not run (lost with the robot's buffer); or, for a line that reached the robot only after
+    # it reset by itself, what the robot did with it (locked after a reset: refused).
+    after_reset = (MotionRefusedError, MirobotAlarmError) if how == "spontaneous" else ()
+    assert all(isinstance(r.error, (MirobotResetError, *after_reset)) for r in result.errors)
     assert len(result.errors) >= waiting
     assert result.acknowledged >= 18
     # in order, each line once

@@ -27,6 +27,7 @@ from mirobot_async.protocol import (
     AlarmRaised,
     BannerReceived,
     ConnectionClosed,
+    DoubtResolved,
     Event,
     LineAcknowledged,
     LineRejected,
@@ -345,7 +346,7 @@ def test_expire_oldest_realigns() -> None:
 # ---- banner / reset ------------------------------------------------------------------------------
 
 
-def test_classic_banner_mid_stream_fails_all_pending_lines() -> None:
+def test_classic_banner_mid_stream_puts_the_pending_lines_in_doubt() -> None:
     conn = MirobotConnection()
     a = conn.send_line("M21 G90 X10 F2000")
     conn.request_status()
@@ -357,16 +358,50 @@ def test_classic_banner_mid_stream_fails_all_pending_lines() -> None:
             ("Locked status of each axis!",),
             find_refusal(("Locked status of each axis!",)),
         ),
-        ResetDetected((b, c)),
+        ResetDetected((), (b, c)),  # a reset nobody asked for: b and c may run after it
         BannerReceived(tuple(x.strip() for x in BANNER_CLASSIC if x)),
     ]
     assert conn.pending_count == 0
-    assert conn.bytes_in_flight == 0
+    assert conn.in_doubt_count == 2
+    assert conn.bytes_in_flight == len(b.wire) + len(c.wire)  # maybe in the robot's buffer
     assert conn.status_requests_outstanding == 0
     assert not conn.in_banner
+    conn.resolve_doubt()  # the host knows no reply can come any more: neither ran
+    assert list(conn.events()) == [DoubtResolved((b, c))]
+    assert conn.in_doubt_count == 0 and conn.bytes_in_flight == 0
     # After the banner, lines work normally.
     d = conn.send_line("M50")
     assert feed(conn, [b"ok\r\n"]) == [LineAcknowledged(d, (), None)]
+
+
+def test_a_requested_reset_fails_the_lines_written_before_it() -> None:
+    conn = MirobotConnection()
+    a = conn.send_line("M50")
+    assert conn.request_reset() == b"%"
+    b = conn.send_line("M20")  # written after the "%": in doubt
+    events = feed(conn, [wire(BANNER_CLASSIC)])
+    assert events[0] == ResetDetected((a,), (b,))
+    assert feed(conn, [b"ok\r\n"]) == [DoubtResolved(()), LineAcknowledged(b, (), None)]
+    assert conn.in_doubt_count == 0 and conn.bytes_in_flight == 0
+
+
+def test_replies_after_a_spontaneous_reset_answer_the_last_lines_in_doubt() -> None:
+    """The robot ran the lines it received after resetting: the last ones written."""
+    conn = MirobotConnection()
+    a, b, c = conn.send_line("M50"), conn.send_line("M20"), conn.send_line("M3 S5")
+    events = feed(conn, [wire([*BANNER_CLASSIC, "ok", "Pump on", "ok"])])
+    assert events[0] == ResetDetected((), (a, b, c))
+    assert events[2:] == []  # two replies for three lines: not settled yet
+    assert conn.in_doubt_count == 3
+    conn.resolve_doubt()
+    assert list(conn.events()) == [
+        DoubtResolved((a,)),
+        LineAcknowledged(b, (), None),
+        LineAcknowledged(c, ("Pump on",), None),
+    ]
+    d = conn.send_line("M50")
+    assert feed(conn, [b"ok\r\n"]) == [LineAcknowledged(d, (), None)]
+    assert feed(conn, [b"ok\r\n"])[0] == ProtocolViolation("'ok' with no line pending", b"ok")
 
 
 def test_second_banner_start_inside_a_banner_is_the_same_banner() -> None:
@@ -389,7 +424,7 @@ def test_2021_banner_then_unlock_feedback() -> None:
     a = conn.send_line("$X")
     events = feed(conn, [wire([*BANNER_2021, "['$H'|'$X' to unlock]"])])
     assert events == [
-        ResetDetected((a,)),
+        ResetDetected((), (a,)),
         BannerReceived(tuple(x.strip() for x in BANNER_2021 if x)),
         UnsolicitedText(ReplyKind.FEEDBACK, "'$H'|'$X' to unlock"),
     ]
@@ -427,7 +462,7 @@ def test_lone_banner_end_is_a_reset() -> None:
     conn = MirobotConnection()
     a = conn.send_line("M50")
     assert feed(conn, [b"Using reset pos!\r\n"]) == [
-        ResetDetected((a,)),
+        ResetDetected((), (a,)),
         BannerReceived(("Using reset pos!",)),
     ]
 
@@ -805,9 +840,11 @@ class ConnectionModel(RuleBasedStateMachine):
         self.pending.clear()
         self.output.clear()
         assert self._robot_prints(BANNER_CLASSIC, cut) == [
-            ResetDetected(failed),
+            ResetDetected((), failed),
             BannerReceived(tuple(x.strip() for x in BANNER_CLASSIC if x)),
         ]
+        self.conn.resolve_doubt()  # no reply came: none of them ran
+        assert list(self.conn.events()) == ([DoubtResolved(failed)] if failed else [])
 
     @invariant()
     def counts_match(self) -> None:
