@@ -89,9 +89,11 @@ every line written (checked or not). Structured moves state all their modes; a r
 relies on an unknown mode is refused until a line states it.
 
 *Firmware.* The envelope's kinematic model must be the arm's: when the firmware is (or, with an
-envelope, is detected at connect with ``$$`` to be) ``classic`` and the envelope has the default
+envelope, is detected at connect to be) ``classic`` and the envelope has the default
 ``dh=DH_2021``, the client uses it with ``dh=DH_CLASSIC`` (:attr:`Mirobot.envelope` shows the
-one in use). Any other ``dh`` is used as given.
+one in use). Any other ``dh`` is used as given. The profile comes from a banner, else from a
+``$$`` that is written only when nothing is in flight and a status shows the arm at rest (the
+firmware refuses ``$$`` while the arm moves), so detecting it never fails a call.
 
 *Opt-out.* ``send(line, check_envelope=False)`` logs a WARNING naming the line (and, if the
 envelope would have refused it, why); ``stream(lines, check_envelope=False)`` logs a WARNING when
@@ -120,7 +122,7 @@ from typing import TYPE_CHECKING, Any
 from mirobot_async.accessories import AccessoryCommands
 from mirobot_async.condition import Firmware
 from mirobot_async.deadline import check_timeout, deadline_after
-from mirobot_async.errors import MirobotConnectionError, MirobotUsageError
+from mirobot_async.errors import MirobotConnectionError, MirobotTimeoutError, MirobotUsageError
 from mirobot_async.motion_commands import MotionCommands
 from mirobot_async.parts import (
     CONNECT_TIMEOUT,
@@ -217,8 +219,9 @@ class Mirobot(MotionCommands, StatusCommands, AccessoryCommands):
         when the port opens or, failing that, from the first :meth:`settings` call; pass it to
         skip detection. ``envelope`` is a workspace safety envelope
         (:class:`mirobot_async.Envelope`): every line that moves the arm is checked against it
-        before anything is written (see the module docstring, "Safety envelope"); a moving line
-        waits for the firmware profile (a classic arm gets ``DH_CLASSIC``).
+        before anything is written (see the module docstring, "Safety envelope"); with an
+        envelope an unknown profile is read at connect (``$$``, once the arm is at rest), so
+        that a classic arm gets ``DH_CLASSIC``.
         ``implementation`` picks pyserial-asyncio-fast (``"fast"``, default) or the original
         pyserial-asyncio. ``status_timeout`` bounds the status requests of liveness checks.
 
@@ -285,6 +288,15 @@ class Mirobot(MotionCommands, StatusCommands, AccessoryCommands):
                 f"{url_text(self.url)} opened, but no Mirobot answered a status request within "
                 f"{timeout:g} s"
             ) from err
+        if self._guard.envelope is not None and self._condition.firmware is None:
+            try:  # the envelope's kinematic model: waits for the arm to be at rest
+                await self._require_firmware(deadline, timeout)
+            except MirobotTimeoutError as err:
+                raise MirobotConnectionError(
+                    f"{url_text(self.url)} opened, but the firmware profile (for the safety "
+                    f"envelope) could not be read within {timeout:g} s: {err}"
+                ) from err
+            report = self._poller.last_status or report
         if not self._wire.conn.pending_count:
             # The probe's status, asked with nothing in flight: where the arm is at rest.
             self._guard.adopt_status(self._poller.last_status or report)
