@@ -84,7 +84,14 @@ async def connected(emu: EmulatorProcess, envelope: Envelope, *, unlock: bool = 
     async with Mirobot.connect(emu.url, envelope=envelope) as arm:
         if unlock:
             await arm.unlock()
+            await arm.send("G21")  # units are unknown at connect (an earlier G20 survives)
+            await arm.settings()  # the 2021 base offset $41..$43, for absolute M20 lines
         yield arm
+
+
+def stated(line: bytes) -> bytes:
+    """A builder's line as the client writes it: stating its units (``G21``)."""
+    return line.rstrip(b"\n") + b" G21\n"
 
 
 async def assert_refused(
@@ -123,7 +130,7 @@ async def assert_refused(
 
 def assert_joints(report: StatusReport | None, expected: tuple[float, ...]) -> None:
     assert report is not None
-    assert report.joints == pytest.approx(expected, abs=0.01), report.joints
+    assert report.joints == pytest.approx(expected, abs=0.05), report.joints  # whole steps
 
 
 # ---- moves inside are untouched -----------------------------------------------------------------
@@ -137,25 +144,25 @@ async def test_moves_inside_the_envelope_arrive_byte_for_byte(
     async with connected(emu, envelope) as arm:
         mark = spy.mark()
         assert_joints(await arm.move_joints(j1=30, j2=10), (30, 10, 0, 0, 0, 0))
-        assert spy.lines_since(mark) == [gcode.move_joints(30, 10)]
+        assert spy.lines_since(mark) == [stated(gcode.move_joints(30, 10))]
 
         mark = spy.mark()
         report = await arm.move_pose(x=200, y=50, z=200)
         assert report is not None
         assert report.pose[:3] == pytest.approx((200, 50, 200), abs=0.1)
-        assert spy.lines_since(mark) == [gcode.move_pose(200, 50, 200)]
+        assert spy.lines_since(mark) == [stated(gcode.move_pose(200, 50, 200))]
 
         mark = spy.mark()
         report = await arm.move_pose(y=-50, linear=True, speed=2000)
         assert report is not None
         assert report.pose[:3] == pytest.approx((200, -50, 200), abs=0.1)
-        assert spy.lines_since(mark) == [gcode.move_pose(y=-50, linear=True, speed=2000)]
+        assert spy.lines_since(mark) == [stated(gcode.move_pose(y=-50, linear=True, speed=2000))]
 
         mark = spy.mark()
         start = report.joints
         report = await arm.move_joints(j1=-5, relative=True)
         assert_joints(report, (start[0] - 5, *start[1:]))
-        assert spy.lines_since(mark) == [gcode.move_joints(-5, relative=True)]
+        assert spy.lines_since(mark) == [stated(gcode.move_joints(-5, relative=True))]
         assert arm.stats.envelope_refusals == 0
 
 
@@ -200,7 +207,7 @@ async def test_a_joint_space_path_that_leaves_the_box_is_refused(
         error = await assert_refused(
             arm, spy, lambda: arm.move_joints(j1=25), "joint-space path", "maximum x=190 mm"
         )
-        assert "move_joints 'M21 G90 G0 X25'" in str(error)
+        assert "move_joints 'M21 G90 G0 X25 G21'" in str(error)
         assert_joints(await arm.move_joints(j1=-30), (-30, 0, 0, 0, 0, 0))
 
 
@@ -271,7 +278,7 @@ async def test_concurrent_moves_are_checked_in_the_order_they_are_written(
         await first
         with pytest.raises(MirobotUsageError, match=r"j1=65\.000"):
             await second  # checked after the first line was written: 50 + 15
-        assert spy.lines_since(mark) == [gcode.move_joints(50)]
+        assert spy.lines_since(mark) == [stated(gcode.move_joints(50))]
         assert_joints(await arm.wait_idle(), (50, 0, 0, 0, 0, 0))
 
 
@@ -286,7 +293,7 @@ async def test_after_homing_the_position_is_read_before_the_next_move(
         mark = spy.mark()
         assert_joints(await arm.move_joints(j1=45, relative=True), (45, 0, 0, 0, 0, 0))
         written = spy.since(mark)
-        line = gcode.move_joints(45, relative=True)
+        line = stated(gcode.move_joints(45, relative=True))
         assert b"?" in written[: written.index(line)]  # a fresh status, then the line
 
 
@@ -318,7 +325,7 @@ async def test_the_position_is_read_again_after_an_unchecked_move(
             arm,
             spy,
             lambda: arm.move_joints(j1=-5, relative=True),
-            "j1=70.000",
+            "j1=",  # 70 up to the whole motor steps of the read position
             "J1 range",
             reads_position=True,
         )
@@ -482,6 +489,7 @@ class FakeRobot:
         await self.server.wait_closed()
 
     async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        line = bytearray()
         with contextlib.suppress(ConnectionError):
             while data := await reader.read(4096):
                 self.received += data
@@ -489,7 +497,12 @@ class FakeRobot:
                     if byte == ord("?"):
                         writer.write(FAKE_STATUS)
                     elif byte == ord("\n"):
+                        if bytes(line) == b"$$":  # the base offset, for the envelope
+                            writer.write(b"$41=0.000\r\n$42=0.000\r\n$43=0.000\r\n")
                         writer.write(b"ok\r\n")
+                        line.clear()
+                    else:
+                        line.append(byte)
         writer.close()
 
 
@@ -576,6 +589,7 @@ async def attempt(call: Callable[[Mirobot], Awaitable[object]]) -> tuple[bool, b
         robot as url,
         Mirobot.connect(url, envelope=PROPERTY_ENVELOPE, firmware="2021") as arm,
     ):
+        await arm.settings()  # the base offset, for absolute Cartesian moves
         before = len(robot.received)
         refused = False
         try:
@@ -611,7 +625,7 @@ def test_property_joint_targets_outside_are_refused_inside_sent_unchanged(
         assert refusals == 1
         assert expected is not False, f"an inside move was refused: {target}"
     else:
-        assert written == gcode.move_joints(*target, relative=relative)
+        assert written == stated(gcode.move_joints(*target, relative=relative))
         assert expected is not True, f"an outside move was sent: {target}"
 
 
@@ -641,5 +655,7 @@ def test_property_linear_paths_outside_are_refused_inside_sent_unchanged(
         assert written == b""
         assert expected is not False, f"an inside path was refused: {goal}"
     else:
-        assert written == gcode.move_pose(*words, linear=True, speed=3000, relative=relative)
+        assert written == stated(
+            gcode.move_pose(*words, linear=True, speed=3000, relative=relative)
+        )
         assert expected is not True, f"an outside path was sent: {goal}"
