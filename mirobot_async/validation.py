@@ -91,10 +91,16 @@ class ModalState:
     :func:`check_line` updates it in place so that consecutive lines are judged in context.
     """
 
-    cartesian: bool = False
-    """``M20`` in effect (else ``M21``, the power-on default)."""
-    relative: bool = False
-    """``G91`` in effect (else ``G90``, the power-on default)."""
+    cartesian: bool | None = False
+    """``M20`` in effect (else ``M21``, the power-on default); ``None``: unknown."""
+    relative: bool | None = False
+    """``G91`` in effect (else ``G90``, the power-on default); ``None``: unknown."""
+
+    @classmethod
+    def unknown(cls) -> ModalState:
+        """Nothing known (a client on an arm in use): mode-dependent ranges are checked only
+        when the line states its modes."""
+        return cls(None, None)
 
 
 def parse_words(line: str | bytes) -> list[tuple[str, float]]:
@@ -260,11 +266,11 @@ def _check_gcode(parsed: ParsedLine, profile: str, state: ModalState, problems: 
     if "P" in values and not dwell_seen:
         problems.append("P is only used by G4 (unused word)")
     if motion in (2, 3):
-        _check_arc(motion, values, cartesian, is_relative, problems)
+        _check_arc(motion, values, cartesian is not False, is_relative is True, problems)
     elif "R" in values:
         problems.append("R is only used by G2/G3 arcs (unused word)")
 
-    if not cartesian and not is_relative and not dwell_seen:
+    if cartesian is False and is_relative is False and not dwell_seen:
         for letter, joint in zip(_JOINT_LETTERS, JOINT_NAMES, strict=True):
             if letter in values:
                 low, high = JOINT_RANGES[joint]

@@ -164,3 +164,14 @@ def test_validate_refuses_what_check_reports(line: str) -> None:
     assert check_line(line)
     with pytest.raises(MirobotUsageError, match="refused before sending"):
         validate_line(line)
+
+
+def test_unknown_modes_check_only_what_the_line_states() -> None:
+    """For a client on an arm in use: ``X500`` may be mm (M20) or degrees (M21)."""
+    from mirobot_async.validation import ModalState
+
+    assert check_line("G0 X500", state=ModalState.unknown()) == []
+    assert check_line("M21 G90 G0 X500", state=ModalState.unknown()) == [
+        "J1=500 is outside -100..160"
+    ]
+    assert check_line("M3 S2000", state=ModalState.unknown())  # PWM needs no mode
