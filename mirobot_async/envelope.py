@@ -27,16 +27,18 @@ violated bound, and returns ``None`` when the move is allowed):
   inside and, along the way, it never goes farther outside any bound than where it started.
 - **Relative moves** (``G91``) are checked against the last known position, which the caller
   passes (``current_joints`` / ``current_pose``); without it they are refused.
-- **Raw lines** (``Mirobot.send``) are parsed by :meth:`Envelope.check_line` with the modal state
-  :class:`MotionModes` (M20/M21, G90/G91, G0/G1/G2/G3), which the client keeps up to date with
-  :func:`update_modes`. Missing axis words keep their value; relative words add. A mode may be
-  unknown (:meth:`MotionModes.unknown`, e.g. on connecting to an arm in use, or after ``M2``):
-  a motion line must then state it. Lines that do not move (``M3``, ``G4``, ``$$``, settings...)
-  pass. Lines the checker cannot judge (``G5`` jumps,
-  unknown G codes, unparsable text, a relative move from an unknown position) are refused: the
-  opt-out is ``Mirobot.send(line, check_envelope=False)``, which logs a WARNING (client side).
-- ASSUMED: homing (``$H``, ``$HH``, ``$H0``..``$H7``, ``$HE``) passes: its path to the switches
-  cannot be bounded; it resets the modes and leaves the position unknown until the next status.
+- **Raw lines** (``Mirobot.send``, ``stream``) are checked **default-deny** by
+  :meth:`Envelope.check_line` (:func:`mirobot_async.prediction.predict`): a line is let through
+  only when its exact effect is predicted from the modal state (:class:`MotionModes`: M20/M21,
+  G90/G91, G0..G5, G20/G21, any of them possibly unknown), the position and the 2021 base offset
+  ``$41..$43``; everything it cannot model is refused (see :mod:`mirobot_async.prediction`).
+  The opt-out is ``Mirobot.send(line, check_envelope=False)``, which logs a WARNING.
+- **Bounded work**: at most :data:`~mirobot_async.paths.MAX_PATH_SAMPLES` samples per Cartesian
+  path (longer paths are refused: split them) and
+  :data:`~mirobot_async.paths.MAX_JOINT_PATH_SAMPLES` per joint-space path (sampled coarser
+  beyond); absurd values are refused before any sampling.
+- ASSUMED: homing (any ``$H...`` line) passes: its path to the switches cannot be bounded; it
+  resets the modes and leaves the position unknown until the next status.
 
 The envelope's ``dh`` and ``tool`` must match the robot's settings (``$29..$34``, ``$46..$48``):
 the box is checked on the envelope's own kinematic model. Pure module: no I/O, no asyncio.
