@@ -219,6 +219,7 @@ class ControllerBus:
             if f"@{address:02d}" in str(err) and "timed out" in str(err):
                 raise NodeSilentError(address, "?", self._timing.answer_timeout) from err
             raise
+        arm.reply_grace = self._timing.reply_grace
         self._arms[address] = arm
         return arm
 

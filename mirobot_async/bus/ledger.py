@@ -64,6 +64,9 @@ class Owed:
     lines: list[str] = field(default_factory=list)
     """A controller command's reply lines."""
     sent_at: float = 0.0
+    answered_before: int = 0
+    """A status request: the node's lines answered when it was sent (see
+    :attr:`NodeLedger.unfinished`)."""
 
     @property
     def done(self) -> bool:
@@ -79,6 +82,18 @@ class NodeLedger:
         self.owed: deque[Owed] = deque()
         self.stray = 0
         """Lines received while nothing was owed (counted and dropped)."""
+        self.lines_answered = 0
+        """Forwarded lines the arm has answered ``ok`` (queued, not done; errors queue
+        nothing)."""
+        self.lines_finished = 0
+        """Of those, how many are known to be done: all that were answered before a status
+        request whose report said ``Idle`` or ``Alarm`` (nothing in the planner)."""
+
+    @property
+    def unfinished(self) -> int:
+        """Lines answered or in flight that may still occupy the arm's planner."""
+        in_flight = sum(1 for o in self.owed if o.kind is Kind.LINE and o.main_final_pending)
+        return self.lines_answered - self.lines_finished + in_flight
 
     def __bool__(self) -> bool:
         return bool(self.owed)
@@ -101,6 +116,8 @@ class NodeLedger:
                 self.stray += 1
             else:
                 owner.status_owed = False
+                if text.startswith(("<Idle", "<Alarm")):
+                    self.lines_finished = max(self.lines_finished, owner.answered_before)
                 if owner.for_client:
                     self._pass(raw)
             return self._pop_done()
@@ -121,6 +138,8 @@ class NodeLedger:
         head.finals -= 1
         if head.kind is Kind.LINE and head.main_final_pending:
             head.main_final_pending = False
+            if not text.strip().lower().startswith("error"):
+                self.lines_answered += 1
             if head.for_client:
                 self._pass(raw)
         return self._pop_done()

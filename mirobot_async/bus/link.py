@@ -66,6 +66,17 @@ class BusTiming:
     a controller might not relay)."""
     probe_interval: float = 1.0
     """A node holding the bus this long without a byte is asked for its status (same node)."""
+    planner_window: int | None = 16
+    """Lines an arm may have answered but not finished before its next line waits for a status
+    saying ``Idle`` (the arm's planner holds 18 blocks; a line sent to a full planner would
+    hold the whole bus until a block ends). ``None``: no limit."""
+    window_poll: float = 0.02
+    """How often an arm whose window is full is asked for its status."""
+    reply_grace: float = 60.0
+    """Each arm's :attr:`Mirobot.reply_grace <mirobot_async.Mirobot.reply_grace>`. A line
+    waits in the bus's queue while other nodes talk, and a status request overtakes it, so the
+    direct link's rule (a quiet robot that answered a ``?`` asked 0.5 s after a line has lost
+    its reply) would give up lines that were merely not sent yet."""
 
 
 @dataclass(slots=True)
@@ -79,6 +90,8 @@ class BusStats:
     probes: int = 0
     settled: int = 0
     silent_nodes: int = 0
+    window_waits: int = 0
+    """Status requests sent because an arm's planner window was full."""
 
 
 @dataclass(slots=True)
@@ -96,6 +109,7 @@ class _Node:
     urgent: deque[_Request] = field(default_factory=deque)
     on_lost: Callable[[BaseException | None], None] | None = None
     last_rx: float = 0.0
+    last_window_probe: float = -1e9
 
     def queued(self) -> list[_Request]:
         return [*self.urgent, *self.lines]
@@ -304,7 +318,7 @@ class LinkSide:
             holder = self._holder
             if holder is None:
                 self._start_next(now)
-            elif holder.urgent and not holder.ledger.holds_controller_command:
+            elif holder.urgent and self._held_by_arm(holder):
                 self._send(holder, holder.urgent.popleft(), now)  # same node: unambiguous
                 continue
             wait = self._next_timer(self._loop.time())
@@ -313,6 +327,14 @@ class LinkSide:
                 async with asyncio.timeout(wait):
                     await self._wake.wait()
 
+    @staticmethod
+    def _held_by_arm(node: _Node) -> bool:
+        """``node`` holds the bus with a line its arm has not answered (and nothing of the
+        controller's own): a status request or ``!``/``~`` to it may go out now."""
+        owed = node.ledger.owed
+        waiting = any(o.kind is Kind.LINE and o.main_final_pending for o in owed)
+        return waiting and not node.ledger.holds_controller_command
+
     def _start_next(self, now: float) -> None:
         for _ in range(len(self._order)):
             address = self._order[0]
@@ -320,15 +342,38 @@ class LinkSide:
             node = self.nodes.get(address)
             if node is None:
                 continue
-            queue = node.urgent if node.urgent else node.lines
-            if queue:
-                self._send(node, queue.popleft(), now)
+            if node.urgent:
+                self._send(node, node.urgent.popleft(), now)
                 return
+            if not node.lines:
+                continue
+            if self._window_full(node):
+                if now - node.last_window_probe >= self.timing.window_poll:
+                    node.last_window_probe = now
+                    self.stats.window_waits += 1
+                    self._send(node, self._probe(node), now)
+                    return
+                continue
+            self._send(node, node.lines.popleft(), now)
+            return
+
+    def _window_full(self, node: _Node) -> bool:
+        window = self.timing.planner_window
+        head = node.lines[0]
+        if window is None or head.owed.kind is not Kind.LINE:
+            return False
+        return node.ledger.unfinished >= window
+
+    def _probe(self, node: _Node) -> _Request:
+        """A status request of the bus's own (its report is not passed to the arm's client)."""
+        owed = Owed(Kind.STATUS, "?", self.ends, status_owed=True, for_client=False)
+        return _Request(owed, self._wire(node.address, b"?"))
 
     def _send(self, node: _Node, request: _Request, now: float) -> None:
         assert self.link is not None
         owed = request.owed
         owed.sent_at = now
+        owed.answered_before = node.ledger.lines_answered
         node.ledger.add(owed)
         if request.future is not None:
             self._futures[id(owed)] = request.future
@@ -341,9 +386,12 @@ class LinkSide:
 
     def _next_timer(self, now: float) -> float | None:
         holder = self._holder
-        if holder is None or not holder.ledger:
-            return None
         timing = self.timing
+        if holder is None or not holder.ledger:
+            gated = [n.last_window_probe for n in self.nodes.values() if n.lines and not n.urgent]
+            if not gated:
+                return None
+            return max(0.0, min(gated) + timing.window_poll - now) + 0.0005
         quiet_since = holder.last_rx
         deadlines = [quiet_since + timing.settle, quiet_since + timing.probe_interval]
         deadlines += [o.sent_at + timing.answer_timeout for o in holder.ledger.owed]
@@ -378,8 +426,7 @@ class LinkSide:
         probing = any(o.status_owed for o in ledger.owed)
         if quiet >= timing.probe_interval and not probing and head.kind is Kind.LINE:
             self.stats.probes += 1
-            owed = Owed(Kind.STATUS, "?", self.ends, status_owed=True, for_client=False)
-            self._send(holder, _Request(owed, self._wire(holder.address, b"?")), now)
+            self._send(holder, self._probe(holder), now)
 
     def _node_silent(self, node: _Node, owed: Owed) -> None:
         """``node`` did not answer ``owed`` in time: a controller command fails alone; a silent
