@@ -17,6 +17,7 @@ import pytest
 
 from mirobot_async import MirobotLinkLostError, MirobotTimeoutError, MirobotUsageError
 from mirobot_async.bus import (
+    BusTiming,
     ControllerBus,
     ControllerCommandError,
     NodeSilentError,
@@ -301,3 +302,22 @@ def test_wlkatapython_drives_the_bus_emulator(own_bus: BusEmulator) -> None:
         assert robot.read_message() == "ok"
     finally:
         port.close()
+
+
+async def test_a_streaming_arm_leaves_room_for_the_others(shared_bus: BusEmulator) -> None:
+    timing = BusTiming(planner_window=3)  # small, so that 12 lines fill it several times
+    async with ControllerBus.open(shared_bus.path, timing=timing) as bus:
+        arm1, arm2 = await bus.connect_arm(1), await bus.connect_arm(2)
+        await bus.controller(1).home()
+        lines = ["M21 G91 F600"] + [f"G01 X{2 if i % 2 else -2}" for i in range(12)]
+        stream = asyncio.ensure_future(arm1.stream(lines))
+        delays: list[float] = []
+        while not stream.done():
+            started = time.monotonic()
+            await arm2.status()
+            delays.append(time.monotonic() - started)
+        result = await stream
+        assert result.ok and result.acknowledged == len(lines)
+        assert bus.stats.window_waits > 0  # arm 1 waited for its planner, not the bus
+        assert len(delays) > 3 and max(delays) < 0.5
+        assert bus.stats.stray_lines == 0
