@@ -16,7 +16,7 @@ from collections.abc import Generator
 from typing import Any
 
 from mirobot_async.bus.controller import Controller
-from mirobot_async.bus.link import DEFAULT_BUS_BAUD, BusStats, BusTiming, LinkSide, NodeSilentError
+from mirobot_async.bus.link import DEFAULT_BUS_BAUD, BusStats, BusTiming, LinkSide
 from mirobot_async.client import CONNECT_TIMEOUT, Mirobot
 from mirobot_async.errors import MirobotConnectionError, MirobotUsageError
 from mirobot_async.wire import DataCallback, LostCallback, Transport
@@ -210,14 +210,13 @@ class ControllerBus:
         return arm
 
     async def _connect(self, address: int, connector: Any) -> Mirobot:
+        node = self._link().node(address)
+        node.silenced = None
         try:
             arm: Mirobot = await connector
         except MirobotConnectionError as err:
-            cause = err.__cause__ or err.__context__
-            if isinstance(cause, NodeSilentError) or "did not answer" in str(err):
-                raise NodeSilentError(address, "?", self._timing.answer_timeout) from err
-            if f"@{address:02d}" in str(err) and "timed out" in str(err):
-                raise NodeSilentError(address, "?", self._timing.answer_timeout) from err
+            if node.silenced is not None:
+                raise node.silenced from err  # nothing answered at this address
             raise
         arm.reply_grace = self._timing.reply_grace
         self._arms[address] = arm
@@ -228,7 +227,9 @@ def connect(url: str, *, address: int, baud: int = DEFAULT_BUS_BAUD, **options: 
     """One arm behind a controller at ``address`` on the bus at ``url``, as
     ``Mirobot.connect(url, address=N)`` would be: ``async with connect(url, address=3) as arm``.
 
-    Opens a :class:`ControllerBus` for this one arm and closes it with the arm.
+    Opens a :class:`ControllerBus` for this one arm and closes it at the end of the block
+    (an ``async with`` only: the bus must be closed with the arm). ``options`` are those of
+    :meth:`Mirobot.connect`. Raises :class:`NodeSilentError` when nothing answers there.
     """
     _check_address(address)
 
@@ -242,9 +243,6 @@ def connect(url: str, *, address: int, baud: int = DEFAULT_BUS_BAUD, **options: 
             except BaseException:
                 await self.bus.close()
                 raise
-
-        def __await__(self) -> Generator[Any, None, Mirobot]:
-            return self._open().__await__()
 
         async def __aenter__(self) -> Mirobot:
             return await self._open()

@@ -110,6 +110,8 @@ class _Node:
     on_lost: Callable[[BaseException | None], None] | None = None
     last_rx: float = 0.0
     last_window_probe: float = -1e9
+    silenced: NodeSilentError | None = None
+    """Why the node was given up (it did not answer in time), if it was."""
 
     def queued(self) -> list[_Request]:
         return [*self.urgent, *self.lines]
@@ -433,6 +435,7 @@ class LinkSide:
         arm (its status unanswered) fails everything it owes, and its client's link is lost."""
         self.stats.silent_nodes += 1
         error = NodeSilentError(node.address, owed.command, self.timing.answer_timeout)
+        node.silenced = error
         _log.warning("bus %s: %s", self.url, error)
         if owed.kind is Kind.CONTROLLER:
             self._drop_owed(node, error)
