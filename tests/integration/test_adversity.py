@@ -285,7 +285,10 @@ async def test_spontaneous_reset_mid_stream_fails_pending_lines_and_resends_noth
 
     result = await finishes_within(2.0, stream_task)
     assert result.stopped and 18 <= result.sent < len(SLOW_MOVES)
-    assert result.errors and all(isinstance(r.error, MirobotResetError) for r in result.errors)
+    # not run (lost with the robot's buffer), or what the robot did with a line that reached it
+    # after it reset (2021: Alarm lock; classic: locked, refused)
+    after_reset = MirobotResetError | MirobotAlarmError | MotionRefusedError
+    assert result.errors and all(isinstance(r.error, after_reset) for r in result.errors)
     # the first lines were acknowledged, every later one failed (those not yet written too)
     assert [r.number for r in result.errors] == list(
         range(result.acknowledged + 1, result.acknowledged + 1 + len(result.errors))
