@@ -21,11 +21,12 @@ direct link would show. Pure: no I/O, no clock.
 from __future__ import annotations
 
 import enum
+import re
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-__all__ = ["Kind", "NodeLedger", "Owed", "is_final", "is_status"]
+__all__ = ["Kind", "NodeLedger", "Owed", "is_final", "is_status", "may_move"]
 
 
 def is_final(text: str) -> bool:
@@ -37,6 +38,17 @@ def is_final(text: str) -> bool:
 def is_status(text: str) -> bool:
     """An arm's status report line."""
     return text.startswith("<")
+
+
+_MOVING = re.compile(r"[XYZABCD]|G0*4(?!\d)")
+
+
+def may_move(line: str) -> bool:
+    """Whether a G-code line may put a block in the arm's planner: one with an axis word or a
+    dwell (``G4``), comments removed. Conservative; ``$`` commands are not (``$H`` is answered
+    when homing ends, whatever the planner holds)."""
+    text = re.sub(r"\([^)]*\)|;.*", "", line).upper().replace(" ", "")
+    return not text.startswith("$") and _MOVING.search(text) is not None
 
 
 class Kind(enum.Enum):
@@ -65,6 +77,8 @@ class Owed:
     """A controller command's reply lines."""
     sent_at: float = 0.0
     answered_before: int = 0
+    moves: bool = True
+    """A LINE that may occupy the arm's planner (see :func:`may_move`)."""
     """A status request: the node's lines answered when it was sent (see
     :attr:`NodeLedger.unfinished`)."""
 
@@ -92,7 +106,9 @@ class NodeLedger:
     @property
     def unfinished(self) -> int:
         """Lines answered or in flight that may still occupy the arm's planner."""
-        in_flight = sum(1 for o in self.owed if o.kind is Kind.LINE and o.main_final_pending)
+        in_flight = sum(
+            1 for o in self.owed if o.kind is Kind.LINE and o.main_final_pending and o.moves
+        )
         return self.lines_answered - self.lines_finished + in_flight
 
     def __bool__(self) -> bool:
@@ -138,7 +154,7 @@ class NodeLedger:
         head.finals -= 1
         if head.kind is Kind.LINE and head.main_final_pending:
             head.main_final_pending = False
-            if not text.strip().lower().startswith("error"):
+            if head.moves and not text.strip().lower().startswith("error"):
                 self.lines_answered += 1
             if head.for_client:
                 self._pass(raw)

@@ -28,7 +28,7 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from mirobot_async.bus.ledger import Kind, NodeLedger, Owed
+from mirobot_async.bus.ledger import Kind, NodeLedger, Owed, may_move
 from mirobot_async.errors import (
     MirobotLinkLostError,
     MirobotTimeoutError,
@@ -189,7 +189,8 @@ class LinkSide:
     def submit_line(self, address: int, line: bytes) -> None:
         """A line for the arm (``line`` without its line end), after its queued lines."""
         self._check_open()
-        owed = Owed(Kind.LINE, line.decode("ascii", "replace"), self.ends)
+        text = line.decode("ascii", "replace")
+        owed = Owed(Kind.LINE, text, self.ends, moves=may_move(text))
         self.node(address).lines.append(_Request(owed, self._wire(address, line)))
         self._wake.set()
 
