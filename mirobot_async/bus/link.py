@@ -203,7 +203,6 @@ class LinkSide:
         request = _Request(owed, self._wire(address, byte))
         if byte == b"%":
             node.lines.clear()  # a reset discards what the arm had not read yet
-            node.urgent.clear()
             node.lines.append(request)
         else:
             node.urgent.append(request)

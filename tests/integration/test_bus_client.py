@@ -321,3 +321,14 @@ async def test_a_streaming_arm_leaves_room_for_the_others(shared_bus: BusEmulato
         assert bus.stats.window_waits > 0  # arm 1 waited for its planner, not the bus
         assert len(delays) > 3 and max(delays) < 0.5
         assert bus.stats.stray_lines == 0
+
+
+async def test_reset_through_the_controller(bus: ControllerBus) -> None:
+    arm = await bus.connect_arm(3)
+    resets = arm.stats.resets
+    await arm.reset()  # "%" forwarded: the arm's banner comes back through the controller
+    assert arm.stats.resets == resets + 1
+    assert (await arm.status()).state.value == "Alarm"  # power-on state after a reset
+    await arm.send("$X")
+    assert (await arm.status(fresh=True)).state.value == "Idle"
+    assert bus.stats.stray_lines == 0
