@@ -247,10 +247,14 @@ async def test_change_of_address_and_baud(own_bus: BusEmulator) -> None:
         assert (await arm.status()).state is not None
         with pytest.raises(NodeSilentError, match="@04"):
             await bus.controller(4).arm_state()
+        arm2 = await bus.connect_arm(2)
         await bus.controller(2).set_bus_baud(9600)  # node 2 now listens at 9600: deaf to us
         with pytest.raises(NodeSilentError, match="@02"):
             await bus.controller(2).arm_state()
+        with pytest.raises(MirobotLinkLostError, match="@02"):
+            await arm2.status()  # a connected arm whose node falls silent: its link is lost
         assert (await bus.controller(1).arm_state()).word
+        assert (await arm.status()).state is not None  # the others keep working
 
 
 async def test_a_lost_link_fails_every_pending_call_of_every_arm(own_bus: BusEmulator) -> None:
