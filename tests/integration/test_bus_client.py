@@ -15,7 +15,12 @@ from pathlib import Path
 
 import pytest
 
-from mirobot_async import MirobotLinkLostError, MirobotTimeoutError, MirobotUsageError
+from mirobot_async import (
+    MirobotCommandError,
+    MirobotLinkLostError,
+    MirobotTimeoutError,
+    MirobotUsageError,
+)
 from mirobot_async.bus import (
     BusTiming,
     ControllerBus,
@@ -36,9 +41,10 @@ _LAUNCHER = textwrap.dedent(
     from mirobot_emulator.server.options import ServerOptions
 
     nodes, scale, homing = int(sys.argv[1]), float(sys.argv[2]), float(sys.argv[3])
+    profile = sys.argv[4]
     server = EmulatorServer(
         ServerOptions(time_scale=scale),
-        firmware_factory=lambda: Bus(nodes, homing_seconds=homing),
+        firmware_factory=lambda: Bus(nodes, profile, homing_seconds=homing),
     )
     print(server.open(), flush=True)
     server.serve()
@@ -49,11 +55,18 @@ _LAUNCHER = textwrap.dedent(
 class BusEmulator:
     """A bus emulator process on a real pty: ``path`` to open, stopped by :meth:`stop`."""
 
-    def __init__(self, directory: Path, nodes: int, time_scale: float, homing: float) -> None:
+    def __init__(
+        self,
+        directory: Path,
+        nodes: int,
+        time_scale: float,
+        homing: float,
+        profile: str = "2021",
+    ) -> None:
         script = directory / "bus_launcher.py"
         script.write_text(_LAUNCHER)
         self.process = subprocess.Popen(
-            [sys.executable, str(script), str(nodes), str(time_scale), str(homing)],
+            [sys.executable, str(script), str(nodes), str(time_scale), str(homing), profile],
             stdout=subprocess.PIPE,
             text=True,
         )
@@ -336,3 +349,22 @@ async def test_reset_through_the_controller(bus: ControllerBus) -> None:
     await arm.send("$X")
     assert (await arm.status(fresh=True)).state.value == "Idle"
     assert bus.stats.stray_lines == 0
+
+
+async def test_classic_arms_on_the_bus(tmp_path: Path) -> None:
+    emulator = BusEmulator(tmp_path, 2, 4.0, 0.3, profile="classic")
+    try:
+        async with ControllerBus.open(emulator.path) as bus:
+            arms = [await bus.connect_arm(1), await bus.connect_arm(2)]
+            assert arms[0].firmware is None  # no banner is relayed on the bus
+            assert await arms[0].detect_firmware() == "classic"  # "$$" through the controller
+            await arms[0].home()  # "$H" through the controller: "in homeing moving...ok"
+            await bus.controller(2).home()
+            lines = ["M21 G91 F2000"] + [f"G01 X{1 if i % 2 else -1}" for i in range(10)]
+            results = await asyncio.gather(*(arm.stream(lines) for arm in arms))
+            assert all(r.ok and r.acknowledged == len(lines) for r in results)
+            with pytest.raises(MirobotCommandError, match=r"Bad number format|Expected command"):
+                await arms[1].send("G01 X1.2.3")
+            assert bus.stats.stray_lines == 0
+    finally:
+        emulator.stop()
