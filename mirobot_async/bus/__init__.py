@@ -21,12 +21,22 @@
   :class:`~mirobot_async.MirobotTimeoutError` naming the address); the other arms keep working.
 * :func:`connect` is ``Mirobot.connect(url, address=N)`` for one arm alone on a bus.
 
-Limits (see ``EXBOX.md``; no controller firmware or device log exists): the reply shapes are
-inferred from the vendor's clients; a line the arm answers late (a full planner, ``$H``,
-``G4``) holds the whole bus until it is answered: prefer :meth:`Controller.home` (the controller
-answers ``O105`` at once) to ``arm.home()``, and expect several arms streaming at once to share
-the bus's throughput. Streaming works one line at a time per request (the character counting of
-the arm's client still pipelines lines into the bus's queue; the bus sends them one by one).
+Flow control: an arm answers a motion line when it is queued in its planner (18 blocks), and
+a line sent to a full planner would hold the whole bus until a block ends. So each arm may have
+at most ``BusTiming.planner_window`` (16) lines that may move answered but not known finished;
+the next waits (other nodes talk meanwhile) until a status request of the bus's own finds the
+arm ``Idle``. ``stream()`` works unchanged: its character counting fills the bus's queue for the
+arm, and the bus sends the lines one request at a time. A line the arm answers late anyway
+(``$H``, ``G4``) holds the bus meanwhile: the bus then asks that same node for its status
+(unambiguous: only it talks), so the wait is not taken for a dead node.
+
+Limits (see ``EXBOX.md``; no controller firmware or device log exists): the prefix form, the
+reply shapes (the arm's ``ok`` for each line end relayed, ``O103`` as ``State,<Word>,<n>`` or
+a number, ``O110`` as ``["a","b"]`` or one name per line, a query's bare value) and the
+turnaround are inferred from the vendor's clients and the manual. Prefer
+:meth:`Controller.home` (answered at once) to ``arm.home()`` (holds the bus while homing). A
+status report is ~190 bytes: ~50 ms on the bus at 38400 baud, shared by every arm. A reply lost
+on the wire (a collision) holds the bus; the arm's call times out.
 """
 
 from mirobot_async.bus.controller import (
