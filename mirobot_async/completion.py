@@ -26,9 +26,10 @@ __all__ = [
     "Target",
 ]
 
-# Completion tolerances for wait=True: the firmware prints 3 decimals and quantises angles to
-# motor steps, so a reached target reads back within a few thousandths.
-JOINT_TOLERANCE: Final = 0.01  # degrees (joints) and mm (rail)
+# Completion tolerances for wait=True: the firmware moves in whole motor steps ($100..$106 steps
+# per degree, as few as 11.11 on the classic J6: 0.09 deg a step) and prints 3 decimals, so a
+# reached target reads back within half a step.
+JOINT_TOLERANCE: Final = 0.05  # degrees (joints) and mm (rail)
 POSITION_TOLERANCE: Final = 0.1  # mm (pose x, y, z)
 ORIENTATION_TOLERANCE: Final = 0.1  # degrees (pose rx, ry, rz)
 

@@ -93,10 +93,10 @@ class MotionCommands(ClientParts):
         joint-space path from the predicted position; see the module docstring).
 
         With ``wait`` (default) returns the status report that shows the move finished: ``ok``
-        received and a later status ``Idle`` at the target (within 0.01 deg), or ``Idle`` after
-        the arm was seen moving; for relative moves the target is the envelope's predicted one,
-        or without an envelope computed from a status read just before sending when the arm is
-        at rest (else completion is ``Idle`` after the ``ok``). Without ``wait`` returns
+        received and a later status ``Idle`` at the target (within 0.05 deg, half a motor
+        step), or ``Idle`` after the arm was seen moving; for relative moves the target is the
+        envelope's predicted one, or without an envelope computed from a status read just
+        before sending when the arm is at rest (else completion is ``Idle`` after the ``ok``). Without ``wait`` returns
         ``None`` once the line is queued (``ok``).
 
         Raises :class:`MotionRefusedError` (locked, soft limit...), :class:`MirobotAlarmError`

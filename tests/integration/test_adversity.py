@@ -154,7 +154,7 @@ async def test_dropped_ok_fails_the_waiting_call_naming_its_line(
     # later calls work, each with its own reply
     assert await arm.send("M3 S6") == ()
     report = await arm.move_joints(j1=-7, speed=2000)
-    assert report is not None and report.joints[0] == pytest.approx(-7, abs=0.01)
+    assert report is not None and report.joints[0] == pytest.approx(-7, abs=0.05)
     assert (await arm.status()).pump_pwm == 6
     assert arm.pending_count == 0
     stats = await wire_settled(emu, arm)
@@ -316,7 +316,7 @@ async def test_spontaneous_reset_mid_stream_fails_pending_lines_and_resends_noth
     else:
         await arm.unlock()
     moved = await arm.move_joints(j1=5, speed=3000)
-    assert moved is not None and moved.joints[0] == pytest.approx(5, abs=0.01)
+    assert moved is not None and moved.joints[0] == pytest.approx(5, abs=0.05)
     again = await arm.stream(["M3 S1", "M21 G90 G0 X6", "M3 S2"])
     assert again.ok
     stats = await wire_settled(emu, arm)
@@ -453,7 +453,7 @@ async def test_hard_limit_fails_everything_and_nothing_is_sent_until_reset(
     homed = await arm.home(timeout=20)
     assert homed.state is State.IDLE
     moved = await arm.move_joints(j1=8, speed=3000)
-    assert moved is not None and moved.joints[0] == pytest.approx(8, abs=0.01)
+    assert moved is not None and moved.joints[0] == pytest.approx(8, abs=0.05)
     stats = await wire_settled(emu, arm)
     assert stats["resets_in"] == 1
     assert stats["lines_in"] == arm.stats.lines_sent

@@ -108,7 +108,7 @@ async def test_fifty_ignored_status_requests_cost_nothing_later(
     later = await _wait_idle_seconds(arm)
     assert later < max(4 * at_start, 0.05), (at_start, later)
     report = await arm.move_joints(j1=3, timeout=5)  # completion needs fresh reports too
-    assert report is not None and abs(report.joints[0] - 3) < 0.02
+    assert report is not None and abs(report.joints[0] - 3) < 0.05
     await arm.send("M3 S1")
     # a line answered after them shows that the robot ignored them: forgotten (all but the
     # requests of the last few milliseconds before the line, kept until a later line)
@@ -236,7 +236,7 @@ async def test_structured_moves_state_millimetres(ready_arm: Mirobot) -> None:
     assert report is not None
     assert report.pose[:3] == pytest.approx((200, 0, 200), abs=0.1)
     report = await arm.move_joints(j1=10)
-    assert report is not None and abs(report.joints[0] - 10) < 0.02
+    assert report is not None and abs(report.joints[0] - 10) < 0.05
 
 
 # ---- hold_on_exit (15.1) -----------------------------------------------------------------------
