@@ -96,8 +96,8 @@ class MotionCommands(ClientParts):
         received and a later status ``Idle`` at the target (within 0.05 deg, half a motor
         step), or ``Idle`` after the arm was seen moving; for relative moves the target is the
         envelope's predicted one, or without an envelope computed from a status read just
-        before sending when the arm is at rest (else completion is ``Idle`` after the ``ok``). Without ``wait`` returns
-        ``None`` once the line is queued (``ok``).
+        before sending when the arm is at rest (else completion is ``Idle`` after the ``ok``).
+        Without ``wait`` returns ``None`` once the line is queued (``ok``).
 
         Raises :class:`MotionRefusedError` (locked, soft limit...), :class:`MirobotAlarmError`
         (an alarm is remembered or raised meanwhile), :class:`MirobotResetError`,
