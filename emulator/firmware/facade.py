@@ -96,23 +96,34 @@ class Firmware:
             ttc = planner.time_to_next_change()
             if ttc is None:
                 if not math.isinf(end):
+                    planner.advance(end - self.now)  # its clock times the starvations
                     self.now = end
                 break
             left = end - self.now
             if ttc > left:
+                # within SNAP_SECONDS of a block end the planner finishes the block here
+                free, busy = planner.free, planner.busy
                 planner.advance(left)
                 self.now = end
+                if planner.free != free:
+                    self._block_done(busy)
                 break
+            busy = planner.busy
             planner.advance(ttc)
             self.now += ttc
             zero_steps = zero_steps + 1 if ttc == 0.0 else 0
-            self._after_step()
-            if not planner.busy:
-                self.motion_end_times.append(self.now)
-                self.motion_ends += 1
+            self._block_done(busy)
             if zero_steps > 100_000:  # pragma: no cover - a planner bug, never loop forever
                 break
         self._service()
+
+    def _block_done(self, was_busy: bool) -> None:
+        """After blocks finished: record an end of motion if the planner ran empty (before the
+        waiting lines can refill it: ``G4 P0`` between buffered moves), then carry on."""
+        if was_busy and not self._m.planner.busy:
+            self.motion_end_times.append(self.now)
+            self.motion_ends += 1
+        self._after_step()
 
     def read_output(self) -> bytes:
         """Everything printed since the last call (each line ends ``\\r\\n``)."""
@@ -191,6 +202,12 @@ class Firmware:
     def joints(self) -> Vec7:
         """Current joint position: J1..J6 (degrees) and the rail (mm)."""
         return self._m.planner.position
+
+    @property
+    def planner(self) -> motion.Planner:
+        """The look-ahead planner (read-only use: its ``starvations``, ``run_outs`` and
+        ``starved_seconds`` counters, ``state``, ``blocks``); the control channel reads it."""
+        return self._m.planner
 
     @property
     def rx_free(self) -> int:
