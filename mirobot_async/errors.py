@@ -87,7 +87,12 @@ class MirobotTimeoutError(MirobotError, TimeoutError):
 
 
 class MirobotResetError(MirobotError):
-    """The robot reset (its banner appeared) while this command was pending; it was not run."""
+    """The robot reset (its banner appeared) while this command was pending, and it was not run.
+
+    Raised only when the client knows: the line was written before a reset the client asked for,
+    or the robot answered every later line and none of its replies is this line's. A line whose
+    fate a reset left open waits for the robot's replies instead of getting a guess.
+    """
 
     def __init__(self, command: str | bytes | None = None, detail: str = "") -> None:
         self.command = _quote_command(command) or None
