@@ -165,7 +165,10 @@ class MoveBuilder:
         else:
             assert arc is not None
             segments.append(arc_segment(arc, p0, pose6(target[:6]), rail0, target[6]))
-        return self.path_move(start, segments, feed, feed_mode, locked=locked, check=check)
+        kind = "arc" if motion_mode in (2, 3) else "line"
+        return self.path_move(
+            start, segments, feed, feed_mode, kind=kind, locked=locked, check=check
+        )
 
     def joint_move(
         self, start: Vec7, end: Vec7, feed: float | None, feed_mode: int, *, check: bool
@@ -201,6 +204,7 @@ class MoveBuilder:
         feed: float,
         feed_mode: int,
         *,
+        kind: str = "line",
         locked: bool,
         check: bool,
     ) -> Planned:
@@ -251,12 +255,21 @@ class MoveBuilder:
             elif rate <= 0.0:
                 rate = MIN_FEED
             try:
-                block = motion.path_block(current, poses, length, rate, limits)
+                pieces = motion.path_blocks(
+                    current, poses, length, rate, limits, kind=kind, segments=self.segments(kind)
+                )
             except ValueError:
                 raise Refusal(c.TEXT_UNREACHABLE) from None
-            blocks.append(block)
-            current = block.end
+            blocks.extend(pieces)
+            current = pieces[-1].end
         return blocks, (blocks[-1] if hits_switch and blocks else None), current
+
+    def segments(self, kind: str) -> int | None:
+        """Joint-space blocks per Cartesian path: None, one every ``motion.DEFAULT_PATH_STEP_MM``
+        mm. ASSUMED: not the 2021 manual's ``$36`` "number of interpolation points" (10), whose
+        ten chords of a long line would leave it by more than the status resolution."""
+        del kind
+        return None
 
     def _samples(self, at: PathAt, n: int, prev: Sequence[float]) -> list[Vec7]:
         """The joints at ``n + 1`` even steps of a path piece (IK; J4/J6 kept continuous)."""

@@ -74,6 +74,8 @@ class Profile:
     def phases(self) -> list[tuple[float, float]]:
         """The ``(duration, acceleration)`` pairs, in order."""
         table = list(reversed(self._phases))
+        if not table:
+            return []  # a block without motion (a feed hold on it found no phases)
         ends = [row[0] for row in table[1:]] + [self.duration]
         return [(end - row[0], row[3]) for row, end in zip(table, ends, strict=True)]
 

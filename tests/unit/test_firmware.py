@@ -135,14 +135,28 @@ def poll_until_idle(
     return samples, fw.now - t0
 
 
+def run_sampling(fw: Firmware, line: str, period: float) -> tuple[list[str], list[Status]]:
+    """Send ``line`` and run until Idle; the replies (a line cut into more blocks than the planner
+    holds is answered once its last block is queued) and a status every ``period`` s."""
+    replies = send(fw, line)
+    samples = [parse_status(fw.status_line())]
+    while samples[-1].state != "Idle" or not replies:
+        fw.advance(period)
+        replies += lines_of(fw.read_output())
+        samples.append(parse_status(fw.status_line()))
+    return replies, samples
+
+
 def move_duration(fw: Firmware, line: str) -> float:
     """Exact time from queuing ``line`` to the end of its motion (nothing else queued)."""
-    assert send(fw, line)[-1] == "ok"
+    replies = send(fw, line)
     t0 = fw.now
     deadline = fw.next_deadline()
     assert deadline is not None
     while (deadline := fw.next_deadline()) is not None:
         fw.advance(deadline - fw.now)
+        replies += lines_of(fw.read_output())
+    assert replies[-1] == "ok"  # once the last block is queued (a long line is many blocks)
     assert fw.state == "Idle"
     return fw.now - t0
 
@@ -539,8 +553,8 @@ def test_cartesian_line_stays_on_its_line() -> None:
     p0 = status(fw).pose
     assert p0[:3] == posed((180.0, -60.0, 120.0))
     p1 = (230.0, 70.0, 180.0)
-    send(fw, f"M20 G90 G1 X{p1[0]} Y{p1[1]} Z{p1[2]} F1500\n")
-    samples, _ = poll_until_idle(fw, period=0.01)
+    replies, samples = run_sampling(fw, f"M20 G90 G1 X{p1[0]} Y{p1[1]} Z{p1[2]} F1500\n", 0.01)
+    assert replies[-1] == "ok"
     assert len(samples) > 20
     d = [b - a for a, b in zip(p0[:3], p1, strict=True)]
     norm = math.sqrt(sum(v * v for v in d))
@@ -645,8 +659,8 @@ def test_arc_2021_stays_on_its_circle() -> None:
     fw = boot("2021", unlocked=True)
     send(fw, "M20 G90 G0 X200 Y0 Z150 A0 B0 C0\n", math.inf)
     # quarter circle, counter-clockwise, centre (200, 30)
-    assert send(fw, "G91 G3 X30 Y30 R30 F1200\n") == ["ok"]
-    samples, _ = poll_until_idle(fw, period=0.02)
+    replies, samples = run_sampling(fw, "G91 G3 X30 Y30 R30 F1200\n", 0.02)
+    assert replies == ["ok"]
     assert len(samples) > 10
     for st_ in samples:
         r = math.hypot(st_.pose[0] - 200.0, st_.pose[1] - 30.0)
@@ -668,8 +682,8 @@ def test_arc_radius_error_and_classic_arcs_leave_the_xy_plane() -> None:
 def test_gate_move_2021() -> None:
     fw = boot("2021", unlocked=True)
     send(fw, "M20 G90 G0 X200 Y-40 Z120 A0 B0 C0\n", math.inf)
-    assert send(fw, "M20 G90 G05 X200 Y40 Z120 F3000\n") == [*INFO_M20, "ok"]
-    samples, _ = poll_until_idle(fw, period=0.02)
+    replies, samples = run_sampling(fw, "M20 G90 G05 X200 Y40 Z120 F3000\n", 0.02)
+    assert replies == [*INFO_M20, "ok"]
     top = max(st_.pose[2] for st_ in samples)
     assert top == posed(120.0 + fw.settings[49])
     assert samples[-1].pose[:3] == posed((200.0, 40.0, 120.0))
