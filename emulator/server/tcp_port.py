@@ -113,7 +113,6 @@ class TcpPort(Port):
                 conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             self._conn = conn
             self._open_since = time.monotonic()
-            self._log(f"client connected from {_peer_text(peer)}")
         return Arrival()
 
     def poll(self, now: float) -> Arrival:
@@ -146,15 +145,16 @@ class TcpPort(Port):
             self._drop(f"connection lost: {exc}")
             return Arrival(closed=True)
         if not data:
-            self._drop("client disconnected")
+            self._drop(None)  # the client closed the connection: nothing to report
             return Arrival(closed=True)
         opened = 0 if self._open_since is None else 1
         self._open_since = None
         return Arrival(opened=opened, data=data)
 
-    def _drop(self, reason: str) -> None:
+    def _drop(self, reason: str | None) -> None:
         if self._conn is not None:
-            self._log(reason)
+            if reason:
+                self._log(reason)
             conn, self._conn = self._conn, None
             self._open_since = None
             conn.close()

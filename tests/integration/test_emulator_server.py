@@ -227,9 +227,11 @@ def test_tcp_split_bytes_writes_one_byte_at_a_time() -> None:
                 lambda d: d.endswith(b"ok\r\n") and d.count(b"\n") > 20,
                 timeout=20,
             )
-        assert robot.server.split_writes == len(data)
-        singles = sum(len(chunk) == 1 for chunk in chunks)
-        assert singles >= 0.5 * len(chunks), [len(c) for c in chunks]
+        assert robot.server.split_writes == len(data)  # one byte per write
+        # TCP cannot tell what the client read: reads coalesce bytes that arrive while the
+        # reader is busy (here it shares the GIL with the server), but stay short on average
+        # (unsplit, the whole dump comes in one or two reads).
+        assert len(chunks) >= len(data) / 8, [len(c) for c in chunks]
 
 
 def test_tcp_output_while_no_client_is_connected_is_lost_not_kept() -> None:
