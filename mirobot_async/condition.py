@@ -13,7 +13,7 @@ import asyncio
 import logging
 import math
 import re
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from typing import Final, Literal
 
 from mirobot_async.errors import (
@@ -65,6 +65,8 @@ class RobotCondition:
         self.reset_requested = False
         self.resetting = 0  # reset() calls awaiting their banner: no line is written meanwhile
         self.banner_started = -math.inf
+        # The 2021 base offset $41..$43 from the last $$ listing (None: unknown or changed since).
+        self.base_offset: tuple[float, float, float] | None = None
         self._banner_waiters: list[tuple[float, asyncio.Future[_BannerResult]]] = []
 
     # ---- may anything be sent? ----
@@ -144,8 +146,11 @@ class RobotCondition:
         self._banner_waiters = keep
 
     def learn_firmware_from_settings(self, numbers: Iterable[int]) -> None:
-        """A ``$$`` listing: ``$29`` exists only on the 2021 firmware."""
+        """A ``$$`` listing (numbers, or a mapping to values): ``$29`` exists only on the 2021
+        firmware; ``$41..$43`` is the base offset."""
         values = set(numbers)
+        if isinstance(numbers, Mapping) and all(n in numbers for n in (41, 42, 43)):
+            self.base_offset = (float(numbers[41]), float(numbers[42]), float(numbers[43]))
         if self.firmware is None and values:
             self.firmware = "2021" if 29 in values else "classic"
 

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 
 from mirobot_async import gcode
 from mirobot_async.completion import Target
+from mirobot_async.condition import RobotCondition
 from mirobot_async.deadline import deadline_after
 from mirobot_async.parts import DEFAULT_TIMEOUT, HOME_TIMEOUT, MOVE_TIMEOUT, ClientParts
 from mirobot_async.replies import StatusReport
@@ -183,7 +184,7 @@ class MotionCommands(ClientParts):
 
         def target(base: StatusReport | None, check: LineCheck | None) -> Target:
             if not relative:
-                return Target(pose=values)
+                return Target(pose=_absolute_pose(values, check, self._condition))
             if check is not None and check.pose is not None:
                 pose = tuple(
                     None if v is None else p for v, p in zip(values, check.pose, strict=True)
@@ -250,6 +251,24 @@ class MotionCommands(ClientParts):
         :data:`DEFAULT_TIMEOUT`) and cancellation as in :meth:`send`.
         """
         await self._command_within(gcode.clear_alarm(), timeout)
+
+
+def _absolute_pose(
+    values: tuple[float | None, ...], check: LineCheck | None, condition: RobotCondition
+) -> tuple[float | None, ...]:
+    """Where an absolute ``M20`` move reads back: the firmware adds the 2021 base offset
+    ``$41..$43`` to X/Y/Z. Known from the envelope's prediction, a ``$$`` listing, or zero on a
+    classic arm; otherwise X/Y/Z are not checked (completion: ``Idle`` after the arm moved)."""
+    if check is not None and check.base_offset is not None:
+        offset: tuple[float, ...] = check.base_offset
+    elif condition.firmware == "classic":
+        offset = (0.0, 0.0, 0.0)
+    elif condition.base_offset is not None:
+        offset = condition.base_offset
+    else:
+        return (None, None, None, *values[3:])
+    xyz = tuple(None if v is None else v + o for v, o in zip(values[:3], offset, strict=True))
+    return (*xyz, *values[3:])
 
 
 def _with_units(data: bytes) -> bytes:

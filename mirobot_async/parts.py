@@ -58,6 +58,8 @@ CONNECT_TIMEOUT: Final = 5.0
 
 # Raw lines whose success clears a remembered alarm: $X, $H, $HH, $H0..$H7, $HE, M50.
 _UNLOCKING_RE: Final = re.compile(rb"^(?:\$X|\$H[H0-7E]?|M0*50)$")
+# Raw lines that may change the base offset $41..$43 (a setting, or restoring the defaults).
+_OFFSET_CHANGE_RE: Final = re.compile(rb"^\$(?:0*4[123]=|RST)")
 _SETTING_LINE_RE: Final = re.compile(r"^\$(\d+)\s*=\s*([+-]?(?:\d+\.?\d*|\.\d+))")
 
 
@@ -190,6 +192,8 @@ class ClientParts:
         output = await self._lines.await_slot(slot, deadline, timeout)
         if _UNLOCKING_RE.match(data.upper().replace(b" ", b"")):
             self._condition.unlocked()
+        if _OFFSET_CHANGE_RE.match(data.upper().replace(b" ", b"")):
+            self._condition.base_offset = None
         return output
 
     async def _command_within(self, data: bytes, timeout: float | None) -> tuple[str, ...]:
@@ -202,7 +206,7 @@ class ClientParts:
     async def _require_firmware(self, deadline: float | None, timeout: float | None) -> Firmware:
         """The firmware profile: known from a banner, else from ``$$`` sent when the robot is at
         rest (the firmware refuses ``$$`` while it moves: ``Not idle``)."""
-        if self._condition.firmware is None:
+        if self._condition.firmware is None or self._guard.wants_settings:
             await self._settings(deadline, timeout, idle=True)
         if self._condition.firmware is None:  # pragma: no cover - _settings always decides
             raise MirobotConnectionError("could not determine the firmware profile")
@@ -230,4 +234,5 @@ class ClientParts:
             if match is not None:
                 values[int(match.group(1))] = float(match.group(2))
         self._condition.learn_firmware_from_settings(values)
+        self._guard.adopt_settings(values)
         return values

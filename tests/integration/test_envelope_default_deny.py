@@ -49,10 +49,6 @@ async def _at(arm: Mirobot) -> tuple[float, ...]:
 
 
 @only_2021
-@pytest.mark.xfail(
-    strict=True,
-    reason="needs the client to hand $$ listings to EnvelopeGuard.adopt_settings (parts.py)",
-)
 async def test_base_offset_is_part_of_the_prediction(emu: EmulatorProcess) -> None:
     spy = WireSpy()
     arm = await _connect(emu, spy, Envelope(x=(None, 230)))
