@@ -87,13 +87,15 @@ class _LinkProtocol(asyncio.Protocol):
 
 
 class _PolledSerialTransport(asyncio.Transport):
-    """A minimal transport for pyserial objects without a file descriptor (``loop://``).
+    """A minimal transport for pyserial objects without a file descriptor (``loop://``,
+    ``rfc2217://``).
 
-    Reads are polled every millisecond; writes go straight to the object (these URL handlers
-    buffer in memory and never block).
+    Reads are polled every millisecond (each poll drains everything waiting); writes go straight
+    to the object (these URL handlers buffer in memory or in a socket and do not block).
     """
 
     POLL_INTERVAL = 0.001
+    MAX_READ = 65536  # bytes per poll at most, so a fast peer cannot hold the event loop
 
     def __init__(
         self, loop: asyncio.AbstractEventLoop, protocol: asyncio.Protocol, port: Any
@@ -111,14 +113,23 @@ class _PolledSerialTransport(asyncio.Transport):
     def _poll(self) -> None:
         if self._closing:
             return
+        data = bytearray()
         try:
-            waiting = self._serial.in_waiting
-            data = self._serial.read(waiting) if waiting else b""
+            # timeout=0: read() never blocks. rfc2217:// returns at most one byte per read(), so
+            # drain what is waiting; reading even when nothing waits lets rfc2217:// raise
+            # "reader thread died" once its socket has closed (its end-of-link marker is
+            # consumed by this read, so it must not be skipped).
+            while len(data) < self.MAX_READ and (
+                chunk := self._serial.read(max(self._serial.in_waiting, 1))
+            ):
+                data += chunk
         except (serial.SerialException, OSError) as exc:
+            if data:
+                self._protocol.data_received(bytes(data))
             self._shutdown(exc)
             return
         if data:
-            self._protocol.data_received(data)
+            self._protocol.data_received(bytes(data))
         if not self._closing:
             self._timer = self._loop.call_later(self.POLL_INTERVAL, self._poll)
 

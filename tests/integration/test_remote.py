@@ -49,14 +49,6 @@ MOVES_FIRMWARE = "classic"
 LINK_CUT_LIMIT = 1.0  # seconds from the cut to every pending call failing (issue 14)
 STREAM_LIMIT = 15.0  # seconds for 10,000 lines (~1.5 s on an idle machine, ~6 s under load)
 START_TIMEOUT = 5.0
-# rfc2217:// is served by the client's polled transport, whose read() gets one byte per 1 ms
-# poll from pyserial's rfc2217 handler (timeout=0): ~250 bytes/s, a status round trip ~220 ms.
-# Remove this marker when mirobot_async/transport.py drains every waiting byte per poll.
-RFC2217_ONE_BYTE_PER_POLL = pytest.mark.xfail(
-    reason="transport: rfc2217:// polled one byte per millisecond (issue 14, report)",
-    raises=TimeoutError,
-    strict=True,
-)
 
 
 def free_port() -> int:
@@ -275,9 +267,7 @@ async def test_status_home_and_moves_through_ser2net(remote: RemoteFactory, kind
     await check_status_and_moves(server.url)
 
 
-@pytest.mark.parametrize(
-    "kind", [pytest.param("rfc2217", marks=RFC2217_ONE_BYTE_PER_POLL), "socket"]
-)
+@pytest.mark.parametrize("kind", ["rfc2217", "socket"])
 async def test_stream_through_ser2net_acknowledges_each_line_once_in_order(
     remote: RemoteFactory, kind: str
 ) -> None:
@@ -285,9 +275,7 @@ async def test_stream_through_ser2net_acknowledges_each_line_once_in_order(
     await check_stream(server.url, 10_000)
 
 
-@pytest.mark.parametrize(
-    "kind", [pytest.param("rfc2217", marks=RFC2217_ONE_BYTE_PER_POLL), "socket"]
-)
+@pytest.mark.parametrize("kind", ["rfc2217", "socket"])
 async def test_status_polling_while_streaming_through_ser2net(
     remote: RemoteFactory, kind: str
 ) -> None:
