@@ -22,6 +22,8 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from .server import ServerOptions
 
+BUS_BAUDS = (4800, 9600, 38400, 57600, 115200)  # as server.options.BUS_BAUDS (imported late)
+
 _stopping = False
 
 
@@ -99,7 +101,42 @@ def _build_parser() -> argparse.ArgumentParser:
         metavar="S",
         help="duration of the homing switch search (default: the firmware's)",
     )
+    parser.add_argument(
+        "--bus",
+        type=int,
+        default=0,
+        metavar="N",
+        help="serve an RS485 bus of N multi-function controllers (addresses 1..N), each with "
+        "an arm of --firmware; lines are addressed @N... (default: one bare arm)",
+    )
+    parser.add_argument(
+        "--bus-baud",
+        type=int,
+        choices=BUS_BAUDS,
+        default=38400,
+        metavar="{4800,9600,38400,57600,115200}",
+        help="the bus's baud, which paces it (default: 38400; only with --bus)",
+    )
+    parser.add_argument(
+        "--bus-option",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="how the controllers read a point the sources disagree on (repeatable), e.g. "
+        "o103=number; see mirobot_emulator.bus.BusOptions (only with --bus)",
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     return parser
+
+
+def _version() -> str:
+    """The installed package's version (``mirobot-async`` ships the emulator too)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("mirobot-async")
+    except PackageNotFoundError:  # pragma: no cover - running from a source tree
+        return "unknown (not installed)"
 
 
 def _say(line: str) -> None:
@@ -135,6 +172,7 @@ def _options(args: argparse.Namespace, parser: argparse.ArgumentParser) -> Serve
         parser.error("--usb-latency-ms must be >= 0")
     if args.homing_seconds is not None and not 0 <= args.homing_seconds < float("inf"):
         parser.error("--homing-seconds must be a finite number >= 0")
+    _check_bus_arguments(args, parser)
     listen = None
     if args.listen is None and not args.link:
         from .server.pty_port import pty_available
@@ -159,7 +197,30 @@ def _options(args: argparse.Namespace, parser: argparse.ArgumentParser) -> Serve
         faults=faults,
         homing_seconds=args.homing_seconds,
         listen=listen,
+        bus=args.bus,
+        bus_baud=args.bus_baud,
+        bus_options=tuple(args.bus_option),
     )
+
+
+def _check_bus_arguments(args: argparse.Namespace, parser: argparse.ArgumentParser) -> None:
+    """``--bus`` and its companions: errors (exit status 2) before anything is opened."""
+    if not 0 <= args.bus <= 99:
+        parser.error("--bus must be 1..99 (the controllers' addresses)")
+    if not args.bus:
+        if args.bus_option or args.bus_baud != 38400:
+            parser.error("--bus-baud and --bus-option need --bus N")
+        return
+    if args.baud is not None:
+        parser.error("--baud cannot be used with --bus: the bus paces itself (see --bus-baud)")
+    if args.reset_on_open:
+        parser.error("--reset-on-open cannot be used with --bus (a reset power-cycles every node)")
+    from .bus import BusOptions
+
+    try:
+        BusOptions.parse(args.bus_option)
+    except ValueError as exc:
+        parser.error(f"--bus-option: {exc}")
 
 
 def main(argv: Sequence[str] | None = None) -> int:

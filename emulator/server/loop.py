@@ -47,10 +47,19 @@ def _default_firmware_factory(options: ServerOptions) -> Callable[[], FirmwareLi
         # checker to the FirmwareLike protocol.)
         import importlib
 
-        module = importlib.import_module("..firmware", __package__)
-        firmware: FirmwareLike = module.Firmware(
-            options.firmware, homing_seconds=options.homing_seconds
-        )
+        firmware: FirmwareLike
+        if options.bus:  # a bus of controllers, each with its arm, in place of one arm
+            bus = importlib.import_module("..bus", __package__)
+            firmware = bus.Bus(
+                options.bus,
+                options.firmware,
+                homing_seconds=options.homing_seconds,
+                baud=options.bus_baud,
+                options=bus.BusOptions.parse(options.bus_options),
+            )
+        else:
+            module = importlib.import_module("..firmware", __package__)
+            firmware = module.Firmware(options.firmware, homing_seconds=options.homing_seconds)
         return firmware
 
     return make

@@ -8,10 +8,13 @@ from typing import Protocol
 
 from ..faults import Fault
 
-__all__ = ["DEFAULT_LISTEN_HOST", "FirmwareLike", "ServerOptions", "parse_listen"]
+__all__ = ["BUS_BAUDS", "DEFAULT_LISTEN_HOST", "FirmwareLike", "ServerOptions", "parse_listen"]
 
 DEFAULT_LISTEN_HOST = "127.0.0.1"
 """``--listen PORT`` binds here: the loopback only, unless the user names another address."""
+
+BUS_BAUDS = (4800, 9600, 38400, 57600, 115200)
+"""The bauds a multi-function controller's RS485 port runs at (EXBOX.md, ``O141``)."""
 
 
 class FirmwareLike(Protocol):
@@ -43,6 +46,9 @@ class ServerOptions:
     """The command-line options of ``mirobot-emulator`` (see ``--help``).
 
     ``listen`` is ``(host, port)`` to serve on TCP instead of a pty (port 0: the OS picks one).
+    ``bus`` > 0 serves an RS485 bus of that many controllers (addresses 1..bus), each with an
+    arm of ``firmware`` (:class:`mirobot_emulator.bus.Bus`), at ``bus_baud``, with the
+    ``KEY=VALUE`` readings of ``bus_options`` (:class:`mirobot_emulator.bus.BusOptions`).
     """
 
     firmware: str = "2021"
@@ -55,6 +61,9 @@ class ServerOptions:
     faults: tuple[Fault, ...] = field(default_factory=tuple)
     homing_seconds: float | None = None
     listen: tuple[str, int] | None = None
+    bus: int = 0
+    bus_baud: int = 38400
+    bus_options: tuple[str, ...] = ()
 
     def check(self) -> None:
         """Raise :class:`ValueError` naming the first option that cannot be served."""
@@ -70,6 +79,21 @@ class ServerOptions:
                 raise ValueError(f"listen={self.listen!r}: expected (host, port 0..65535)")
             if self.link:
                 raise ValueError("link is a pty symlink: it cannot be combined with listen")
+        self._check_bus()
+
+    def _check_bus(self) -> None:
+        if not 0 <= self.bus <= 99:
+            raise ValueError(f"bus={self.bus}: a bus has 1..99 controllers (0: no bus)")
+        if not self.bus:
+            return
+        if self.bus_baud not in BUS_BAUDS:
+            raise ValueError(f"bus_baud={self.bus_baud}: a controller runs at one of {BUS_BAUDS}")
+        if self.reset_on_open:
+            # reset() on a bus power-cycles every node: no single arm's DTR does that
+            raise ValueError("reset_on_open cannot be combined with bus")
+        from ..bus import BusOptions  # imported here: the bus package pulls in the firmware
+
+        BusOptions.parse(self.bus_options)  # raises ValueError naming a bad option
 
 
 def parse_listen(text: str) -> tuple[str, int]:
