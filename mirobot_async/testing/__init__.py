@@ -10,10 +10,13 @@
             await arm.home()
 
 :func:`start_emulator` starts ``python -m mirobot_emulator`` (the ``mirobot-emulator`` command) as
-a subprocess on a fresh pseudo-terminal, yields its port path and stops the process when the block
-ends (SIGTERM, then SIGKILL if it does not exit within a few seconds). :class:`EmulatorProcess` is
-the same with a handle: ``.url``, ``await .control("drop-ok")`` for the emulator's fault-injection
-channel (it returns the emulator's ``ack`` line), ``.kill()`` to pull the cable abruptly.
+a subprocess in its own session (a terminal's Ctrl-C reaches only the program that started it)
+on a fresh pseudo-terminal, or with ``listen="tcp"`` on a loopback TCP port (``socket://...``;
+the default where there are no ptys, or everywhere with ``MIROBOT_TEST_LINK=tcp``), yields its
+port URL and stops the process when the block ends (SIGTERM, then SIGKILL if it does not exit
+within a few seconds). :class:`EmulatorProcess` is the same with a handle: ``.url``,
+``await .control("drop-ok")`` for the emulator's fault-injection channel (it returns the
+emulator's ``ack`` line), ``.kill()`` to pull the cable abruptly.
 
 **pytest plugin** (registered through the ``pytest11`` entry point, so installing mirobot-async is
 enough)::
@@ -25,11 +28,14 @@ enough)::
 
 The ``mirobot_emulator`` fixture yields the port URL of an emulator started for the test;
 ``mirobot_emulator_process`` yields its :class:`SyncEmulatorProcess` handle (``.url``,
-``.control(cmd)``, ``.kill()``). The profile and time scale come from the
-``mirobot_emulator(firmware=..., time_scale=..., extra_args=...)`` marker, else from the command
-line options ``--mirobot-firmware`` (default ``2021``) and ``--mirobot-time-scale`` (default ``0``:
-every motion completes at once). The fixtures are synchronous (the emulator is a separate process),
-so they work in any test style: plain, pytest-asyncio (any mode), anyio or trio.
+``.control(cmd)``, ``.kill()``). The settings come from the
+``mirobot_emulator(firmware=..., time_scale=..., extra_args=..., listen=...)`` marker, else from
+the command line options ``--mirobot-firmware`` (default ``2021``), ``--mirobot-time-scale``
+(default ``0``: every motion completes at once) and ``--mirobot-link`` (``pty``, ``tcp`` or
+``both``: every test using the fixtures runs once per link; default ``$MIROBOT_TEST_LINK``, else
+``pty`` where ptys exist). The ``mirobot_link`` fixture names the test's link. The fixtures are
+synchronous (the emulator is a separate process), so they work in any test style: plain,
+pytest-asyncio (any mode), anyio or trio.
 
 This module imports only the standard library at import time, so loading the plugin is cheap.
 """
@@ -55,6 +61,7 @@ from mirobot_async.testing.control import (
     control_reply,
     control_result,
     control_text,
+    default_link,
     emulator_command,
 )
 from mirobot_async.testing.sync import SyncEmulatorProcess, run_emulator
@@ -101,7 +108,7 @@ class EmulatorProcess:
     ) -> None:
         self._process = process
         self.url = url
-        """The emulator's port (a pty path), for :meth:`Mirobot.connect`."""
+        """The emulator's port (a pty path or ``socket://HOST:PORT``) for ``Mirobot.connect``."""
         self.command = tuple(command)
         self._replies: asyncio.Queue[str | None] = asyncio.Queue()
         self._control_lock = asyncio.Lock()
@@ -117,17 +124,21 @@ class EmulatorProcess:
         *,
         extra_args: Sequence[str] = (),
         startup_timeout: float = STARTUP_TIMEOUT,
+        listen: str | None = None,
     ) -> EmulatorProcess:
-        """Start an emulator and wait for its port path (at most ``startup_timeout`` seconds).
+        """Start an emulator and wait for its port URL (at most ``startup_timeout`` seconds).
 
-        Raises :class:`EmulatorError` if it exits or prints nothing in time (the process is then
-        killed). Cancellation kills the process too.
+        ``listen``: ``"pty"``, ``"tcp"`` (a free loopback port) or ``"HOST:PORT"``; ``None``:
+        ``$MIROBOT_TEST_LINK``, else a pty where ptys exist. Raises :class:`EmulatorError` if it
+        exits or prints nothing in time (the process is then killed). Cancellation kills the
+        process too.
         """
-        command = emulator_command(firmware, time_scale, extra_args)
+        command = emulator_command(firmware, time_scale, extra_args, listen)
         process = await asyncio.create_subprocess_exec(
             *command,
             stdin=asyncio.subprocess.PIPE,
             stdout=asyncio.subprocess.PIPE,
+            start_new_session=True,  # a terminal's Ctrl-C reaches only the program that owns it
         )
         try:
             assert process.stdout is not None
@@ -286,18 +297,25 @@ async def start_emulator(
     *,
     extra_args: Sequence[str] = (),
     startup_timeout: float = STARTUP_TIMEOUT,
+    listen: str | None = None,
 ) -> AsyncIterator[str]:
     """Run a virtual Mirobot for the duration of the block; yields its port URL.
 
     ``firmware`` is ``"2021"`` or ``"classic"``; ``time_scale`` is simulated seconds per wall
     second (0: motion completes at once, 1: real time, 100: a 10 s homing takes 0.1 s);
-    ``extra_args`` go to the ``mirobot-emulator`` command line (``--baud``, ``--fault``...).
+    ``extra_args`` go to the ``mirobot-emulator`` command line (``--baud``, ``--fault``...);
+    ``listen`` is ``"pty"``, ``"tcp"`` or ``"HOST:PORT"`` (``None``: ``$MIROBOT_TEST_LINK``, else a
+    pty where ptys exist).
     Startup waits at most ``startup_timeout`` s (:class:`EmulatorError`); on exit the process is
     stopped and reaped even if the block was cancelled. Use :class:`EmulatorProcess` for a
     handle with the fault-injection channel.
     """
     emulator = await EmulatorProcess.start(
-        firmware, time_scale, extra_args=extra_args, startup_timeout=startup_timeout
+        firmware,
+        time_scale,
+        extra_args=extra_args,
+        startup_timeout=startup_timeout,
+        listen=listen,
     )
     try:
         yield emulator.url
@@ -309,9 +327,11 @@ async def start_emulator(
 # pytest plugin (entry point pytest11 -> mirobot_async.testing)
 
 _MARKER_HELP = (
-    "mirobot_emulator(firmware='2021', time_scale=0.0, extra_args=()): settings of the virtual "
-    "Mirobot behind the mirobot_emulator fixture"
+    "mirobot_emulator(firmware='2021', time_scale=0.0, extra_args=(), listen=None): settings of "
+    "the virtual Mirobot behind the mirobot_emulator fixture"
 )
+_MARKER_KEYS = frozenset({"firmware", "time_scale", "extra_args", "listen"})
+LINK_CHOICES = ("pty", "tcp", "both")
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
@@ -329,6 +349,13 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         default=DEFAULT_TIME_SCALE,
         help="time scale of the mirobot_emulator fixture; 0 = instant motion (default: 0)",
     )
+    group.addoption(
+        "--mirobot-link",
+        choices=LINK_CHOICES,
+        default=None,
+        help="link of the mirobot_emulator fixture: pty, tcp or both (each test runs once per "
+        "link); default $MIROBOT_TEST_LINK, else pty where ptys exist",
+    )
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -336,7 +363,28 @@ def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line("markers", _MARKER_HELP)
 
 
-def _fixture_settings(request: Any) -> tuple[str, float, tuple[str, ...]]:
+def _argnames(names: Any) -> list[str]:
+    if isinstance(names, str):
+        return [name.strip() for name in names.split(",")]
+    return [str(name) for name in names]
+
+
+def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
+    """Parametrise ``mirobot_link`` (hence the emulator fixtures) by ``--mirobot-link``."""
+    if "mirobot_link" not in metafunc.fixturenames:
+        return
+    if any(
+        "mirobot_link" in _argnames(mark.args[0])
+        for mark in metafunc.definition.iter_markers("parametrize")
+        if mark.args
+    ):
+        return  # the test parametrises it itself
+    chosen = metafunc.config.getoption("--mirobot-link") or default_link()
+    links = ["pty", "tcp"] if chosen == "both" else [chosen]
+    metafunc.parametrize("mirobot_link", links, indirect=True, scope="function")
+
+
+def _fixture_settings(request: Any, link: str) -> tuple[str, float, tuple[str, ...], str]:
     firmware: str = request.config.getoption("--mirobot-firmware")
     time_scale: float = request.config.getoption("--mirobot-time-scale")
     extra: tuple[str, ...] = ()
@@ -345,9 +393,9 @@ def _fixture_settings(request: Any) -> tuple[str, float, tuple[str, ...]]:
         if marker.args:
             raise MirobotUsageError(
                 "@pytest.mark.mirobot_emulator takes keyword arguments only "
-                "(firmware=, time_scale=, extra_args=)"
+                "(firmware=, time_scale=, extra_args=, listen=)"
             )
-        unknown = set(marker.kwargs) - {"firmware", "time_scale", "extra_args"}
+        unknown = set(marker.kwargs) - _MARKER_KEYS
         if unknown:
             raise MirobotUsageError(
                 f"@pytest.mark.mirobot_emulator: unknown argument(s) {', '.join(sorted(unknown))}"
@@ -355,7 +403,8 @@ def _fixture_settings(request: Any) -> tuple[str, float, tuple[str, ...]]:
         firmware = marker.kwargs.get("firmware", firmware)
         time_scale = marker.kwargs.get("time_scale", time_scale)
         extra = tuple(marker.kwargs.get("extra_args", ()))
-    return firmware, time_scale, extra
+        link = marker.kwargs.get("listen") or link
+    return firmware, time_scale, extra, link
 
 
 def _define_fixtures() -> None:
@@ -365,10 +414,16 @@ def _define_fixtures() -> None:
         return
 
     @pytest.fixture
-    def mirobot_emulator_process(request: Any) -> Iterator[SyncEmulatorProcess]:
+    def mirobot_link(request: Any) -> str:
+        """The emulator's link for this test: ``"pty"`` or ``"tcp"`` (see ``--mirobot-link``)."""
+        link: str = getattr(request, "param", None) or default_link()
+        return link
+
+    @pytest.fixture
+    def mirobot_emulator_process(request: Any, mirobot_link: str) -> Iterator[SyncEmulatorProcess]:
         """A virtual Mirobot process for this test (see :mod:`mirobot_async.testing`)."""
-        firmware, time_scale, extra = _fixture_settings(request)
-        with run_emulator(firmware, time_scale, extra_args=extra) as emulator:
+        firmware, time_scale, extra, link = _fixture_settings(request, mirobot_link)
+        with run_emulator(firmware, time_scale, extra_args=extra, listen=link) as emulator:
             yield emulator
 
     @pytest.fixture
@@ -376,6 +431,7 @@ def _define_fixtures() -> None:
         """The port URL of a virtual Mirobot started for this test."""
         return mirobot_emulator_process.url
 
+    globals()["mirobot_link"] = mirobot_link
     globals()["mirobot_emulator_process"] = mirobot_emulator_process
     globals()["mirobot_emulator"] = mirobot_emulator
 

@@ -4,6 +4,7 @@ channel's replies, and the error class."""
 from __future__ import annotations
 
 import logging
+import os
 import sys
 from collections.abc import Sequence
 
@@ -13,13 +14,16 @@ __all__ = [
     "CONTROL_TIMEOUT",
     "DEFAULT_FIRMWARE",
     "DEFAULT_TIME_SCALE",
+    "LINK_ENV",
     "STARTUP_TIMEOUT",
     "STOP_TIMEOUT",
     "EmulatorError",
     "control_reply",
     "control_result",
     "control_text",
+    "default_link",
     "emulator_command",
+    "link_args",
 ]
 
 _log = logging.getLogger("mirobot_async.testing")
@@ -34,6 +38,38 @@ CONTROL_TIMEOUT = 5.0
 """Seconds to wait for the ``ack`` of a control command."""
 
 
+LINK_ENV = "MIROBOT_TEST_LINK"
+"""Environment variable choosing the emulator's link when a caller names none: ``pty`` or
+``tcp`` (so a whole test suite can be run once over each without changing a test)."""
+
+
+def default_link() -> str:
+    """``$MIROBOT_TEST_LINK`` if set, else ``"pty"`` where ptys exist (POSIX) and ``"tcp"``
+    elsewhere (Windows)."""
+    chosen = os.environ.get(LINK_ENV, "").strip().lower()
+    if chosen:
+        if chosen not in ("pty", "tcp"):
+            raise MirobotUsageError(f"{LINK_ENV}={chosen!r} must be 'pty' or 'tcp'")
+        return chosen
+    return "pty" if os.name == "posix" else "tcp"
+
+
+def link_args(listen: str | None) -> list[str]:
+    """The emulator's command-line arguments for ``listen``: ``None`` (:func:`default_link`),
+    ``"pty"``, ``"tcp"`` (a free loopback port) or ``"HOST:PORT"``."""
+    link = default_link() if listen is None else listen
+    if not isinstance(link, str) or not link:
+        raise MirobotUsageError(f"listen={listen!r} must be 'pty', 'tcp' or 'HOST:PORT'")
+    if link == "pty":
+        return []
+    if link == "tcp":
+        return ["--listen", "127.0.0.1:0"]
+    _host, sep, port = link.rpartition(":")
+    if not sep or not port.isdigit():
+        raise MirobotUsageError(f"listen={listen!r} must be 'pty', 'tcp' or 'HOST:PORT'")
+    return ["--listen", link]
+
+
 class EmulatorError(MirobotError):
     """The emulator process could not be started, died, or refused a control command."""
 
@@ -42,8 +78,10 @@ def emulator_command(
     firmware: str = DEFAULT_FIRMWARE,
     time_scale: float = DEFAULT_TIME_SCALE,
     extra_args: Sequence[str] = (),
+    listen: str | None = None,
 ) -> list[str]:
-    """The argument vector that starts the emulator with this Python interpreter."""
+    """The argument vector that starts the emulator with this Python interpreter
+    (``listen``: see :func:`link_args`)."""
     if firmware not in ("2021", "classic"):
         raise MirobotUsageError(f"firmware={firmware!r} must be '2021' or 'classic'")
     scale = float(time_scale)
@@ -59,6 +97,7 @@ def emulator_command(
         firmware,
         "--time-scale",
         repr(scale),
+        *link_args(listen),
         *extra_args,
     ]
 

@@ -5,13 +5,10 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import os
 import queue
-import selectors
 import signal
 import subprocess
 import threading
-import time
 from collections.abc import Iterator, Sequence
 
 from mirobot_async.errors import MirobotTimeoutError
@@ -37,7 +34,8 @@ class SyncEmulatorProcess:
     """A running emulator subprocess driven without asyncio (used by the pytest fixtures).
 
     ``url``, :meth:`control`, :meth:`kill` and :meth:`stop` as in :class:`EmulatorProcess`, but
-    blocking (with timeouts). A daemon thread drains the emulator's stdout.
+    blocking (with timeouts). A daemon thread drains the emulator's stdout (plain blocking
+    reads: portable, no ``selectors`` on pipes, which Windows lacks).
     """
 
     def __init__(
@@ -47,63 +45,62 @@ class SyncEmulatorProcess:
         *,
         extra_args: Sequence[str] = (),
         startup_timeout: float = STARTUP_TIMEOUT,
+        listen: str | None = None,
     ) -> None:
-        self.command = tuple(emulator_command(firmware, time_scale, extra_args))
+        self.command = tuple(emulator_command(firmware, time_scale, extra_args, listen))
         self._replies: queue.Queue[str | None] = queue.Queue()
+        self._first: queue.Queue[bytes] = queue.Queue()
         self._control_lock = threading.Lock()
         self._process = subprocess.Popen(
             self.command,
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
+            start_new_session=True,  # a terminal's Ctrl-C reaches only the program that owns it
         )
+        self._thread = threading.Thread(
+            target=self._drain, name=f"mirobot-emulator-stdout-{self.pid}", daemon=True
+        )
+        self._thread.start()
         try:
             self.url = self._first_line(startup_timeout)
         except BaseException:
             self._process.kill()
             self._finish(STOP_TIMEOUT)
+            self._thread.join(STOP_TIMEOUT)
+            if self._process.stdout is not None:
+                self._process.stdout.close()
             raise
-        self._thread = threading.Thread(
-            target=self._drain, name=f"mirobot-emulator-stdout-{self.pid}", daemon=True
-        )
-        self._thread.start()
 
     def _first_line(self, timeout: float) -> str:
-        stdout = self._process.stdout
-        assert stdout is not None
-        deadline = time.monotonic() + timeout
-        data = b""
-        with selectors.DefaultSelector() as selector:
-            selector.register(stdout, selectors.EVENT_READ)
-            while b"\n" not in data:
-                remaining = deadline - time.monotonic()
-                if remaining <= 0:
-                    raise EmulatorError(f"the emulator printed no port path within {timeout:g} s")
-                if not selector.select(remaining):
-                    continue
-                chunk = os.read(stdout.fileno(), 1)  # byte by byte: leave the rest to the thread
-                if not chunk:
-                    raise EmulatorError(
-                        f"the emulator exited before printing its port path: "
-                        f"{' '.join(self.command)}"
-                    )
-                data += chunk
-        return data.decode("utf-8", "replace").strip()
+        try:
+            first = self._first.get(timeout=timeout)
+        except queue.Empty as err:
+            raise EmulatorError(f"the emulator printed no port path within {timeout:g} s") from err
+        url = first.decode("utf-8", "replace").strip()
+        if not url:
+            raise EmulatorError(
+                f"the emulator exited before printing its port path: {' '.join(self.command)}"
+            )
+        return url
 
     def _drain(self) -> None:
         stdout = self._process.stdout
         assert stdout is not None
-        buffer = b""
+        first = True
         try:
-            while chunk := os.read(stdout.fileno(), 4096):
-                buffer += chunk
-                while b"\n" in buffer:
-                    raw, buffer = buffer.split(b"\n", 1)
-                    reply = control_reply(raw)
-                    if reply is not None:
-                        self._replies.put(reply)
+            while raw := stdout.readline():
+                if first:
+                    first = False
+                    self._first.put(raw)
+                    continue
+                reply = control_reply(raw)
+                if reply is not None:
+                    self._replies.put(reply)
         except (OSError, ValueError):  # pragma: no cover - pipe closed under us
             pass
         finally:
+            if first:
+                self._first.put(b"")
             self._replies.put(None)
 
     @property
@@ -164,9 +161,6 @@ class SyncEmulatorProcess:
             _log.warning("emulator %d did not exit after SIGTERM; killing it", process.pid)
             process.kill()
             return process.wait()
-        finally:
-            if not hasattr(self, "_thread") and process.stdout is not None:
-                process.stdout.close()
 
     def __enter__(self) -> SyncEmulatorProcess:
         return self
@@ -182,10 +176,11 @@ def run_emulator(
     *,
     extra_args: Sequence[str] = (),
     startup_timeout: float = STARTUP_TIMEOUT,
+    listen: str | None = None,
 ) -> Iterator[SyncEmulatorProcess]:
     """Synchronous twin of :func:`start_emulator`, yielding the :class:`SyncEmulatorProcess`."""
     emulator = SyncEmulatorProcess(
-        firmware, time_scale, extra_args=extra_args, startup_timeout=startup_timeout
+        firmware, time_scale, extra_args=extra_args, startup_timeout=startup_timeout, listen=listen
     )
     try:
         yield emulator

@@ -13,6 +13,7 @@ from __future__ import annotations
 import csv
 import math
 import os
+import re
 import selectors
 import signal
 import subprocess
@@ -142,7 +143,8 @@ def read_csv(path: Path) -> list[list[str]]:
         return list(csv.reader(file))
 
 
-def close_to(actual: list[float], expected: list[float], tol: float = 0.01) -> bool:
+def close_to(actual: list[float], expected: list[float], tol: float = 0.05) -> bool:
+    """Within ``tol`` (default half a motor step: the emulator reports whole steps)."""
     return all(abs(a - e) <= tol for a, e in zip(actual, expected, strict=True))
 
 
@@ -415,7 +417,9 @@ def test_run_stops_at_a_refused_line(tmp_path: Path) -> None:
     proc = mirobot("run", "bad.gcode", "--no-check", *FAST, cwd=tmp_path)
     assert proc.returncode == 1
     assert_clean(proc)
-    assert "bad.gcode:5: G7 X1: Unsupported command" in proc.stderr.splitlines()
+    # refused by the robot, or by the client's check before sending: either way named
+    refused = [line for line in proc.stderr.splitlines() if line.startswith("bad.gcode:5: G7 X1: ")]
+    assert len(refused) == 1 and "Unsupported command" in refused[0], proc.stderr
     assert "1 line was refused" in proc.stderr
     assert parse_table(proc.stdout).state == "Idle"  # the final status is still shown
 
@@ -458,7 +462,7 @@ def test_run_continue_on_error_reports_every_refused_line(tmp_path: Path) -> Non
     program.write_text("M21 G90\nG7\nG0 X20\nG0 X500\nG0 X25\n")
     proc = mirobot("run", str(program), "--continue-on-error", "--no-check", *FAST)
     assert proc.returncode == 1
-    assert f"{program}:2: G7: Unsupported command" in proc.stderr
+    assert re.search(rf"^{re.escape(str(program))}:2: G7: .*Unsupported command", proc.stderr, re.M)
     assert f"{program}:4: G0 X500: " in proc.stderr  # refused by the firmware (out of limit)
     assert "2 lines were refused; 3 of 5 acknowledged" in proc.stderr
     assert close_to(parse_table(proc.stdout).joints[:1], [25])
