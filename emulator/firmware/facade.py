@@ -4,6 +4,7 @@ loop that feeds received lines to the ``$`` commands and the G-code executor."""
 from __future__ import annotations
 
 import math
+import re
 from collections import deque
 from typing import Final
 
@@ -33,6 +34,9 @@ SWITCH_SLACK: Final = 0.1
 """Degrees within which an arm stopped at a switch counts as on it (its position is whole steps)."""
 
 _REALTIME: Final = frozenset(b"?!~%@")
+_LINE_ENDS: Final = frozenset(b"\r\n")
+_RUN: Final = re.compile(rb"[^?!~%@\r\n]*[\r\n]?")
+"""Bytes up to and including the next line end, stopping before a realtime byte."""
 
 
 class Firmware:
@@ -74,12 +78,38 @@ class Firmware:
         the 128-byte receive ring (lost when it is full) and complete lines are executed as soon
         as the parser is free (not waiting for the planner, a homing search, a dwell or a hold).
         """
-        for byte in bytes(data):
-            if byte in _REALTIME:
-                self._realtime(byte)
+        rx = self._m.rx
+        waiting = False  # bytes put since the last pump (the parser takes them as they come)
+        data = bytes(data)
+        i, n = 0, len(data)
+        while i < n:
+            if data[i] in _REALTIME:
+                if waiting:
+                    self._pump_if_free()  # what arrived before it is handled first
+                    waiting = False
+                self._realtime(data[i])
+                i += 1
                 continue
-            if self._m.rx.put(byte) and not self._m.blocked():
-                self._pump()
+            match = _RUN.match(data, i)
+            assert match is not None  # the pattern matches the non-realtime byte at i
+            run, i = match.group(), match.end()
+            ends_line = run[-1] in _LINE_ENDS
+            while run:
+                taken = rx.put_bytes(run)
+                run = run[taken:]
+                waiting = waiting or taken > 0
+                if (ends_line and not run) or not rx.free:
+                    self._pump_if_free()  # a line is complete or the ring is full
+                    waiting = False
+                    if run and not rx.free:
+                        rx.lose(len(run))  # the parser is busy: the rest is lost
+                        break
+        if waiting:
+            self._pump_if_free()
+
+    def _pump_if_free(self) -> None:
+        if not self._m.blocked():
+            self._pump()
 
     def advance(self, dt: float) -> None:
         """Run the simulated clock ``dt`` seconds (``math.inf``: until nothing changes by itself).

@@ -25,6 +25,10 @@ IK_CHECKS_JOINT_RANGES: Final = False
 limit!!!``). The oracle does not: a wrist out of range gets ``Soft limit triggered:B`` with
 ``$20=1`` and moves with ``$20=0``; J1 beyond 160 runs into the switch."""
 
+_LIMIT_SETTINGS: Final = (11, *range(100, 107), *range(110, 117), *range(120, 127))
+"""The settings :meth:`Geometry.limits` is built from (junction deviation, steps, rates,
+accelerations)."""
+
 FW_LETTERS: Final = "ABCDXYZ"  # soft-limit letters in the firmware's axis order a..g
 
 
@@ -87,6 +91,8 @@ class Geometry:
     def __init__(self, profile: str, settings: Mapping[int, float]) -> None:
         self.profile = profile
         self.settings = settings
+        self._limits: AxisLimits | None = None
+        self._limits_key: tuple[float | None, ...] = ()
 
     def dh_values(self) -> tuple[float, float, float, float, float, float]:
         """D1, A1, A2, A3, D4, L (classic: fixed; 2021: ``$29..$34``)."""
@@ -133,7 +139,13 @@ class Geometry:
             raise kinematics_refusal(exc) from None
 
     def limits(self) -> AxisLimits:
-        return AxisLimits.from_settings(self.settings)
+        """The planner's axis limits from the current settings (rebuilt when they change)."""
+        settings = self.settings
+        key = tuple(settings.get(n) for n in _LIMIT_SETTINGS)
+        if key != self._limits_key or self._limits is None:
+            self._limits = AxisLimits.from_settings(settings)
+            self._limits_key = key
+        return self._limits
 
     def soft_violation(self, q: Sequence[float]) -> str | None:
         """The firmware letter of the first axis (order a..g) outside its ``$13x/$14x`` range."""

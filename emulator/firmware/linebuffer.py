@@ -24,6 +24,9 @@ filtering (oracle: 79 accepted, 80 overflow)."""
 
 MAX_LINE_LENGTH: Final = LINE_BUFFER_SIZE - 1
 
+_DROPPED: Final = bytes(range(0x21)) + b"/"
+"""Bytes the line filter drops: whitespace, control bytes and ``/`` (block delete)."""
+
 _NO_COMMENT: Final = 0
 _PARENTHESES: Final = 1
 _SEMICOLON: Final = 2
@@ -64,6 +67,16 @@ class LineBuffer:
         self._ring.append(c)
         return True
 
+    def put_bytes(self, data: bytes) -> int:
+        """As many of ``data`` as fit into the ring (none is lost here); how many were taken."""
+        taken = min(len(data), RX_CAPACITY - len(self._ring))
+        self._ring += data[:taken]
+        return taken
+
+    def lose(self, count: int) -> None:
+        """Count ``count`` received bytes as lost (they found the ring full)."""
+        self.lost += count
+
     def clear(self) -> None:
         """Drop the ring and the partial line (soft reset)."""
         self._ring.clear()
@@ -79,6 +92,10 @@ class LineBuffer:
         line gets ``Line overflow`` and then the reply of its tail).
         """
         ring = self._ring
+        if not self._comment:
+            line = self._take_plain_line()
+            if line is not None:
+                return line
         while ring:
             c = ring[0]
             del ring[0]
@@ -92,6 +109,28 @@ class LineBuffer:
                 self._comment = _NO_COMMENT
                 return ReceivedLine("", overflow=True)
         return None
+
+    def _take_plain_line(self) -> ReceivedLine | None:
+        """The common case at once: a whole line in the ring, without comments, that fits.
+        None when the byte-by-byte path must decide (no line end yet, a comment, an overflow).
+        """
+        ring = self._ring
+        end = ring.find(0x0A)
+        cr = ring.find(0x0D, 0, end if end >= 0 else len(ring))
+        if cr >= 0:
+            end = cr
+        if end < 0:
+            return None
+        raw = bytes(ring[:end])
+        if 0x28 in raw or 0x3B in raw:  # '(' or ';'
+            return None
+        kept = raw.translate(None, _DROPPED)
+        if len(self._line) + len(kept) > MAX_LINE_LENGTH:
+            return None
+        del ring[: end + 1]
+        text = (bytes(self._line) + kept).upper()  # ASCII letters only, as GRBL
+        self._line.clear()
+        return ReceivedLine(text.decode("latin-1"))
 
     def _filter(self, c: int) -> bool:
         """Add ``c`` to the line as GRBL filters it; True when it overflows the line."""

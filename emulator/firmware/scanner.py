@@ -109,12 +109,13 @@ def scan(line: str, profile: str) -> tuple[GBlock, int]:
         if parsed is None:
             return g, c.BAD_NUMBER_FORMAT
         value, i = parsed
-        int_value = uint8(value)
-        mantissa = c_round(100.0 * (value - int_value)) % 65536
-        if letter == "G":
-            status = _g_word(g, int_value, mantissa, groups, profile)
-        elif letter == "M":
-            status = _m_word(g, int_value, mantissa, groups)
+        if letter == "G" or letter == "M":
+            int_value = uint8(value)
+            mantissa = c_round(100.0 * (value - int_value)) % 65536
+            if letter == "G":
+                status = _g_word(g, int_value, mantissa, groups, profile)
+            else:
+                status = _m_word(g, int_value, mantissa, groups)
         else:
             status = _value_word(g, letter, value, groups)
         if status:

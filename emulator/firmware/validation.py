@@ -43,6 +43,10 @@ class CheckedLine:
     arc: Arc | None
 
 
+_VALUE_WORDS: Final = frozenset("NFSTE")
+_AXIS_WORD_SET: Final = frozenset(AXIS_WORDS)
+
+
 def check_line(
     g: GBlock, modal: ModalState, q0: Vec7, geometry: Geometry, work: WorkOffsets
 ) -> CheckedLine | int:
@@ -57,7 +61,7 @@ def check_line(
     axis_letters = [letter for letter in AXIS_WORDS if letter in words]
     nonmodal_axes = g.nonmodal in NONMODAL_AXIS_COMMANDS  # the axis words are G10/28/30/92's
     axis_command = not nonmodal_axes and (g.axis_command or bool(axis_letters))
-    used = set("NFSTE") | (set(AXIS_WORDS) if nonmodal_axes else set())
+    used = set(_VALUE_WORDS | _AXIS_WORD_SET) if nonmodal_axes else set(_VALUE_WORDS)
     if g.tool_length == 431:
         return c.INVALID_TOOL_LENGTH_AXIS  # oracle: G43.1 always (no axis fits the Mirobot)
 
@@ -101,7 +105,7 @@ def check_line(
     else:
         base = q0
         offset = (0.0,) * 7
-    if g.nonmodal != 53:
+    if axis_letters and g.nonmodal != 53:
         system = work.systems[modal.coord_select if g.coord_select is None else g.coord_select]
         offset = tuple(a + b + c_ for a, b, c_ in zip(offset, system, modal.g92, strict=True))
     target_list = list(base)
@@ -141,8 +145,8 @@ def check_line(
                 arc, arc_words = result
                 used |= arc_words
     if axis_command:
-        used |= set(AXIS_WORDS)
-    if set(words) - used:
+        used |= _AXIS_WORD_SET
+    if words.keys() - used:
         return c.UNUSED_WORDS
     return CheckedLine(
         g, q0, cart, motion_mode, distance, units, feed_mode, feed, pump, valve,
