@@ -13,6 +13,7 @@ from typing import Final, NoReturn
 
 from mirobot_async import gcode
 from mirobot_async.cli import commands
+from mirobot_async.cli.demo import DEFAULT_EXAMPLE, cmd_demo
 from mirobot_async.cli.exits import EXIT_USAGE, PROG
 
 __all__ = ["DEFAULT_MONITOR_INTERVAL", "build_parser"]
@@ -154,6 +155,7 @@ def build_parser() -> argparse.ArgumentParser:
         "jogging, running and checking G-code programs, tracing and plotting.\n"
         "Without --port, a virtual Mirobot is started for the duration of the command.",
         epilog="examples:\n"
+        "  mirobot demo                                   (an example on a virtual Mirobot)\n"
         "  mirobot run examples/pick_and_place.gcode      (on an embedded virtual Mirobot)\n"
         "  mirobot status --port /dev/ttyUSB0\n"
         "  mirobot run examples/square.gcode --trace square.csv && mirobot plot square.csv\n"
@@ -277,6 +279,21 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_prepare_options(run, "home")
     _add_interrupt_option(run)
+
+    demo = add(
+        "demo",
+        cmd_demo,
+        "run one of the example programs shipped with mirobot-async (default: "
+        f"{DEFAULT_EXAMPLE}) on the embedded virtual Mirobot, or on --port",
+    )
+    demo.add_argument(
+        "name", nargs="?", default=DEFAULT_EXAMPLE, metavar="NAME", help="the example to run"
+    )
+    demo.add_argument("--list", action="store_true", help="list the examples and exit")
+    demo.add_argument("--trace", metavar="FILE.csv", help="record status samples (G-code examples)")
+    demo.set_defaults(continue_on_error=False, no_check=False, file=None)
+    _add_prepare_options(demo, "home")
+    _add_interrupt_option(demo)
 
     check = add("check", commands.cmd_check, "validate a G-code program offline", talks=False)
     check.add_argument("file", metavar="FILE", help="G-code program; - reads stdin")

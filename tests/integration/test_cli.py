@@ -10,6 +10,7 @@ Waits are conditions with deadlines; every process is stopped and reaped.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import math
 import os
@@ -64,8 +65,7 @@ def mirobot(
         try:
             out, err = proc.communicate(timeout=timeout)
         except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.communicate()
+            kill_group(proc)
             raise
     return subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
 
@@ -85,8 +85,15 @@ def spawn(*args: str, cwd: Path | None = None) -> subprocess.Popen[str]:
 
 
 def kill_group(proc: subprocess.Popen[str]) -> None:
-    """Kill a spawned CLI that is still running, with its embedded emulator, and reap it."""
+    """Kill a spawned CLI that is still running, with its embedded emulator, and reap it.
+
+    The emulator runs in a session of its own (a terminal's Ctrl-C reaches only the CLI), so it
+    is killed as the CLI's descendant, not through the CLI's process group."""
     if proc.poll() is None:
+        with contextlib.suppress(psutil.NoSuchProcess):
+            for child in psutil.Process(proc.pid).children(recursive=True):
+                with contextlib.suppress(psutil.NoSuchProcess):
+                    child.kill()
         os.killpg(proc.pid, signal.SIGKILL)
         proc.communicate()
 
@@ -588,7 +595,8 @@ def test_monitor_stops_cleanly_on_sigint(tmp_path: Path) -> None:
 
 
 def test_run_interrupted_exits_130_quietly(tmp_path: Path) -> None:
-    """Ctrl-C in a terminal: SIGINT to the whole process group, the embedded emulator too."""
+    """Ctrl-C in a terminal: SIGINT to the CLI's process group (the embedded emulator has a
+    session of its own: the CLI stops it)."""
     trace = tmp_path / "t.csv"
     proc = spawn(
         "run",

@@ -1,0 +1,59 @@
+"""``mirobot demo``: the shipped examples are listed and run on the embedded virtual Mirobot."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+from mirobot_async.cli.demo import example_files, find_example
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def mirobot(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
+    """``python -m mirobot_async ARGS`` from ``cwd`` (not the checkout: no relative paths)."""
+    return subprocess.run(
+        [sys.executable, "-m", "mirobot_async", *args],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        stdin=subprocess.DEVNULL,
+        timeout=60,
+        check=False,
+    )
+
+
+def test_every_example_of_the_checkout_is_found() -> None:
+    on_disk = {p.stem for p in (ROOT / "examples").iterdir() if p.suffix in (".gcode", ".py")}
+    on_disk.discard("__init__")
+    assert set(example_files()) == on_disk
+    assert find_example("square.gcode").name == "square.gcode"
+
+
+def test_list_names_programs_and_scripts(tmp_path: Path) -> None:
+    proc = mirobot("demo", "--list", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    names = {line.split()[0]: line.split()[1] for line in proc.stdout.splitlines()}
+    assert names["pick_and_place"] == "program" and names["hello"] == "script"
+
+
+def test_demo_runs_the_default_program_on_the_embedded_arm(tmp_path: Path) -> None:
+    proc = mirobot("demo", "--time-scale", "0", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert "pick_and_place.gcode" in proc.stderr
+    assert "embedded virtual Mirobot" in proc.stderr
+    assert proc.stdout.splitlines()[0].split() == ["state", "Idle"]
+
+
+def test_demo_runs_a_script(tmp_path: Path) -> None:
+    proc = mirobot("demo", "hello", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert "Idle: tool at x=200.0 y=0.0 z=150.0 mm" in proc.stdout
+
+
+def test_an_unknown_example_lists_the_others(tmp_path: Path) -> None:
+    proc = mirobot("demo", "nope", cwd=tmp_path)
+    assert proc.returncode == 2
+    assert "no example called 'nope'" in proc.stderr and "square" in proc.stderr
+    assert "Traceback" not in proc.stderr
