@@ -8,8 +8,6 @@ from pathlib import Path
 
 from mirobot_async.cli.demo import example_files, find_example
 
-ROOT = Path(__file__).resolve().parents[2]
-
 
 def mirobot(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
     """``python -m mirobot_async ARGS`` from ``cwd`` (not the checkout: no relative paths)."""
@@ -24,11 +22,17 @@ def mirobot(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
     )
 
 
-def test_every_example_of_the_checkout_is_found() -> None:
-    on_disk = {p.stem for p in (ROOT / "examples").iterdir() if p.suffix in (".gcode", ".py")}
-    on_disk.discard("__init__")
-    assert set(example_files()) == on_disk
+EXAMPLES = {"dance", "hello", "monitor_while_streaming", "pick_and_place", "square"}
+EXAMPLES |= {"status_monitor"}
+
+
+def test_every_example_is_found() -> None:
+    """In a checkout (examples/) and in an installed copy (mirobot_async.examples) alike."""
+    found = example_files()
+    assert set(found) == EXAMPLES
+    assert all(path.is_file() for path in found.values())
     assert find_example("square.gcode").name == "square.gcode"
+    assert find_example("hello").name == "hello.py"
 
 
 def test_list_names_programs_and_scripts(tmp_path: Path) -> None:
