@@ -47,13 +47,21 @@ What is modelled (checked against the oracle where it says so)
   on (``G91ok``).
 * Status angles are whole motor steps, the pose is the FK of those angles (oracle:
   ``reports.step_position``); during a ``G4`` dwell the state is ``Idle`` (oracle).
+* Parse time (oracle, :mod:`.linecost`): each line occupies the parser ~100 us per received
+  byte plus its words' work (``M20`` ~6.7 ms, a Cartesian target 3.6-5.1 ms, a block 0.8 ms);
+  its effects, its ``ok`` and the next line come after it; a ``?`` meanwhile is answered right
+  after the line's reply. GRBL's auto cycle start: queued blocks wait until the planner is
+  full, a line waits for it (``G4``, homing, ``$``), or the receive ring has no complete line.
+* Cartesian lines (2021 ``$35=1``), gate moves and arcs are cut into blending joint-space
+  blocks, one every 2 mm (ASSUMED; the 2021 ``$36`` point count is not used).
 
 Not modelled
 ------------
 GRBL's look-ahead details (see :mod:`mirobot_emulator.motion`); probing (``G38.x``: the oracle
 prints ``ALARM: Probe fail``; here ``Unsupported command``) and ``G43`` without ``.1``; arcs in
 the classic firmware's real arc plane (its axes 0..2 are J4..J6); the limit-switch physics of
-homing (homing cannot fail except by ``%``); ``$50`` tool presets; the ``$36`` point count;
+homing (homing cannot fail except by ``%``); ``$50`` tool presets; the ``$36`` point count; the
+wire's own byte time (bytes reach the ring at once);
 EEPROM persistence (settings live as long as the object); the 500 ms stall GRBL adds after
 printing an alarm; the firmware's float32 arithmetic (its status pose can differ from ours in
 the last digit).

@@ -14,6 +14,7 @@ from . import codes as c
 from .gcode import GcodeExecutor
 from .geometry import switch_pins
 from .linebuffer import RX_BUFFER_SIZE, RX_CAPACITY
+from .linecost import BYTE_SECONDS, line_seconds
 from .machine import Machine
 from .reports import banner, status_line
 from .scanner import read_float
@@ -63,6 +64,10 @@ class Firmware:
         self.motion_ends: int = 0
         """How many such instants there have been (``motion_end_times`` keeps the last ones)."""
         self._m = Machine(profile, self.homing_seconds)
+        self._parse_until: float | None = None
+        """When the line being parsed (``Machine.parsing``) is done."""
+        self._status_after_parse = False
+        """``?`` arrived during a parse: answered right after the line's reply."""
         self.settings: dict[int, float] = self._m.settings
         self._gcode = GcodeExecutor(self._m)
         self._system = SystemCommands(self._m, self.reset, self._gcode.execute)
@@ -124,25 +129,29 @@ class Firmware:
         zero_steps = 0
         while True:
             ttc = planner.time_to_next_change()
-            if ttc is None:
+            parse = None if self._parse_until is None else max(self._parse_until - self.now, 0.0)
+            step = ttc if parse is None else parse if ttc is None else min(ttc, parse)
+            if step is None:
                 if not math.isinf(end):
                     planner.advance(end - self.now)  # its clock times the starvations
                     self.now = end
                 break
             left = end - self.now
-            if ttc > left:
+            free, busy = planner.free, planner.busy
+            if step > left:
                 # within SNAP_SECONDS of a block end the planner finishes the block here
-                free, busy = planner.free, planner.busy
                 planner.advance(left)
                 self.now = end
                 if planner.free != free:
                     self._block_done(busy)
                 break
-            busy = planner.busy
-            planner.advance(ttc)
-            self.now += ttc
-            zero_steps = zero_steps + 1 if ttc == 0.0 else 0
-            self._block_done(busy)
+            planner.advance(step)
+            self.now += step
+            zero_steps = zero_steps + 1 if step == 0.0 else 0
+            if planner.free != free:
+                self._block_done(busy)
+            if self._parse_until is not None and self._parse_until <= self.now:
+                self._finish_parse()
             if zero_steps > 100_000:  # pragma: no cover - a planner bug, never loop forever
                 break
         self._service()
@@ -162,9 +171,13 @@ class Firmware:
         return out
 
     def next_deadline(self) -> float | None:
-        """Simulated time of the next internal change, None when nothing changes by itself."""
+        """Simulated time of the next internal change (a block ends, a line is parsed), None
+        when nothing changes by itself."""
         ttc = self._m.planner.time_to_next_change()
-        return None if ttc is None else self.now + ttc
+        deadline = None if ttc is None else self.now + ttc
+        if self._parse_until is not None:
+            return self._parse_until if deadline is None else min(deadline, self._parse_until)
+        return deadline
 
     def reset(self) -> None:
         """Soft reset, exactly as if ``%`` had arrived."""
@@ -186,6 +199,9 @@ class Firmware:
         m.planner.abort()
         m.rx.clear()
         m.pending = None
+        m.parsing = None  # the line being parsed is dropped
+        self._parse_until = None
+        self._status_after_parse = False
         m.limit_blocks.clear()
         m.hold = False
         m.suspended = False
@@ -255,6 +271,12 @@ class Firmware:
         return self._m.locked
 
     @property
+    def parse_deadline(self) -> float | None:
+        """When the line being parsed is done (its effects and reply then), None when the
+        parser is not working on a line (see :mod:`.linecost`)."""
+        return self._parse_until
+
+    @property
     def parser_blocked(self) -> bool:
         """True while received lines wait (planner full, homing search, dwell, hold, alarm)."""
         return self._m.blocked()
@@ -274,6 +296,8 @@ class Firmware:
             running = m.planner.running
             if running is not None and running.kind == "home_search":
                 m.status_deferred = True  # oracle: the homing search answers no ``?``
+            elif m.parsing is not None:
+                self._status_after_parse = True  # GRBL answers between lines
             else:
                 m.emit(status_line(m))
         elif byte == 0x21:  # !
@@ -312,26 +336,46 @@ class Firmware:
         self._service()
 
     def _service(self) -> None:
-        """Push waiting blocks, finish waiting lines, then execute received lines."""
+        """Push waiting blocks, finish waiting lines, then start parsing a received line."""
         m = self._m
-        while True:
-            if m.pending is not None and not m.progress_pending():
-                return
-            if m.blocked() or not len(m.rx):
-                return
+        if m.pending is not None and not m.progress_pending():
+            return
+        if not m.blocked():
             self._pump()
 
     def _pump(self) -> None:
-        """Take complete lines from the receive ring and execute them while the parser is free."""
+        """Start parsing the next complete line of the receive ring (the parser is free); when
+        the ring has none, the queued blocks start (GRBL's auto cycle start)."""
         m = self._m
-        while not m.blocked():
-            line = m.rx.take_line()
-            if line is None:
-                return
-            if line.overflow:
-                m.error(c.OVERFLOW)
-            else:
-                self._execute_line(line.text)
+        line = m.rx.take_line()
+        if line is None:
+            m.planner.cycle_start()
+            return
+        m.parsing = line
+        cost = line.raw * BYTE_SECONDS
+        if not line.overflow:
+            cost = line_seconds(line.text, line.raw, m.modal.cart_mode)
+        self._parse_until = self.now + cost
+
+    def _finish_parse(self) -> None:
+        """The parser is done with its line: execute it, then go on with the next one."""
+        m = self._m
+        line = m.parsing
+        m.parsing = None
+        self._parse_until = None
+        if line is None:  # pragma: no cover - only called with a line in progress
+            return
+        if m.critical:
+            m.line_cut_short = True  # a hard limit meanwhile: the reset prints its ok
+        elif line.overflow:
+            m.error(c.OVERFLOW)
+        else:
+            self._execute_line(line.text)
+        if self._status_after_parse:
+            self._status_after_parse = False
+            if not m.critical:
+                m.emit(status_line(m))
+        self._service()
 
     def _execute_line(self, line: str) -> None:
         m = self._m

@@ -38,6 +38,8 @@ class ReceivedLine:
 
     text: str
     overflow: bool = False
+    raw: int = 0
+    """Received bytes the line took from the ring (its line end included)."""
 
 
 class LineBuffer:
@@ -49,6 +51,7 @@ class LineBuffer:
         self._ring = bytearray()
         self._line = bytearray()
         self._comment = _NO_COMMENT
+        self._raw = 0  # bytes taken into the line being assembled
 
     def __len__(self) -> int:
         """Bytes waiting in the ring."""
@@ -82,6 +85,7 @@ class LineBuffer:
         self._ring.clear()
         self._line.clear()
         self._comment = _NO_COMMENT
+        self._raw = 0
 
     def take_line(self) -> ReceivedLine | None:
         """Move bytes from the ring into the line until one line is complete or overflows;
@@ -99,15 +103,18 @@ class LineBuffer:
         while ring:
             c = ring[0]
             del ring[0]
+            self._raw += 1
             if c in (0x0A, 0x0D):
-                line = ReceivedLine(self._line.decode("latin-1"))
+                line = ReceivedLine(self._line.decode("latin-1"), raw=self._raw)
+                self._raw = 0
                 self._line.clear()
                 self._comment = _NO_COMMENT
                 return line
             if self._filter(c):
                 self._line.clear()
                 self._comment = _NO_COMMENT
-                return ReceivedLine("", overflow=True)
+                raw, self._raw = self._raw, 0
+                return ReceivedLine("", overflow=True, raw=raw)
         return None
 
     def _take_plain_line(self) -> ReceivedLine | None:
@@ -121,16 +128,17 @@ class LineBuffer:
             end = cr
         if end < 0:
             return None
-        raw = bytes(ring[:end])
-        if 0x28 in raw or 0x3B in raw:  # '(' or ';'
+        received = bytes(ring[:end])
+        if 0x28 in received or 0x3B in received:  # '(' or ';'
             return None
-        kept = raw.translate(None, _DROPPED)
+        kept = received.translate(None, _DROPPED)
         if len(self._line) + len(kept) > MAX_LINE_LENGTH:
             return None
         del ring[: end + 1]
         text = (bytes(self._line) + kept).upper()  # ASCII letters only, as GRBL
         self._line.clear()
-        return ReceivedLine(text.decode("latin-1"))
+        taken, self._raw = self._raw + end + 1, 0
+        return ReceivedLine(text.decode("latin-1"), raw=taken)
 
     def _filter(self, c: int) -> bool:
         """Add ``c`` to the line as GRBL filters it; True when it overflows the line."""

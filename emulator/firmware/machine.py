@@ -13,7 +13,7 @@ from .. import settings as cfg
 from ..motion import Block, Planner, Vec7
 from . import codes as c
 from .geometry import Geometry
-from .linebuffer import LineBuffer
+from .linebuffer import LineBuffer, ReceivedLine
 from .modal import ModalState
 from .moves import MoveBuilder
 from .offsets import WorkOffsets
@@ -47,12 +47,15 @@ class Machine:
         self.settings: dict[int, float] = cfg.default_settings(profile)
         self.geometry = Geometry(profile, self.settings)
         self.moves = MoveBuilder(self.geometry, self.settings)
-        self.planner = Planner(motion.ZERO)
+        self.planner = Planner(motion.ZERO, deferred_start=True)
         self.modal = ModalState()
         self.work = WorkOffsets()
         self.rx = LineBuffer()
         self.out = bytearray()
         self.pending: Pending | None = None
+        self.parsing: ReceivedLine | None = None
+        """The line the parser is working on (see :mod:`.linecost`); its effects and reply
+        come when the work is done."""
         self.limit_blocks: list[Block] = []
         """Blocks that end on a limit switch: the alarm fires when one of them is done."""
         self.startup_lines = [""] * N_STARTUP_LINE
@@ -137,7 +140,13 @@ class Machine:
 
     def blocked(self) -> bool:
         """True while received lines wait (planner full, homing, dwell, hold, alarm)."""
-        return self.pending is not None or self.hold or self.suspended or self.critical
+        return (
+            self.pending is not None
+            or self.parsing is not None
+            or self.hold
+            or self.suspended
+            or self.critical
+        )
 
     def machine_position(self) -> Vec7:
         """Where the arm is now, in whole steps: what ``M20``/``M21`` resynchronise to."""
@@ -171,6 +180,8 @@ class Machine:
             p = self.pending
             while p.blocks and self.planner.free > 0:
                 self.planner.push(p.blocks.pop(0))
+            if p.blocks or p.until != "queued":
+                self.planner.cycle_start()  # GRBL's auto cycle start: planner full, or a wait
             if p.blocks:
                 return False
             if p.hard_limit is not None:

@@ -64,6 +64,8 @@ def send(fw: Firmware, data: bytes | str, dt: float = 0.0) -> list[str]:
     """Send bytes, run the clock ``dt`` seconds, return the printed lines."""
     fw.receive(data.encode() if isinstance(data, str) else data)
     fw.advance(dt)
+    while (parsed := fw.parse_deadline) is not None:  # each line takes the parser a moment
+        fw.advance(parsed - fw.now)
     return lines_of(fw.read_output())
 
 

@@ -14,6 +14,8 @@ STEP_TOLERANCE = 0.1  # status angles are whole motor steps (see test_firmware.p
 def lines(fw: Firmware, data: str, dt: float = 0.0) -> list[str]:
     fw.receive(data.encode("latin-1"))
     fw.advance(dt)
+    while (parsed := fw.parse_deadline) is not None:  # each line takes the parser a moment
+        fw.advance(parsed - fw.now)
     text = fw.read_output().decode("latin-1")
     return text.split("\r\n")[:-1] if text else []
 

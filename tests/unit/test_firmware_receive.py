@@ -5,7 +5,6 @@ from __future__ import annotations
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
 from mirobot_emulator.firmware import Firmware
 
 PIECES = st.sampled_from(
