@@ -41,10 +41,12 @@ if TYPE_CHECKING:
     from mirobot_async.envelope import Envelope
     from mirobot_async.replies import State, StatusReport, parse_status
     from mirobot_async.testing import start_emulator
+    from mirobot_async.validation import InvalidLineError
 
 __all__ = [
     "ClientStats",
     "Envelope",
+    "InvalidLineError",
     "LineResult",
     "Mirobot",
     "MirobotAlarmError",
@@ -79,6 +81,7 @@ _LAZY: dict[str, str] = {
     "parse_status": "mirobot_async.replies",
     "start_emulator": "mirobot_async.testing",
     "Envelope": "mirobot_async.envelope",
+    "InvalidLineError": "mirobot_async.validation",
 }
 
 

@@ -398,9 +398,18 @@ class Mirobot(MotionCommands, StatusCommands, AccessoryCommands):
         line: str | bytes,
         *,
         check_envelope: bool = True,
+        validate: bool = True,
         timeout: float | None = DEFAULT_TIMEOUT,
     ) -> tuple[str, ...]:
         """Send one raw line and return what the firmware printed for it (without the ``ok``).
+
+        The line is first judged as ``mirobot check`` judges it
+        (:func:`mirobot_async.validation.check_line`: PWM and joint ranges, line length,
+        unknown words, numbers the firmware reads otherwise, ``G20``...), with the modal state
+        the client knows (predicted with an envelope, else unknown: mode-dependent ranges only
+        when the line states its modes): a problem raises
+        :class:`~mirobot_async.validation.InvalidLineError` (a :class:`MirobotUsageError`) and
+        nothing is written. ``validate=False`` sends it anyway and logs a WARNING naming it.
 
         With a safety envelope the line is parsed and checked before it is written (a move that
         leaves the envelope, or that the envelope cannot judge, raises
@@ -417,12 +426,16 @@ class Mirobot(MotionCommands, StatusCommands, AccessoryCommands):
         """
         data = encode_line(line, self._wire.rx_buffer_size)
         deadline = deadline_after(self._running_loop(), timeout)
+        what = f"send({data.decode('ascii')!r})"
+        if not validate:
+            _log.warning("%s is sent WITHOUT validation (validate=False)", what)
         return await self._command(
             data,
             deadline=deadline,
             timeout=timeout,
             check_envelope=check_envelope,
-            what=f"send({data.decode('ascii')!r})",
+            what=what,
+            validate=validate,
         )
 
     def stream(
@@ -432,6 +445,7 @@ class Mirobot(MotionCommands, StatusCommands, AccessoryCommands):
         on_progress: Callable[[LineResult], object] | None = None,
         continue_on_error: bool = False,
         check_envelope: bool = True,
+        validate: bool = True,
         timeout: float | None = None,
     ) -> Stream:
         """Stream G-code lines with GRBL character counting (the planner never starves).
@@ -454,10 +468,20 @@ class Mirobot(MotionCommands, StatusCommands, AccessoryCommands):
         True). ``check_envelope=False`` sends every line unchecked and logs a WARNING when the
         stream starts and for each line the envelope would have refused.
 
+        Every line is validated as :meth:`send` does, right before it would be written (with
+        the modal state left by the lines before it): an invalid line is not written, its
+        :class:`LineResult` carries the
+        :class:`~mirobot_async.validation.InvalidLineError`, and the stream stops there unless
+        ``continue_on_error``. ``validate=False`` logs one WARNING when the stream starts.
+
         ``$`` lines are sent only when nothing else is in flight. ``timeout`` bounds the whole
         stream (``None``: no limit; each reply is liveness-checked). A lost link raises
         :class:`MirobotLinkLostError`. Cancelling stops sending; lines in flight are consumed and
         discarded.
         """
         parts = (self._lines, self._condition, self._guard)
-        return Stream(parts, lines, on_progress, continue_on_error, timeout, check_envelope)
+        if not validate:
+            _log.warning("stream(validate=False): its lines are sent WITHOUT validation")
+        return Stream(
+            parts, lines, on_progress, continue_on_error, timeout, check_envelope, validate
+        )

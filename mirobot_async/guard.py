@@ -21,9 +21,10 @@ from typing import TYPE_CHECKING, Final, Protocol
 
 from mirobot_async.condition import RobotCondition
 from mirobot_async.errors import MirobotUsageError
-from mirobot_async.line import parse_line
+from mirobot_async.line import ParsedLine
 from mirobot_async.modal import LineCheck, MotionModes, update_modes
 from mirobot_async.replies import State, StatusReport
+from mirobot_async.validation import ModalState
 from mirobot_async.wire import ClientStats
 
 if TYPE_CHECKING:  # imported when an envelope is used (it needs numpy)
@@ -77,9 +78,11 @@ class Guard(Protocol):
     @property
     def wants_settings(self) -> bool: ...
 
-    def needs_firmware(self, data: bytes) -> bool: ...
+    def modal_state(self) -> ModalState: ...
 
-    def verdict(self, data: bytes, what: str | None) -> LineCheck | NeedPosition | None: ...
+    def needs_firmware(self, parsed: ParsedLine) -> bool: ...
+
+    def verdict(self, parsed: ParsedLine, what: str | None) -> LineCheck | NeedPosition | None: ...
 
     def adopt_status(self, report: StatusReport) -> None: ...
 
@@ -89,7 +92,7 @@ class Guard(Protocol):
         self,
         line_id: int,
         command: str,
-        data: bytes,
+        parsed: ParsedLine,
         verdict: LineCheck | None,
         *,
         checked: bool,
@@ -105,9 +108,13 @@ class Guard(Protocol):
 
 
 class NullGuard:
-    """No envelope: every line passes, nothing is predicted."""
+    """No envelope: every line passes, no position is predicted; only the modal words
+    (``M20``/``M21``, ``G90``/``G91``) are followed, for the validation of raw lines."""
 
     epoch = 0
+
+    def __init__(self) -> None:
+        self._modes = MotionModes.unknown()
 
     @property
     def envelope(self) -> Envelope | None:
@@ -119,11 +126,16 @@ class NullGuard:
         """Never: no settings are needed."""
         return False
 
-    def needs_firmware(self, data: bytes) -> bool:
+    def modal_state(self) -> ModalState:
+        """The modal words stated by the lines written since connect (unknown before)."""
+        modes = self._modes
+        return ModalState(modes.cartesian, modes.relative)
+
+    def needs_firmware(self, parsed: ParsedLine) -> bool:
         """Never: no kinematic model is needed."""
         return False
 
-    def verdict(self, data: bytes, what: str | None) -> LineCheck | NeedPosition | None:
+    def verdict(self, parsed: ParsedLine, what: str | None) -> LineCheck | NeedPosition | None:
         """Nothing to check."""
         return None
 
@@ -137,21 +149,27 @@ class NullGuard:
         self,
         line_id: int,
         command: str,
-        data: bytes,
+        parsed: ParsedLine,
         verdict: LineCheck | None,
         *,
         checked: bool,
         what: str | None,
         warn_unchecked: bool,
     ) -> Tracked | None:
-        """Nothing to track."""
+        """Follow the line's modal words; nothing else is tracked."""
+        if parsed.kind == "dollar" or parsed.codes:
+            self._modes = update_modes(parsed, self._modes)
         return None
 
     def line_failed(self, tracked: Tracked, *, rejected: bool) -> None:
         """Nothing to undo."""
 
     def forget(self, why: str) -> None:
-        """Nothing to forget."""
+        """A reset restores the power-on modes; a lost reply makes them unknown."""
+        if why == "reset":
+            self._modes = MotionModes()
+        elif why == "lost":
+            self._modes = MotionModes.unknown()
 
     def warn_stream_unchecked(self) -> None:
         """No envelope, nothing to warn about."""
@@ -201,16 +219,20 @@ class EnvelopeGuard:
         handed to :meth:`adopt_settings` gives it)."""
         return self._condition.firmware == "2021" and self._base_offset is None
 
-    def needs_firmware(self, data: bytes) -> bool:
+    def modal_state(self) -> ModalState:
+        """The modal words :mod:`~mirobot_async.validation` needs, as predicted (a new object)."""
+        modes = self._state.modes
+        return ModalState(modes.cartesian, modes.relative)
+
+    def needs_firmware(self, parsed: ParsedLine) -> bool:
         """True when the firmware (the kinematic model) or, for an absolute Cartesian line on a
         2021 arm, its base offset (a ``$$`` listing at rest) must be known before checking it."""
-        if data.startswith(b"$"):
+        if parsed.kind == "dollar":
             return False
         if self._condition.firmware is None:
             return True
         if not self.wants_settings or self._state.base_offset is not None:
             return False
-        parsed = parse_line(data)
         modes = self._state.modes
         cartesian = parsed.coordinate_mode == 20 or (
             parsed.coordinate_mode is None and modes.cartesian is not False
@@ -231,30 +253,30 @@ class EnvelopeGuard:
             state = replace(state, gate_lift=self._gate_lift)
         return replace(state, firmware=firmware)
 
-    def _predict(self, data: bytes, state: MachineState, what: str | None) -> MachineState:
-        """The state after ``data``; raises MirobotUsageError when the envelope refuses it."""
+    def _predict(self, parsed: ParsedLine, state: MachineState, what: str | None) -> MachineState:
+        """The state after ``parsed``; raises MirobotUsageError when the envelope refuses it."""
         from mirobot_async.prediction import Prediction, predict
 
-        result = predict(self.envelope, data, state, what=what)
+        result = predict(self.envelope, parsed, state, what=what)
         if not isinstance(result, Prediction):
             raise result.error()
         self._moves = result.moves
         return result.state
 
-    def verdict(self, data: bytes, what: str | None) -> LineCheck | NeedPosition | None:
-        """The envelope's verdict on ``data`` from the predicted state, or
+    def verdict(self, parsed: ParsedLine, what: str | None) -> LineCheck | NeedPosition | None:
+        """The envelope's verdict on ``parsed`` from the predicted state, or
         :data:`NEED_POSITION`; raises :class:`MirobotUsageError` ("refused by the safety
         envelope ...; nothing was sent") for a line it refuses."""
         state = self._machine()
         try:
-            if state.joints is None and not parse_line(data).is_homing:
+            if state.joints is None and not parsed.is_homing:
                 # Lines that do not move need no position; the others wait for one.
                 try:
-                    after = self._predict(data, state, what)
+                    after = self._predict(parsed, state, what)
                 except MirobotUsageError:
                     return NEED_POSITION
                 return _line_check(after, False) if not self._moves else NEED_POSITION
-            after = self._predict(data, state, what)
+            after = self._predict(parsed, state, what)
             check = _line_check(after, self._moves)
             self._verdicts = (check, after)
             return check
@@ -290,7 +312,7 @@ class EnvelopeGuard:
         self,
         line_id: int,
         command: str,
-        data: bytes,
+        parsed: ParsedLine,
         verdict: LineCheck | None,
         *,
         checked: bool,
@@ -304,16 +326,16 @@ class EnvelopeGuard:
             if self._verdicts is not None and self._verdicts[0] is verdict:
                 after, self._moves = self._verdicts[1], verdict.moves
             else:
-                after = self._follow(data, what)
+                after = self._follow(parsed, what)
         elif not checked:  # sent with check_envelope=False: follow it if the envelope can
-            after = self._follow_unchecked(data, command, before, what, warn_unchecked)
+            after = self._follow_unchecked(parsed, command, before, what, warn_unchecked)
         if after is not None:
             moved = self._moves
             self._state = after
         else:
-            modes = update_modes(data, before.modes)
+            modes = update_modes(parsed, before.modes)
             self._state = replace(before, modes=modes, joints=None, pose=None, rail=None)
-            if _may_change_offset(data):
+            if _may_change_offset(parsed):
                 self._state = replace(self._state, base_offset=None, gate_lift=None)
                 self._base_offset = self._gate_lift = None
             moved = True
@@ -321,15 +343,15 @@ class EnvelopeGuard:
         check = None if after is None else _line_check(after, moved)
         return Tracked(line_id, check, before, moved, self._state.modes != before.modes)
 
-    def _follow(self, data: bytes, what: str | None) -> MachineState | None:
+    def _follow(self, parsed: ParsedLine, what: str | None) -> MachineState | None:
         try:
-            return self._predict(data, self._machine(), what)
+            return self._predict(parsed, self._machine(), what)
         except MirobotUsageError:
             return None
 
     def _follow_unchecked(
         self,
-        data: bytes,
+        parsed: ParsedLine,
         command: str,
         before: MachineState,
         what: str | None,
@@ -338,7 +360,7 @@ class EnvelopeGuard:
         problem: str | None = None
         after: MachineState | None = None
         try:
-            after = self._predict(data, self._machine(), what)
+            after = self._predict(parsed, self._machine(), what)
         except MirobotUsageError as err:
             problem = str(err)
         name = what or repr(command)
@@ -404,9 +426,9 @@ def _line_check(state: MachineState, moves: bool) -> LineCheck:
     return LineCheck(state.modes, moves, state.joints, state.pose, state.rail, state.base_offset)
 
 
-def _may_change_offset(data: bytes) -> bool:
+def _may_change_offset(parsed: ParsedLine) -> bool:
     """An unchecked ``$`` line that may change the base offset or the gate lift."""
-    dollar = parse_line(data).dollar
+    dollar = parsed.dollar
     if dollar is None:
         return False
     if dollar.kind in ("restore", "unknown"):

@@ -22,6 +22,7 @@ from mirobot_async.condition import Firmware, RobotCondition
 from mirobot_async.deadline import deadline_after
 from mirobot_async.errors import MirobotConnectionError, MirobotUsageError
 from mirobot_async.guard import make_guard
+from mirobot_async.line import parse_line
 from mirobot_async.poller import StatusPoller
 from mirobot_async.router import EventRouter
 from mirobot_async.scheduler import LineScheduler
@@ -57,9 +58,9 @@ CONNECT_TIMEOUT: Final = 5.0
 """Default ``timeout`` of :meth:`Mirobot.connect` (opening the port and the first status)."""
 
 # Raw lines whose success clears a remembered alarm: $X, $H, $HH, $H0..$H7, $HE, M50.
-_UNLOCKING_RE: Final = re.compile(rb"^(?:\$X|\$H[H0-7E]?|M0*50)$")
+_UNLOCKING_RE: Final = re.compile(r"^(?:\$X|\$H[H0-7E]?|M0*50)$")
 # Raw lines that may change the base offset $41..$43 (a setting, or restoring the defaults).
-_OFFSET_CHANGE_RE: Final = re.compile(rb"^\$(?:0*4[123]=|RST)")
+_OFFSET_CHANGE_RE: Final = re.compile(r"^\$(?:0*4[123]=|RST)")
 _SETTING_LINE_RE: Final = re.compile(r"^\$(\d+)\s*=\s*([+-]?(?:\d+\.?\d*|\.\d+))")
 
 
@@ -174,11 +175,14 @@ class ClientParts:
         check_envelope: bool = True,
         what: str | None = None,
         idle: bool = False,
+        validate: bool = False,
     ) -> tuple[str, ...]:
         """Send one line and return its output; raise what its reply means (``idle``: write it
-        only when the robot is at rest, see :meth:`LineScheduler.submit`)."""
+        only when the robot is at rest; ``validate``: refuse what the firmware would refuse or
+        misread; see :meth:`LineScheduler.submit`). The line is parsed once, here."""
         data = data.rstrip(b"\n")
         command = data.decode("ascii")
+        parsed = parse_line(data)
         slot = await self._lines.submit(
             data,
             command,
@@ -188,11 +192,13 @@ class ClientParts:
             check_envelope=check_envelope,
             what=what,
             idle=idle,
+            parsed=parsed,
+            validate=validate,
         )
         output = await self._lines.await_slot(slot, deadline, timeout)
-        if _UNLOCKING_RE.match(data.upper().replace(b" ", b"")):
+        if _UNLOCKING_RE.match(parsed.text):
             self._condition.unlocked()
-        if _OFFSET_CHANGE_RE.match(data.upper().replace(b" ", b"")):
+        if _OFFSET_CHANGE_RE.match(parsed.text):
             self._condition.base_offset = None
         return output
 

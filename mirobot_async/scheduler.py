@@ -14,7 +14,6 @@ from __future__ import annotations
 import asyncio
 import logging
 import math
-import re
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Final
@@ -29,6 +28,7 @@ from mirobot_async.errors import (
     MotionRefusedError,
 )
 from mirobot_async.guard import EnvelopeGuard, NeedPosition, NullGuard, Tracked
+from mirobot_async.line import ParsedLine, parse_line
 from mirobot_async.poller import StatusPoller
 from mirobot_async.protocol import (
     DoubtResolved,
@@ -39,6 +39,7 @@ from mirobot_async.protocol import (
     ResetDetected,
 )
 from mirobot_async.replies import State, StatusReport
+from mirobot_async.validation import InvalidLineError, line_problems, validate_line
 from mirobot_async.wire import Wire
 
 if TYPE_CHECKING:
@@ -49,8 +50,7 @@ __all__ = ["QUIET", "LineScheduler", "Slot", "StreamStopped"]
 _log = logging.getLogger("mirobot_async.client")
 
 QUIET: Final = frozenset({State.IDLE, State.ALARM, State.CHECK})
-_DWELL_RE: Final = re.compile(rb"G0*4(?![0-9.])")
-_P_WORD_RE: Final = re.compile(rb"P([+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+))")
+_PROFILES: Final = ("2021", "classic")
 
 Outcome = LineAcknowledged | LineRejected | BaseException
 
@@ -82,20 +82,6 @@ class Slot:
 
 class StreamStopped(Exception):
     """Raised by :meth:`LineScheduler.submit` when a stream's ``should_stop`` says so."""
-
-
-def dwell_seconds(line: bytes) -> float:
-    """Seconds of a ``G4 P<s>`` dwell in ``line`` (0 when it is not a dwell)."""
-    compact = line.upper().replace(b" ", b"").replace(b"\t", b"")
-    if _DWELL_RE.search(compact) is None:
-        return 0.0
-    match = _P_WORD_RE.search(compact)
-    if match is None:
-        return 0.0
-    try:
-        return max(0.0, float(match.group(1)))
-    except ValueError:  # pragma: no cover - the regex only matches numbers
-        return 0.0
 
 
 def outcome_output(slot: Slot) -> tuple[str, ...]:
@@ -269,8 +255,16 @@ class LineScheduler:
         should_stop: Callable[[], bool] | None = None,
         watch: Callable[[Slot], None] | None = None,
         idle: bool = False,
+        parsed: ParsedLine | None = None,
+        validate: bool = False,
     ) -> Slot:
         """Wait for this line's turn and for room in the receive buffer, then write it.
+
+        ``parsed`` is ``data`` parsed once (:func:`~mirobot_async.line.parse_line`; parsed here
+        when omitted): the guard, the validation, the ``$`` barrier and the dwell all read it.
+        With ``validate`` the line is judged by :func:`~mirobot_async.validation.validate_line`
+        (modal state as the guard predicts it) right before it would be written: a problem
+        raises :class:`~mirobot_async.validation.InvalidLineError` and nothing is written.
 
         ``should_stop`` (a stream's) is asked right before the write, with no await in between:
         if true, :class:`StreamStopped` is raised and nothing is written. ``watch`` is set on the
@@ -286,9 +280,11 @@ class LineScheduler:
         """
         condition, guard = self._condition, self._guard
         condition.check_sendable(command, motion=motion)
-        if guard.needs_firmware(data):
+        if parsed is None:
+            parsed = parse_line(data)
+        if guard.needs_firmware(parsed) or (validate and self._profiles_disagree(parsed)):
             await self._require_firmware(deadline, timeout)
-        exclusive = data.startswith(b"$")
+        exclusive = parsed.kind == "dollar"
         nbytes = len(data) + 1
         epoch = condition.reset_epoch
         verdict: LineCheck | None = None
@@ -305,9 +301,11 @@ class LineScheduler:
                     )
                 if should_stop is not None and should_stop():
                     raise StreamStopped
+                if validate:
+                    self._validate(parsed)
                 if checking and checked_epoch != guard.epoch:
                     position_epoch = guard.epoch
-                    found = guard.verdict(data, what)
+                    found = guard.verdict(parsed, what)
                     if isinstance(found, NeedPosition):
                         limit.what = (
                             f"the arm to come to rest (its position, for the safety envelope) "
@@ -330,12 +328,12 @@ class LineScheduler:
                         continue
                     if should_stop is not None and should_stop():
                         raise StreamStopped  # a reply received meanwhile stopped it
-                    slot = self._write(data, command, exclusive)
+                    slot = self._write(data, command, exclusive, parsed.dwell_seconds)
                     slot.watch = watch  # no reply can be dispatched before this
                     slot.tracked = guard.track_written(
                         slot.pending.id,
                         command,
-                        data,
+                        parsed,
                         verdict,
                         checked=check_envelope,
                         what=what,
@@ -344,7 +342,28 @@ class LineScheduler:
                     return slot
                 await self.wait_progress(deadline)
 
-    def _write(self, data: bytes, command: str, exclusive: bool) -> Slot:
+    def _profiles_disagree(self, parsed: ParsedLine) -> bool:
+        """The profile is unknown and only one of the two would refuse the line."""
+        if self._condition.firmware is not None:
+            return False
+        verdicts = {
+            bool(line_problems(parsed, firmware=profile, state=self._guard.modal_state()))
+            for profile in _PROFILES
+        }
+        return len(verdicts) > 1
+
+    def _validate(self, parsed: ParsedLine) -> None:
+        """:func:`validate_line` with the profile (unknown: a line both profiles refuse)."""
+        firmware = self._condition.firmware
+        if firmware is not None:
+            validate_line(parsed, firmware=firmware, state=self._guard.modal_state())
+            return
+        try:
+            validate_line(parsed, firmware="2021", state=self._guard.modal_state())
+        except InvalidLineError:
+            validate_line(parsed, firmware="classic", state=self._guard.modal_state())
+
+    def _write(self, data: bytes, command: str, exclusive: bool, dwell: float | None) -> Slot:
         """Register ``data`` with the state machine and write it (synchronous: no gap)."""
         assert self._loop is not None
         pending = self._wire.write_line(data)
@@ -353,8 +372,7 @@ class LineScheduler:
         self.slots[pending.id] = slot
         if exclusive:
             self._barrier = pending.id
-        dwell = dwell_seconds(data) if b"4" in data else 0.0
-        if dwell:
+        if dwell is not None and dwell > 0:
             self._dwell_until = max(self._dwell_until, now) + dwell
         return slot
 

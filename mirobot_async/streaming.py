@@ -36,6 +36,7 @@ from mirobot_async.errors import (
 from mirobot_async.guard import EnvelopeGuard, NullGuard
 from mirobot_async.protocol import LineRejected, encode_line
 from mirobot_async.scheduler import LineScheduler, Slot, StreamStopped
+from mirobot_async.validation import InvalidLineError
 
 __all__ = ["LineResult", "Stream", "StreamResult"]
 
@@ -109,6 +110,7 @@ class _StreamRun:
     deadline: float | None
     timeout: float | None
     check_envelope: bool
+    validate: bool
     result: StreamResult
     queue: deque[_Queued] = field(default_factory=deque)
     wake: asyncio.Event = field(default_factory=asyncio.Event)
@@ -173,6 +175,7 @@ class _StreamRun:
                         timeout=self.timeout,
                         motion=False,
                         check_envelope=self.check_envelope,
+                        validate=self.validate,
                         what=f"stream line {number} {command!r}",
                         warn_unchecked=False,
                         should_stop=self.should_stop,
@@ -182,6 +185,11 @@ class _StreamRun:
                     break
                 except _FATAL as err:
                     self._push(number, command, err)
+                    break
+                except InvalidLineError as err:  # not written, as a bad line
+                    self._push(number, command, err)
+                    if self.continue_on_error:
+                        continue
                     break
                 except MirobotUsageError as err:  # the safety envelope: stop before it
                     self._push(number, command, err)
@@ -269,8 +277,10 @@ class Stream:
         continue_on_error: bool,
         timeout: float | None,
         check_envelope: bool = True,
+        validate: bool = True,
     ) -> None:
         self._parts = parts
+        self._validate = validate
         self._lines = lines
         self._on_progress = on_progress
         self._continue = continue_on_error
@@ -300,6 +310,7 @@ class Stream:
             deadline,
             self._timeout,
             self._check_envelope,
+            self._validate,
             self.result,
             reset_epoch=condition.reset_epoch,
         )

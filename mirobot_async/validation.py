@@ -38,6 +38,7 @@ from mirobot_async.values import (
 )
 
 __all__ = [
+    "InvalidLineError",
     "ModalState",
     "check_line",
     "check_program",
@@ -401,20 +402,31 @@ def check_program(lines: Iterable[str | bytes], *, firmware: str = "2021") -> li
     return found
 
 
+class InvalidLineError(MirobotUsageError):
+    """A raw line refused before sending: the firmware would refuse it or read it otherwise
+    (:attr:`problems` lists why, as :func:`check_line` reports them)."""
+
+    def __init__(self, message: str, problems: tuple[str, ...]) -> None:
+        super().__init__(message)
+        self.problems = problems
+
+
 def validate_line(
     line: str | bytes | ParsedLine,
     *,
     firmware: str = "2021",
     state: ModalState | None = None,
 ) -> ParsedLine:
-    """The parsed line, or :class:`~mirobot_async.errors.MirobotUsageError` listing every problem
+    """The parsed line, or :class:`InvalidLineError` (a
+    :class:`~mirobot_async.errors.MirobotUsageError`) listing every problem
     :func:`line_problems` finds (the client's check before writing; ``state`` as there)."""
     parsed = line if isinstance(line, ParsedLine) else parse_line(line)
     problems = line_problems(parsed, firmware=firmware, state=state)
     if problems:
         shown = parsed.source.strip() or parsed.text
-        raise MirobotUsageError(
+        raise InvalidLineError(
             f"line {shown!r} refused before sending: {'; '.join(problems)} "
-            "(check_line=False sends it anyway)"
+            "(validate=False sends it anyway)",
+            tuple(problems),
         )
     return parsed
