@@ -113,7 +113,8 @@ ASSUMED points implemented (each in one constant or function, named here)
   way across.
 * ``$M`` (2021): rapid joint move of J1..J6 to 0 (rail unchanged), needs Idle (``Not idle``),
   refuses in ``Alarm`` (``Alarm lock``) and prints ``Locked status`` while locked.
-* Homing: ``homing_seconds`` (default ``DEFAULT_HOMING_SECONDS``) is the switch search of ``$H``;
+* Homing: ``homing_seconds`` (default ``CLASSIC_HOMING_SECONDS`` = 8.17 s on classic, oracle;
+  ``DEFAULT_HOMING_SECONDS`` = 10 s on 2021, PROTOCOL) is the switch search of ``$H``;
   ``$HH`` and ``$HE`` are sequential (:mod:`mirobot_emulator.motion`); ``$H0`` (arm + rail)
   searches ``HOMING_RAIL_FACTOR`` times as long, ``$H1..$H7`` (one axis; 7 = rail) for
   ``HOMING_SINGLE_AXIS_FACTOR`` of it. During the search ``?`` is not answered; one deferred
@@ -168,11 +169,12 @@ Taken from GRBL 0.9j / the open firmware where PROTOCOL.md is silent
 from __future__ import annotations
 
 from .codes import PROFILES, error_text
-from .facade import DEFAULT_HOMING_SECONDS, Firmware
+from .facade import CLASSIC_HOMING_SECONDS, DEFAULT_HOMING_SECONDS, Firmware
 from .geometry import HARD_LIMIT_SWITCHES
 from .linebuffer import LINE_BUFFER_SIZE, RX_BUFFER_SIZE, RX_CAPACITY
 
 __all__ = [
+    "CLASSIC_HOMING_SECONDS",
     "DEFAULT_HOMING_SECONDS",
     "HARD_LIMIT_SWITCHES",
     "LINE_BUFFER_SIZE",

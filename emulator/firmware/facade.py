@@ -21,7 +21,11 @@ from .scanner import read_float
 from .system import SystemCommands
 
 DEFAULT_HOMING_SECONDS: Final = 10.0
-"""Switch search of ``$H`` when the constructor is not told otherwise (PROTOCOL 9)."""
+"""Switch search of ``$H`` on 2021 when the constructor is not told otherwise (PROTOCOL 9)."""
+
+CLASSIC_HOMING_SECONDS: Final = 8.17
+"""Switch search of ``$H`` on classic: the oracle's ``ok`` comes 8.17 s after ``$H`` (then its
+2.3 s return move), with its harness's switches (no device log gives a time)."""
 
 MOTION_END_HISTORY: Final = 64
 """How many ends of motion :attr:`Firmware.motion_end_times` keeps."""
@@ -44,7 +48,8 @@ class Firmware:
     """A virtual Mirobot controller: call :meth:`receive`, :meth:`advance`, :meth:`read_output`.
 
     ``profile`` is ``"classic"`` (20191228_2) or ``"2021"`` (20210516); ``homing_seconds`` the
-    switch search of ``$H`` (default :data:`DEFAULT_HOMING_SECONDS`). The arm is powered on at
+    switch search of ``$H`` (default :data:`CLASSIC_HOMING_SECONDS` on classic,
+    :data:`DEFAULT_HOMING_SECONDS` on 2021). The arm is powered on at
     construction: the banner is already in the output.
     """
 
@@ -52,7 +57,9 @@ class Firmware:
         if profile not in c.PROFILES:
             raise ValueError(f"unknown firmware profile {profile!r} (use 'classic' or '2021')")
         if homing_seconds is None:
-            homing_seconds = DEFAULT_HOMING_SECONDS
+            homing_seconds = (
+                CLASSIC_HOMING_SECONDS if profile == "classic" else DEFAULT_HOMING_SECONDS
+            )
         if not (math.isfinite(homing_seconds) and homing_seconds >= 0.0):
             raise ValueError(f"homing_seconds must be finite and >= 0, got {homing_seconds}")
         self.profile: str = profile

@@ -736,7 +736,7 @@ def test_homing_sequence(profile: str) -> None:
     assert out == (["", "Free memory: 2036"] if profile == "classic" else [])
     assert fw.state == "Home"
     # oracle: the switch search answers no '?'; one is answered (state Home) when it ends
-    assert send(fw, "?", 9.9) == []
+    assert send(fw, "?", fw.homing_seconds - 0.1) == []
     assert send(fw, "?") == []
     out = send(fw, "", 0.2)
     assert out[0].startswith("<Home,") and parse_status(out[0]).joints == (0.0,) * 6
