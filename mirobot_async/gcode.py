@@ -17,7 +17,7 @@ import math
 import numbers
 
 from mirobot_async.errors import MirobotUsageError
-from mirobot_async.line import normalize_line, parse_line
+from mirobot_async.line import MAX_INT_DIGITS, normalize_line, parse_line
 from mirobot_async.settings import SETTINGS, SettingInfo, setting_problem
 from mirobot_async.validation import ModalState, check_line, check_program, parse_words
 from mirobot_async.values import (
@@ -147,13 +147,23 @@ def _finish(words: list[str]) -> bytes:
             f"the line {text!r} is {compact} bytes without spaces; the firmware accepts at most "
             f"{MAX_LINE_LENGTH} ('Line overflow'): use fewer decimals or split the command"
         )
-    for word in parse_line(text).words:
-        if word.lossy:
+    for word in words:
+        # Builders write plain numbers (fmt_number: sign, digits, one dot), so a word's digits
+        # are its text after the letter; no re-parse of a line built here.
+        if len(word) > MAX_INT_DIGITS + 1 and _lossy_number(word[1:]):
+            value = parse_line(word).words[0].value
             raise MirobotUsageError(
                 f"{word} in {text!r} has more than 8 digits: the firmware keeps only 8 "
-                f"(leading zeros count) and would read {show_number(word.value)}"
+                f"(leading zeros count) and would read {show_number(value)}"
             )
     return text.encode("ascii") + b"\n"
+
+
+def _lossy_number(number: str) -> bool:
+    """A number written by :func:`fmt_number` that the firmware reads otherwise: a digit past
+    the 8th (leading zeros count) that is not zero (as :func:`~mirobot_async.line.read_number`)."""
+    digits = number.lstrip("+-").replace(".", "", 1)
+    return len(digits) > MAX_INT_DIGITS and digits[MAX_INT_DIGITS:].strip("0") != ""
 
 
 # --------------------------------------------------------------------------------------------
