@@ -37,7 +37,14 @@ from mirobot_async.errors import (
 )
 
 if TYPE_CHECKING:
-    from mirobot_async.client import ClientStats, LineResult, Mirobot, Stream, StreamResult
+    from mirobot_async.client import (
+        ClientStats,
+        LineResult,
+        Mirobot,
+        PathError,
+        Stream,
+        StreamResult,
+    )
     from mirobot_async.envelope import Envelope
     from mirobot_async.replies import State, StatusReport, parse_status
     from mirobot_async.testing import start_emulator
@@ -59,6 +66,7 @@ __all__ = [
     "MirobotTimeoutError",
     "MirobotUsageError",
     "MotionRefusedError",
+    "PathError",
     "RefusalReason",
     "State",
     "StatusReport",
@@ -74,6 +82,7 @@ _LAZY: dict[str, str] = {
     "ClientStats": "mirobot_async.client",
     "LineResult": "mirobot_async.client",
     "Mirobot": "mirobot_async.client",
+    "PathError": "mirobot_async.client",
     "Stream": "mirobot_async.client",
     "StreamResult": "mirobot_async.client",
     "State": "mirobot_async.replies",

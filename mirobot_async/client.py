@@ -132,6 +132,7 @@ from mirobot_async.parts import (
     RESET_TIMEOUT,
     STATUS_TIMEOUT,
 )
+from mirobot_async.path_commands import PathCommands, PathError
 from mirobot_async.protocol import encode_line
 from mirobot_async.replies import StatusReport
 from mirobot_async.router import url_text
@@ -153,6 +154,7 @@ __all__ = [
     "ClientStats",
     "LineResult",
     "Mirobot",
+    "PathError",
     "Stream",
     "StreamResult",
     "Transport",
@@ -181,7 +183,7 @@ class _Connector:
         await self._arm.close()
 
 
-class Mirobot(MotionCommands, StatusCommands, AccessoryCommands):
+class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
     """An asyncio connection to one Mirobot. Open it with :meth:`connect`.
 
     All methods may be called concurrently from many tasks; lines go out in call order and each

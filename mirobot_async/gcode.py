@@ -77,6 +77,8 @@ __all__ = [
     "move_pose",
     "normalize_line",
     "parse_words",
+    "path_header",
+    "path_point",
     "relative",
     "set_gripper",
     "set_hard_limits",
@@ -278,6 +280,70 @@ def move_pose(
     words = ["M20", "G91" if relative else "G90", "G1" if linear else "G0", *axis_words]
     if feed is not None:
         words.append("F" + feed)
+    return _finish(words)
+
+
+def path_header(
+    *, joints: bool, speed: float | None, linear: bool = True, decimals: int = 3
+) -> bytes:
+    """The modal line of a path, stated once: ``M21|M20 G90 G0|G1 G21 [F..]``.
+
+    The points follow as :func:`path_point` lines without ``M20``/``M21``: the firmware
+    restarts a line that carries ``M20``/``M21`` from where the arm is at that moment, so
+    streamed full lines would swing back. ``linear`` with ``speed=None`` is refused (``G1``
+    needs a feed rate); joint paths use ``G1`` with a speed (deg/min), else ``G0``.
+    """
+    places = _check_decimals(decimals)
+    if not joints and linear and speed is None:
+        raise _usage("speed is required with linear=True (mm/min)")
+    motion = "G1" if (speed is not None and (joints or linear)) else "G0"
+    words = ["M21" if joints else "M20", "G90", motion, "G21"]
+    if speed is not None:
+        words.append("F" + _positive(speed, "speed", places, "deg/min" if joints else "mm/min"))
+    return _finish(words)
+
+
+def path_point(
+    values: tuple[float | None, ...],
+    *,
+    joints: bool,
+    motion: str,
+    firmware: str = "2021",
+    decimals: int = 3,
+) -> bytes:
+    """One point of a path after :func:`path_header`: ``G0|G1 X.. Y.. Z.. A.. B.. C.. [D..]``.
+
+    ``values`` are x, y, z, rx, ry, rz (mm, degrees) or, with ``joints``, j1..j6 and the rail
+    (degrees, mm); ``None`` entries stay. Absolute joint targets are checked against the joint
+    and rail ranges (:class:`MirobotUsageError`).
+    """
+    places = _check_decimals(decimals)
+    letters = ("X", "Y", "Z", "A", "B", "C", "D")
+    names = (
+        ("j1", "j2", "j3", "j4", "j5", "j6", "rail")
+        if joints
+        else ("x", "y", "z", "rx", "ry", "rz")
+    )
+    if len(values) > len(names):
+        raise _usage(f"a path point has at most {len(names)} values, not {len(values)}")
+    words = [motion]
+    for index, value in enumerate(values):
+        if value is None:
+            continue
+        text = fmt_number(value, places, name=names[index])
+        if joints:
+            low, high = (
+                RAIL_RANGES[_check_firmware(firmware)]
+                if index == 6
+                else JOINT_RANGES[JOINT_NAMES[index]]
+            )
+            if not low <= float(text) <= high:
+                raise _usage(
+                    f"{names[index]}={_show(float(text))} is outside {_show(low)}..{_show(high)}"
+                )
+        words.append(letters[index] + text)
+    if len(words) == 1:
+        raise _usage("a path point needs at least one coordinate")
     return _finish(words)
 
 

@@ -15,7 +15,7 @@ status at rest) when :meth:`EnvelopeGuard.verdict` asks for it.
 from __future__ import annotations
 
 import logging
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Final, Protocol
 
@@ -37,6 +37,7 @@ __all__ = [
     "Guard",
     "NeedPosition",
     "NullGuard",
+    "PathRefused",
     "Tracked",
     "make_guard",
 ]
@@ -44,6 +45,14 @@ __all__ = [
 _log = logging.getLogger("mirobot_async.client")
 
 _QUIET: Final = frozenset({State.IDLE, State.ALARM, State.CHECK})
+
+
+class PathRefused(MirobotUsageError):
+    """:meth:`EnvelopeGuard.preview` refused the line at :attr:`index`."""
+
+    def __init__(self, index: int, message: str) -> None:
+        super().__init__(message)
+        self.index = index
 
 
 class NeedPosition:
@@ -83,6 +92,8 @@ class Guard(Protocol):
     def needs_firmware(self, parsed: ParsedLine) -> bool: ...
 
     def verdict(self, parsed: ParsedLine, what: str | None) -> LineCheck | NeedPosition | None: ...
+
+    def preview(self, lines: Sequence[ParsedLine]) -> list[LineCheck] | NeedPosition: ...
 
     def adopt_status(self, report: StatusReport) -> None: ...
 
@@ -138,6 +149,10 @@ class NullGuard:
     def verdict(self, parsed: ParsedLine, what: str | None) -> LineCheck | NeedPosition | None:
         """Nothing to check."""
         return None
+
+    def preview(self, lines: Sequence[ParsedLine]) -> list[LineCheck] | NeedPosition:
+        """Nothing to check."""
+        return []
 
     def adopt_status(self, report: StatusReport) -> None:
         """Nothing to predict."""
@@ -285,6 +300,27 @@ class EnvelopeGuard:
             raise MirobotUsageError(
                 f"refused by the safety envelope: {err}; nothing was sent"
             ) from None
+
+    def preview(self, lines: Sequence[ParsedLine]) -> list[LineCheck] | NeedPosition:
+        """The verdicts on ``lines`` as if they were written one after another from the
+        predicted state (nothing is tracked), or :data:`NEED_POSITION`. A refused line raises
+        :class:`PathRefused` naming its index."""
+        from mirobot_async.prediction import Prediction, predict
+
+        state = self._machine()
+        if state.joints is None:
+            return NEED_POSITION
+        checks: list[LineCheck] = []
+        for index, parsed in enumerate(lines):
+            result = predict(self.envelope, parsed, state, what=None)
+            if not isinstance(result, Prediction):
+                self._stats.envelope_refusals += 1
+                raise PathRefused(
+                    index, f"refused by the safety envelope: {result.error()}; nothing was sent"
+                )
+            state = result.state
+            checks.append(_line_check(state, result.moves))
+        return checks
 
     def adopt_status(self, report: StatusReport) -> None:
         """A status at rest with nothing in flight: where the arm is (unless predicted)."""

@@ -16,7 +16,7 @@ from mirobot_async.replies import StatusReport
 if TYPE_CHECKING:
     from mirobot_async.envelope import LineCheck
 
-__all__ = ["MotionCommands"]
+__all__ = ["MotionCommands", "absolute_pose"]
 
 
 class MotionCommands(ClientParts):
@@ -184,7 +184,7 @@ class MotionCommands(ClientParts):
 
         def target(base: StatusReport | None, check: LineCheck | None) -> Target:
             if not relative:
-                return Target(pose=_absolute_pose(values, check, self._condition))
+                return Target(pose=absolute_pose(values, check, self._condition))
             if check is not None and check.pose is not None:
                 pose = tuple(
                     None if v is None else p for v, p in zip(values, check.pose, strict=True)
@@ -253,7 +253,7 @@ class MotionCommands(ClientParts):
         await self._command_within(gcode.clear_alarm(), timeout)
 
 
-def _absolute_pose(
+def absolute_pose(
     values: tuple[float | None, ...], check: LineCheck | None, condition: RobotCondition
 ) -> tuple[float | None, ...]:
     """Where an absolute ``M20`` move reads back: the firmware adds the 2021 base offset

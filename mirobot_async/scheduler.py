@@ -376,6 +376,13 @@ class LineScheduler:
             self._dwell_until = max(self._dwell_until, now) + dwell
         return slot
 
+    async def learn_position(self, command: str, deadline: float | None) -> None:
+        """Wait until nothing is in flight and a status shows the arm at rest; the guard adopts
+        it as the predicted position (for checks of lines not written yet). Raises
+        :class:`MirobotTimeoutError` at ``deadline``; cancellation is safe."""
+        async with self._send_lock:
+            await self._learn_position(command, deadline)
+
     async def _learn_position(self, command: str, deadline: float | None) -> None:
         """Wait until nothing is in flight and a status shows the arm at rest; adopt it."""
         conn = self._wire.conn

@@ -14,7 +14,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mirobot_async import InvalidLineError, Mirobot, MirobotUsageError
+from mirobot_async import (
+    Envelope,
+    InvalidLineError,
+    Mirobot,
+    MirobotUsageError,
+    MotionRefusedError,
+    PathError,
+)
 from mirobot_async.testing import EmulatorProcess, WireSpy
 from mirobot_async.validation import ModalState, check_line
 
@@ -110,3 +117,71 @@ async def test_validation_follows_the_modes_and_has_a_loud_opt_out(
         await arm.send("M3 S1000", validate=False)
     assert "WITHOUT validation" in caplog.text
     assert wire_spy.lines(mark) == [b"M3 S1000\n"]
+
+
+# ---- paths (issue 12 item 2) ----------------------------------------------------------------
+
+_SQUARE = [(200, 0, 200), (200, 20, 200), (180, 20, 200), (180, 0, 200), (200, 0, 200)]
+
+
+async def test_move_path_streams_bare_lines_and_ends_idle_at_the_last_point(
+    ready_arm: Mirobot, wire_spy: WireSpy
+) -> None:
+    arm = ready_arm
+    await arm.move_pose(200, 0, 200, 0, 0, 0)
+    mark = wire_spy.mark()
+    report = await arm.move_path(_SQUARE[1:], speed=2000)
+    assert report.pose[:3] == pytest.approx((200, 0, 200), abs=0.2)
+    sent = wire_spy.lines(mark)
+    assert sent[0] == b"M20 G90 G1 G21 F2000\n"
+    # the modes once: no later line carries M20/M21 (the firmware restarts such a line from
+    # where the arm is)
+    assert sent[1:5] == [
+        b"G1 X200 Y20 Z200\n",
+        b"G1 X180 Y20 Z200\n",
+        b"G1 X180 Y0 Z200\n",
+        b"G1 X200 Y0 Z200\n",
+    ]
+
+
+async def test_move_joint_path_ends_at_the_last_point(ready_arm: Mirobot) -> None:
+    points = [(10, 0, 0, 0, 0, 0), (20, 5, 0, 0, 0, 0), (None, 10, -5)]
+    report = await ready_arm.move_joint_path(points, speed=2000)
+    assert report.joints[:3] == pytest.approx((20, 10, -5), abs=0.05)
+
+
+async def test_a_bad_point_is_refused_before_the_first_byte(
+    ready_arm: Mirobot, wire_spy: WireSpy
+) -> None:
+    mark = wire_spy.mark()
+    refused = r"path point 2 \(200, 0, 300, 0\): j1=200 is outside"
+    with pytest.raises(MirobotUsageError, match=refused):
+        await ready_arm.move_joint_path([(10,), (20,), (200, 0, 300, 0)], speed=1000)
+    with pytest.raises(MirobotUsageError, match="speed is required"):
+        await ready_arm.move_path(_SQUARE)
+    assert wire_spy.lines(mark) == []
+
+
+async def test_the_envelope_checks_the_whole_path_first(emu: EmulatorProcess) -> None:
+    spy = WireSpy()
+    async with Mirobot.connect(
+        emu.url, envelope=Envelope(x=(None, 215)), open_transport=spy.opener
+    ) as arm:
+        await arm.unlock()
+        if arm.firmware == "2021":
+            await arm.settings()  # the base offset (absolute M20 targets)
+        await arm.move_pose(200, 0, 200, 0, 0, 0)
+        mark = spy.mark()
+        path = [(205, 0, 200), (210, 0, 200), (220, 0, 200), (205, 0, 200)]
+        with pytest.raises(MirobotUsageError, match=r"path point 2 \(220, 0, 200\).*x=215"):
+            await arm.move_path(path, speed=2000)
+        assert spy.lines(mark) == []
+        report = await arm.move_path(path[:2], speed=2000)
+        assert report.pose[0] == pytest.approx(210, abs=0.2)
+
+
+async def test_a_point_the_robot_refuses_is_named(ready_arm: Mirobot) -> None:
+    with pytest.raises(PathError) as info:
+        await ready_arm.move_path([(200, 0, 200), (900, 0, 200), (200, 0, 200)], speed=2000)
+    assert info.value.index == 1 and info.value.point == (900, 0, 200)
+    assert isinstance(info.value.error, MotionRefusedError)
