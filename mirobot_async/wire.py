@@ -22,6 +22,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Protocol
 
+from mirobot_async.ports import AUTO, DEFAULT_PROBE_TIMEOUT, find_mirobot
 from mirobot_async.protocol import Event, MirobotConnection, PendingLine
 from mirobot_async.transport import Implementation, SerialLink
 
@@ -71,11 +72,19 @@ class TransportOpener(Protocol):
 def serial_opener(
     implementation: Implementation = "fast", exclusive: bool = True
 ) -> TransportOpener:
-    """The default opener: a pyserial URL through :class:`~mirobot_async.transport.SerialLink`."""
+    """The default opener: a pyserial URL through :class:`~mirobot_async.transport.SerialLink`.
+
+    The URL ``"auto"`` is the one Mirobot :func:`~mirobot_async.ports.find_mirobot` finds
+    (probing with ``?`` and ``$$`` only, at most ``timeout`` seconds per stage, 3 s by default;
+    :class:`~mirobot_async.errors.MirobotConnectionError` listing the ports when none or several
+    answer). Cancellation while probing returns at once; the probes end by their own timeout.
+    """
 
     async def open_serial(
         url: str, *, on_data: DataCallback, on_lost: LostCallback, timeout: float
     ) -> Transport:
+        if url == AUTO:
+            url = await asyncio.to_thread(find_mirobot, timeout=min(timeout, DEFAULT_PROBE_TIMEOUT))
         return await SerialLink.open(
             url,
             on_data=on_data,

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 from typing import Final, NoReturn
 
 from mirobot_async import gcode
@@ -19,6 +20,8 @@ from mirobot_async.cli.exits import EXIT_USAGE, PROG
 __all__ = ["DEFAULT_MONITOR_INTERVAL", "build_parser"]
 
 DEFAULT_MONITOR_INTERVAL: Final = 0.5
+PORT_ENV: Final = "MIROBOT_PORT"
+"""Environment variable: the default of ``--port`` (a port, a URL or ``auto``)."""
 _DEFAULT_TIME_SCALE_TEXT: Final = "10"  # session.DEFAULT_TIME_SCALE, without importing asyncio
 
 
@@ -62,11 +65,22 @@ class _Parser(argparse.ArgumentParser):
 def _robot_options() -> _Parser:
     robot = _Parser(add_help=False)
     group = robot.add_argument_group("robot connection")
-    group.add_argument(
+    where = group.add_mutually_exclusive_group()
+    where.add_argument(
         "--port",
         metavar="URL",
-        help="the arm's serial port or pyserial URL (/dev/ttyUSB0, COM3, socket://host:port); "
-        "without it an embedded virtual Mirobot is started for this command",
+        default=os.environ.get(PORT_ENV) or None,
+        help="the arm's serial port or pyserial URL (/dev/ttyUSB0, COM3, socket://host:port), "
+        f"or 'auto' (default: ${PORT_ENV}); without either an embedded virtual Mirobot is "
+        "started for this command",
+    )
+    where.add_argument(
+        "--auto",
+        dest="port",
+        action="store_const",
+        const="auto",
+        help="find the arm: the one port that answers as a Mirobot (see 'mirobot ports'; "
+        "sends only ? and $$); several answering is an error",
     )
     group.add_argument(
         "--firmware",

@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Final
 
 from mirobot_async.cli.exits import CliError, RobotNotReadyError, note
 from mirobot_async.errors import MirobotError, MirobotLinkLostError
+from mirobot_async.ports import AUTO, find_mirobot
 from mirobot_async.replies import State, StatusReport
 
 if TYPE_CHECKING:
@@ -113,6 +114,9 @@ async def open_robot(args: argparse.Namespace) -> AsyncIterator[Mirobot]:
     if args.port is not None:
         if args.time_scale is not None:
             note("note: --time-scale only applies to the embedded virtual Mirobot; ignored")
+        if args.port == AUTO:
+            args.port = await asyncio.to_thread(find_mirobot)
+            note(f"auto: using {args.port}")
         _check_port(args.port)
         async with Mirobot.connect(args.port, firmware=args.firmware) as arm:
             yield arm
