@@ -211,6 +211,7 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
         probe: bool = True,
         exclusive: bool = True,
         open_transport: TransportOpener | None = None,
+        address: int | None = None,
     ) -> _Connector:
         """Open ``url`` (device, pty path, ``socket://host:port``, ``loop://``) at 115200 8N1.
 
@@ -238,7 +239,26 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
         Raises :class:`MirobotConnectionError` at once when the port cannot be opened (missing
         path, busy port) or when nothing answers the probe within ``timeout`` seconds.
         Cancellation closes the port.
+
+        ``address`` (1..): the arm behind a multi-robot controller at that address on the bus
+        at ``url`` (:func:`mirobot_async.bus.connect`); use it as ``async with`` only (the bus
+        is closed with the arm); ``implementation``, ``exclusive`` and ``open_transport`` are
+        then not used. Raises :class:`~mirobot_async.bus.NodeSilentError` when no node answers
+        there.
         """
+        if address is not None:
+            from mirobot_async.bus import connect as connect_on_bus
+
+            single: _Connector = connect_on_bus(
+                url,
+                address=address,
+                firmware=firmware,
+                timeout=timeout,
+                envelope=envelope,
+                status_timeout=status_timeout,
+                probe=probe,
+            )
+            return single
         arm = cls(
             firmware=firmware,
             envelope=envelope,
