@@ -14,11 +14,12 @@ from . import codes as c
 from .gcode import GcodeExecutor
 from .geometry import switch_pins
 from .linebuffer import RX_BUFFER_SIZE, RX_CAPACITY
-from .linecost import BYTE_SECONDS, line_seconds
+from .linecost import line_seconds
 from .machine import Machine
 from .reports import banner, status_line
 from .scanner import read_float
 from .system import SystemCommands
+from .wire import BYTE_SECONDS, Wire
 
 DEFAULT_HOMING_SECONDS: Final = 10.0
 """Switch search of ``$H`` on 2021 when the constructor is not told otherwise (PROTOCOL 9)."""
@@ -53,7 +54,13 @@ class Firmware:
     construction: the banner is already in the output.
     """
 
-    def __init__(self, profile: str = "2021", *, homing_seconds: float | None = None) -> None:
+    def __init__(
+        self,
+        profile: str = "2021",
+        *,
+        homing_seconds: float | None = None,
+        byte_seconds: float = BYTE_SECONDS,
+    ) -> None:
         if profile not in c.PROFILES:
             raise ValueError(f"unknown firmware profile {profile!r} (use 'classic' or '2021')")
         if homing_seconds is None:
@@ -71,6 +78,7 @@ class Firmware:
         self.motion_ends: int = 0
         """How many such instants there have been (``motion_end_times`` keeps the last ones)."""
         self._m = Machine(profile, self.homing_seconds)
+        self._wire = Wire(byte_seconds)
         self._parse_until: float | None = None
         """When the line being parsed (``Machine.parsing``) is done."""
         self._status_after_parse = False
@@ -86,13 +94,19 @@ class Firmware:
     # public API
 
     def receive(self, data: bytes) -> None:
-        """Bytes from the host. Realtime bytes act at once wherever they are; the others enter
-        the 128-byte receive ring (lost when it is full) and complete lines are executed as soon
-        as the parser is free (not waiting for the planner, a homing search, a dwell or a hold).
+        """Bytes from the host, written now: they arrive one byte time apart (:mod:`.wire`;
+        run the clock to see their effect). On arrival realtime bytes act at once wherever
+        they are; the others enter the 128-byte receive ring (lost when it is full) and
+        complete lines are parsed (:mod:`.linecost`) and executed as soon as the parser is free
+        (not waiting for the planner, a homing search, a dwell or a hold).
         """
+        self._wire.send(bytes(data), self.now)
+        self._deliver(self._wire.take_due(self.now))
+
+    def _deliver(self, data: bytes) -> None:
+        """Bytes that have arrived at the UART."""
         rx = self._m.rx
         waiting = False  # bytes put since the last pump (the parser takes them as they come)
-        data = bytes(data)
         i, n = 0, len(data)
         while i < n:
             if data[i] in _REALTIME:
@@ -136,8 +150,11 @@ class Firmware:
         zero_steps = 0
         while True:
             ttc = planner.time_to_next_change()
-            parse = None if self._parse_until is None else max(self._parse_until - self.now, 0.0)
-            step = ttc if parse is None else parse if ttc is None else min(ttc, parse)
+            step = ttc
+            for at in (self._parse_until, self._wire.next_event()):
+                if at is not None:
+                    wait = max(at - self.now, 0.0)
+                    step = wait if step is None else min(step, wait)
             if step is None:
                 if not math.isinf(end):
                     planner.advance(end - self.now)  # its clock times the starvations
@@ -151,6 +168,8 @@ class Firmware:
                 self.now = end
                 if planner.free != free:
                     self._block_done(busy)
+                if len(self._wire):
+                    self._deliver(self._wire.take_due(self.now))  # bytes up to ``end``
                 break
             planner.advance(step)
             self.now += step
@@ -159,6 +178,8 @@ class Firmware:
                 self._block_done(busy)
             if self._parse_until is not None and self._parse_until <= self.now:
                 self._finish_parse()
+            if len(self._wire):
+                self._deliver(self._wire.take_due(self.now))
             if zero_steps > 100_000:  # pragma: no cover - a planner bug, never loop forever
                 break
         self._service()
@@ -182,8 +203,9 @@ class Firmware:
         when nothing changes by itself."""
         ttc = self._m.planner.time_to_next_change()
         deadline = None if ttc is None else self.now + ttc
-        if self._parse_until is not None:
-            return self._parse_until if deadline is None else min(deadline, self._parse_until)
+        for at in (self._parse_until, self._wire.next_event()):
+            if at is not None:
+                deadline = at if deadline is None else min(deadline, at)
         return deadline
 
     def reset(self) -> None:
@@ -278,10 +300,14 @@ class Firmware:
         return self._m.locked
 
     @property
-    def parse_deadline(self) -> float | None:
-        """When the line being parsed is done (its effects and reply then), None when the
-        parser is not working on a line (see :mod:`.linecost`)."""
-        return self._parse_until
+    def input_deadline(self) -> float | None:
+        """When received bytes next arrive (a line end or realtime byte, :mod:`.wire`) or the
+        line being parsed is done (:mod:`.linecost`); None when nothing is in transit or being
+        parsed."""
+        at = self._wire.next_event()
+        if self._parse_until is None:
+            return at
+        return self._parse_until if at is None else min(at, self._parse_until)
 
     @property
     def parser_blocked(self) -> bool:
@@ -359,9 +385,7 @@ class Firmware:
             m.planner.cycle_start()
             return
         m.parsing = line
-        cost = line.raw * BYTE_SECONDS
-        if not line.overflow:
-            cost = line_seconds(line.text, line.raw, m.modal.cart_mode)
+        cost = 0.0 if line.overflow else line_seconds(line.text, m.modal.cart_mode)
         self._parse_until = self.now + cost
 
     def _finish_parse(self) -> None:

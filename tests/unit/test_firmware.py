@@ -19,6 +19,7 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 from mirobot_emulator.firmware import RX_CAPACITY, Firmware
+from mirobot_emulator.firmware.wire import BYTE_SECONDS
 from mirobot_emulator.motion import Planner
 
 from mirobot_async import kinematics as kin
@@ -64,8 +65,8 @@ def send(fw: Firmware, data: bytes | str, dt: float = 0.0) -> list[str]:
     """Send bytes, run the clock ``dt`` seconds, return the printed lines."""
     fw.receive(data.encode() if isinstance(data, str) else data)
     fw.advance(dt)
-    while (parsed := fw.parse_deadline) is not None:  # each line takes the parser a moment
-        fw.advance(parsed - fw.now)
+    while (due := fw.input_deadline) is not None:  # bytes in transit, a line being parsed
+        fw.advance(due - fw.now)
     return lines_of(fw.read_output())
 
 
@@ -375,6 +376,7 @@ def test_receive_ring_overflow_loses_bytes() -> None:
     assert fw.rx_free == RX_CAPACITY
     payload = b"G4 P0\n" * 40  # 240 bytes while nothing is read
     fw.receive(payload)
+    fw.advance(len(payload) * BYTE_SECONDS)  # every byte has arrived (the dwell goes on)
     assert fw.rx_free == 0
     assert fw.rx_lost == len(payload) - RX_CAPACITY
     fw.advance(math.inf)

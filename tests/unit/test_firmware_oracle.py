@@ -7,6 +7,7 @@ import math
 
 import pytest
 from mirobot_emulator.firmware import Firmware
+from mirobot_emulator.firmware.wire import BYTE_SECONDS
 
 STEP_TOLERANCE = 0.1  # status angles are whole motor steps (see test_firmware.py)
 
@@ -14,8 +15,8 @@ STEP_TOLERANCE = 0.1  # status angles are whole motor steps (see test_firmware.p
 def lines(fw: Firmware, data: str, dt: float = 0.0) -> list[str]:
     fw.receive(data.encode("latin-1"))
     fw.advance(dt)
-    while (parsed := fw.parse_deadline) is not None:  # each line takes the parser a moment
-        fw.advance(parsed - fw.now)
+    while (due := fw.input_deadline) is not None:  # bytes in transit, a line being parsed
+        fw.advance(due - fw.now)
     text = fw.read_output().decode("latin-1")
     return text.split("\r\n")[:-1] if text else []
 
@@ -128,6 +129,7 @@ def test_a_dwell_reports_idle_and_the_ring_holds_127_bytes() -> None:
     fw = unlocked()
     assert lines(fw, "G4 P2\n") == []
     fw.receive(b"G4P0\n" * 25 + b"G4P")  # 128 bytes while the parser waits
+    fw.advance(128 * BYTE_SECONDS)  # every byte has arrived (the dwell goes on)
     assert fw.rx_lost == 1 and fw.state == "Idle"
     assert lines(fw, "", math.inf) == ["ok"] * 26
     assert lines(fw, "\n") == ["error: Invalid gcode ID:28"]  # "G4": the "P" was lost

@@ -1,0 +1,65 @@
+"""The host's bytes on their way to the UART: each arrives one byte time after the previous.
+
+The oracle's UART takes a byte every ~100 us (a 20-byte line written at once is answered 2.0 ms
+later, a 16-byte one 1.6 ms; 115200 baud would be 86.8 us), so a host that writes more than the
+receive ring holds loses only what arrives while the ring is full (oracle: 25 of 40 lines
+written at once are answered). The parse time of a line overlaps the arrival of the next.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from typing import Final
+
+BYTE_SECONDS: Final = 100e-6
+"""Time of one byte on the host-to-firmware wire (oracle, measured)."""
+
+_EVENT_BYTES: Final = re.compile(rb"[\r\n?!~%@]")
+"""Bytes whose arrival matters at once: line ends and realtime bytes."""
+
+
+class Wire:
+    """A queue of bytes in transit with an explicit clock (``byte_seconds`` 0: no transit)."""
+
+    def __init__(self, byte_seconds: float = BYTE_SECONDS) -> None:
+        if not (math.isfinite(byte_seconds) and byte_seconds >= 0.0):
+            raise ValueError(f"byte_seconds must be finite and >= 0: {byte_seconds}")
+        self.byte_seconds = byte_seconds
+        self._data = bytearray()
+        self._head_at = 0.0  # arrival of the first byte in transit
+        self._last_at = -math.inf  # arrival of the last byte delivered
+
+    def __len__(self) -> int:
+        return len(self._data)
+
+    def send(self, data: bytes, now: float) -> None:
+        """The host writes ``data`` at ``now`` (after whatever is still in transit)."""
+        if not data:
+            return
+        if not self._data:
+            self._head_at = max(now, self._last_at) + self.byte_seconds
+        self._data += data
+
+    def next_event(self) -> float | None:
+        """When the next line end or realtime byte arrives (else the last byte), None if empty."""
+        if not self._data:
+            return None
+        found = _EVENT_BYTES.search(self._data)
+        index = found.start() if found is not None else len(self._data) - 1
+        return self._head_at + index * self.byte_seconds
+
+    def take_due(self, now: float) -> bytes:
+        """The bytes that have arrived by ``now`` (oldest first), taken off the wire."""
+        if not self._data or now < self._head_at - 1e-12:
+            return b""
+        if self.byte_seconds > 0.0:
+            count = math.floor((now - self._head_at) / self.byte_seconds + 1e-6) + 1
+        else:
+            count = len(self._data)
+        count = min(count, len(self._data))
+        due = bytes(self._data[:count])
+        del self._data[:count]
+        self._last_at = self._head_at + (count - 1) * self.byte_seconds
+        self._head_at += count * self.byte_seconds
+        return due
