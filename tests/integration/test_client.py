@@ -456,9 +456,9 @@ async def test_wait_false_then_wait_idle_hold_and_resume(ready_arm: Mirobot) -> 
                 break
     held = await arm.hold()
     assert held.state is State.HOLD
-    # A held arm decelerates (~55 ms on the firmware oracle) and then stays: frozen once two
-    # statuses 50 ms apart agree.
-    previous = held.joints[0]
+    # A held arm moves on ~55 ms, then brakes (as on the firmware oracle) and stays: frozen once
+    # two statuses 50 ms apart agree.
+    previous = -1.0
     frozen = -1.0
     count = 0
     async with contextlib.aclosing(arm.statuses(interval=0.05)) as reports:
