@@ -356,3 +356,25 @@ def test_starvations_are_answered_from_the_planners_public_counters() -> None:
     ) as robot:
         assert robot.command("starvations").startswith("error starvations: ")
         assert "starvations" not in stats(robot)
+
+
+def test_starvations_count_the_real_planners_stops() -> None:
+    """The firmware's own planner: a move after the arm stopped for want of blocks counts."""
+    with served() as robot:
+        assert robot.command("starvations") == "ack starvations 0"
+        fd = open_like_pyserial(robot.path)
+        try:
+
+            def reply_to(line: bytes, done: Callable[[bytes], bool]) -> bytes:
+                os.write(fd, line)
+                return read_until(lambda: os.read(fd, 4096), done, timeout=5)
+
+            assert b"Unlock" in reply_to(b"M50\n", lambda d: d.endswith(b"ok\r\n"))
+            for target in (5, 10):  # time scale 0: each move is over before the next comes
+                reply_to(f"M21 G90 G1 X{target} F2000\n".encode(), lambda d: d.endswith(b"ok\r\n"))
+                assert reply_to(b"?", lambda d: d.endswith(b">\r\n")).startswith(b"<Idle,")
+        finally:
+            os.close(fd)
+        assert robot.command("starvations") == "ack starvations 1"
+        counters = stats(robot)
+        assert counters["starvations"] == 1 and counters["run_outs"] == 2, counters
