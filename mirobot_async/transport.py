@@ -347,7 +347,9 @@ class SerialLink:
         transport: asyncio.BaseTransport
         try:
             async with asyncio.timeout(timeout):
-                if urllib.parse.urlparse(url).scheme == "socket":
+                if implementation == "fast" and urllib.parse.urlparse(url).scheme == "socket":
+                    # asyncio's own socket transport (pyserial-asyncio 0.6 would wrap the socket
+                    # in its serial transport, unguarded: the generic path below guards it)
                     transport, _ = await impl.create_serial_connection(
                         loop, lambda: protocol, url, **serial_kwargs
                     )

@@ -1,9 +1,11 @@
 """The ``mirobot`` command line (also ``python -m mirobot_async``).
 
-Subcommands that talk to an arm take ``--port URL``; without it they start an embedded virtual
-Mirobot (the emulator, on a fresh pseudo-terminal) for the duration of the command, so every
-command works on a machine with no arm. ``--firmware`` and ``--time-scale`` choose that virtual
-arm's profile and speed; ``-v`` logs the wire traffic to stderr. Exit statuses: see
+Subcommands that talk to an arm take ``--port URL`` (default ``$MIROBOT_PORT``) or ``--auto``
+(the one port that answers as a Mirobot); without either they start an embedded virtual
+Mirobot (the emulator, on a fresh pseudo-terminal, or a loopback TCP port where there are no
+ptys) for the duration of the command, so every command works on a machine with no arm.
+``--firmware`` and ``--time-scale`` choose that virtual arm's profile and speed; ``-v`` logs the
+wire traffic to stderr. Exit statuses: see
 :mod:`mirobot_async.cli.exits`.
 
 Layout (each module imports only the ones below it):
@@ -11,8 +13,10 @@ Layout (each module imports only the ones below it):
 * :mod:`~mirobot_async.cli.running`: :func:`main`, the event loop, signals, exit statuses;
 * :mod:`~mirobot_async.cli.arguments`: the argparse parser (number types, option groups);
 * :mod:`~mirobot_async.cli.commands`: one ``cmd_*`` function per subcommand;
+* :mod:`~mirobot_async.cli.demo`: ``mirobot demo``, the examples shipped with the package;
 * :mod:`~mirobot_async.cli.targets`: the KEY=VALUE targets of ``move``;
-* :mod:`~mirobot_async.cli.ports`: ``mirobot ports``, listing and probing serial ports;
+* :mod:`~mirobot_async.cli.ports`: ``mirobot ports``, listing and probing serial ports (the
+  probe is :mod:`mirobot_async.ports`, which ``--auto`` and ``Mirobot.connect("auto")`` use);
 * :mod:`~mirobot_async.cli.session`: opening, preparing and pre-flighting the arm, background
   jobs, stopping safely on SIGINT/SIGTERM;
 * :mod:`~mirobot_async.cli.rendering`: status tables, progress bar, live monitor, summaries;

@@ -182,7 +182,7 @@ async def remote(ser2net_installed: None, tmp_path: Path) -> AsyncIterator[Remot
             kind: str, firmware: str = "2021", time_scale: float = 0.0
         ) -> tuple[EmulatorProcess, Ser2net]:
             emulator = await stack.enter_async_context(
-                await EmulatorProcess.start(firmware, time_scale)
+                await EmulatorProcess.start(firmware, time_scale, listen="pty")  # for ser2net
             )
             server = await stack.enter_async_context(run_ser2net(emulator.url, kind, tmp_path))
             return emulator, server
@@ -330,9 +330,7 @@ async def test_second_client_through_ser2net_is_refused(remote: RemoteFactory) -
 async def tcp_emulator(request: pytest.FixtureRequest) -> AsyncIterator[EmulatorProcess]:
     """An emulator serving ``socket://127.0.0.1:PORT`` itself (``--listen 127.0.0.1:0``)."""
     firmware, time_scale = getattr(request, "param", ("2021", 0.0))
-    emulator = await EmulatorProcess.start(
-        firmware, time_scale, extra_args=("--listen", "127.0.0.1:0")
-    )
+    emulator = await EmulatorProcess.start(firmware, time_scale, listen="tcp")
     async with emulator:
         assert emulator.url.startswith("socket://127.0.0.1:"), emulator.url
         yield emulator
