@@ -515,8 +515,10 @@ def test_split_bytes_serves_single_byte_reads() -> None:
         os.write(fd, b"$$\n")
         chunks = _read_until(fd, _settings_dump_done)
         assert b"".join(chunks) == whole  # the same bytes, only cut differently
-        singles = sum(len(chunk) == 1 for chunk in chunks)
-        assert singles >= 0.9 * len(chunks), [len(c) for c in chunks]
+        # one write per byte; reads see them apart unless this (loaded) reader falls behind
+        assert robot.server.split_writes >= 0.9 * len(whole)
+        # a reader waiting wakes on the first byte (a loaded one may see later bytes together)
+        assert any(len(chunk) == 1 for chunk in chunks), [len(c) for c in chunks]
         # turned off from the control channel: whole lines again
         assert robot.command("split-bytes off") == "ack split-bytes off"
         written = robot.server.split_writes
@@ -531,7 +533,8 @@ def test_split_bytes_from_the_control_channel() -> None:
         os.write(fd, b"\n" * 50)
         chunks = _read_until(fd, lambda data: data.count(b"ok\r\n") == 50)
         assert b"".join(chunks) == b"ok\r\n" * 50
-        assert sum(len(chunk) == 1 for chunk in chunks) >= 0.9 * len(chunks)
+        assert robot.server.split_writes >= 0.9 * 200  # one write per byte
+        assert any(len(chunk) == 1 for chunk in chunks), [len(c) for c in chunks]
 
 
 def test_delay_holds_every_reply_and_keeps_the_order() -> None:
