@@ -150,6 +150,26 @@ def shared_emulator() -> Iterator[Emulator]:
     assert "Traceback" not in (emu.stderr or ""), emu.stderr
 
 
+@pytest.fixture(scope="module")
+def instant_emulator() -> Iterator[Callable[[str], Emulator]]:
+    """One ``--time-scale 0`` emulator per profile for the module, for tests that reset it or
+    move to absolute targets (their order does not matter)."""
+    started: dict[str, Emulator] = {}
+
+    def get(profile: str) -> Emulator:
+        if profile not in started:
+            started[profile] = Emulator("--firmware", profile, "--time-scale", "0")
+        return started[profile]
+
+    try:
+        yield get
+    finally:
+        for emu in started.values():
+            emu.close()
+    for emu in started.values():
+        assert "Traceback" not in (emu.stderr or ""), emu.stderr
+
+
 # ----------------------------------------------------------------------------- serial helpers
 def read_until(
     port: serial.SerialBase, predicate: Callable[[str], bool], timeout: float = 3.0
@@ -280,8 +300,10 @@ def test_joint_move(emulator: Callable[..., Emulator], profile: str, scale: str)
 
 
 @pytest.mark.parametrize("profile", PROFILES)
-def test_time_scale_zero_is_instant(emulator: Callable[..., Emulator], profile: str) -> None:
-    emu = emulator("--firmware", profile, "--time-scale", "0")
+def test_time_scale_zero_is_instant(
+    instant_emulator: Callable[[str], Emulator], profile: str
+) -> None:
+    emu = instant_emulator(profile)
     with emu.port() as port:
         unlock(port, profile)
         port.write(b"M21 G90 G1 X10 Y-5 F100\n?")  # 10 s of motion at F100
@@ -309,8 +331,8 @@ def test_homing(emulator: Callable[..., Emulator], profile: str) -> None:
 
 
 @pytest.mark.parametrize("profile", PROFILES)
-def test_percent_resets(emulator: Callable[..., Emulator], profile: str) -> None:
-    emu = emulator("--firmware", profile, "--time-scale", "0")
+def test_percent_resets(instant_emulator: Callable[[str], Emulator], profile: str) -> None:
+    emu = instant_emulator(profile)
     with emu.port() as port:
         port.write(b"%")
         lines = read_until(port, lambda text: BANNER_LAST in text)
