@@ -79,6 +79,7 @@ class MotionCompletion:
         self._poller = poller
         self._condition = condition
         self.status_timeout = 2.0
+        self.depth = 2  # "?" kept in flight while waiting (see StatusPoller.fetch)
 
     async def wait(
         self,
@@ -109,7 +110,9 @@ class MotionCompletion:
                 raise MirobotTimeoutError(what, timeout, command=command)
             try:
                 report, _ = await poller.fetch(
-                    fresh=False, timeout=clip(self.status_timeout, deadline, current)
+                    fresh=False,
+                    timeout=clip(self.status_timeout, deadline, current),
+                    depth=self.depth,
                 )
             except MirobotTimeoutError as err:
                 if deadline is not None and loop_time() >= deadline:

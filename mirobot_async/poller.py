@@ -54,6 +54,7 @@ class _Waiter:
 
     fut: asyncio.Future[tuple[StatusReport, float] | BaseException]
     not_before: float
+    depth: int = 1  # "?" it wants in flight at once (2+: a completion wait, see fetch)
 
 
 class StatusPoller:
@@ -65,6 +66,7 @@ class StatusPoller:
         self._loop: asyncio.AbstractEventLoop | None = None
         self.retry_interval = 0.25
         self.min_gap = 0.002
+        self.pipeline_gap = 0.0165
         self.last_status: StatusReport | None = None
         self._waiters: list[_Waiter] = []
         self._asks: deque[float] = deque()  # write times of unanswered "?", oldest first
@@ -136,10 +138,20 @@ class StatusPoller:
     # ---- waiting ----
 
     async def fetch(
-        self, *, fresh: bool, timeout: float | None, what: str = "a status report"
+        self,
+        *,
+        fresh: bool,
+        timeout: float | None,
+        what: str = "a status report",
+        depth: int = 1,
     ) -> tuple[StatusReport, float]:
         """The next report (``fresh``: one answering a ``?`` written after this call started) and
         the write time of the ``?`` it is credited to (``-inf``: none).
+
+        ``depth`` > 1 (a wait for the end of motion) keeps up to that many ``?`` in flight,
+        written :attr:`pipeline_gap` apart (about one report's time on a 115200-baud wire), so
+        that the robot samples its state every report instead of once per round trip; only
+        while no line is in flight (the reports would delay their replies).
 
         Raises :class:`MirobotTimeoutError` naming ``what`` after ``timeout`` seconds, what the
         connection fails with (a lost link, a hard limit). Cancellation is safe.
@@ -147,7 +159,7 @@ class StatusPoller:
         check_timeout(timeout)
         self._condition.check_answering()
         loop = self._running_loop()
-        waiter = _Waiter(loop.create_future(), loop.time() if fresh else -math.inf)
+        waiter = _Waiter(loop.create_future(), loop.time() if fresh else -math.inf, depth)
         self._waiters.append(waiter)
         self.pump()
         try:
@@ -187,13 +199,20 @@ class StatusPoller:
         asks = self._asks
         if asks and asks[-1] >= newest_fresh and asks[-1] > self._last_report:
             # A "?" that can satisfy everyone is in flight (no report came since it was
-            # written; one that did may have answered it): ask again only if it is late.
+            # written; one that did may have answered it): ask again only if it is late, or
+            # (a completion wait, nothing else in flight) to keep ``depth`` "?" in flight.
+            depth = max(w.depth for w in waiting)
             due = self._last_ask + self.retry_interval
+            if depth > 1 and not self._wire.conn.pending_count:
+                in_flight = sum(1 for asked in asks if asked > self._last_report)
+                if in_flight < depth:
+                    due = min(due, self._last_ask + self.pipeline_gap)
             if now < due:
                 self._arm_timer(due)
                 return
-            self._wire.stats.status_retries += 1
-            _log.debug("no status reply after %.3f s; asking again", now - self._last_ask)
+            if due == self._last_ask + self.retry_interval:
+                self._wire.stats.status_retries += 1
+                _log.debug("no status reply after %.3f s; asking again", now - self._last_ask)
         else:
             due = self._last_ask + self.min_gap
             if now < due:
