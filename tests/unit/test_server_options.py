@@ -28,3 +28,11 @@ def test_every_controller_baud_is_accepted(baud: int) -> None:
 
 def test_without_a_bus_the_bus_options_are_not_read() -> None:
     ServerOptions(bus=0, bus_baud=1200, reset_on_open=True).check()
+
+
+def test_the_cli_offers_the_bauds_the_options_accept() -> None:
+    from mirobot_emulator.__main__ import BUS_BAUDS as CLI_BAUDS
+    from mirobot_emulator.bus import BAUD_CODES
+    from mirobot_emulator.server.options import BUS_BAUDS
+
+    assert CLI_BAUDS == BUS_BAUDS == tuple(sorted(BAUD_CODES.values()))
