@@ -5,7 +5,8 @@ line of stdout (flushed), then serves until SIGINT or SIGTERM (exit status 0, li
 traceback). Stdin is a control channel for fault
 injection (one command per line, answered ``ack <command>`` on stdout); EOF on stdin only stops
 reading it. Diagnostics go to stderr. See :mod:`mirobot_emulator.server` for what is modelled and
-:mod:`mirobot_emulator.faults` for the fault specifications and commands.
+:mod:`mirobot_emulator.faults` for the fault specifications and commands. With ``--bus N`` the
+port carries an RS485 bus of N controllers, each with its arm (:mod:`mirobot_emulator.bus`).
 
 Exit status: 0 after a signal or a ``close`` fault, 2 for bad arguments, 1 if the pty, the
 socket or the link cannot be created.
