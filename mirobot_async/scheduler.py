@@ -84,6 +84,27 @@ class StreamStopped(Exception):
     """Raised by :meth:`LineScheduler.submit` when a stream's ``should_stop`` says so."""
 
 
+def _disagree(parsed: ParsedLine, guard: EnvelopeGuard | NullGuard) -> bool:
+    """Only one of the two firmware profiles would refuse the line (then learn the profile)."""
+    verdicts = {
+        bool(line_problems(parsed, firmware=profile, state=guard.modal_state()))
+        for profile in _PROFILES
+    }
+    return len(verdicts) > 1
+
+
+def _validate(parsed: ParsedLine, firmware: str | None, guard: EnvelopeGuard | NullGuard) -> None:
+    """:func:`validate_line` with the profile (unknown: a line both profiles refuse) and the
+    modal state the guard follows."""
+    if firmware is not None:
+        validate_line(parsed, firmware=firmware, state=guard.modal_state())
+        return
+    try:
+        validate_line(parsed, firmware="2021", state=guard.modal_state())
+    except InvalidLineError:
+        validate_line(parsed, firmware="classic", state=guard.modal_state())
+
+
 def outcome_output(slot: Slot) -> tuple[str, ...]:
     """The output of a settled slot, or the error its outcome means."""
     result = slot.fut.result()
@@ -282,7 +303,8 @@ class LineScheduler:
         condition.check_sendable(command, motion=motion)
         if parsed is None:
             parsed = parse_line(data)
-        if guard.needs_firmware(parsed) or (validate and self._profiles_disagree(parsed)):
+        unknown = condition.firmware is None
+        if guard.needs_firmware(parsed) or (validate and unknown and _disagree(parsed, guard)):
             await self._require_firmware(deadline, timeout)
         exclusive = parsed.kind == "dollar"
         nbytes = len(data) + 1
@@ -302,7 +324,7 @@ class LineScheduler:
                 if should_stop is not None and should_stop():
                     raise StreamStopped
                 if validate:
-                    self._validate(parsed)
+                    _validate(parsed, condition.firmware, guard)
                 if checking and checked_epoch != guard.epoch:
                     position_epoch = guard.epoch
                     found = guard.verdict(parsed, what)
@@ -341,27 +363,6 @@ class LineScheduler:
                     )
                     return slot
                 await self.wait_progress(deadline)
-
-    def _profiles_disagree(self, parsed: ParsedLine) -> bool:
-        """The profile is unknown and only one of the two would refuse the line."""
-        if self._condition.firmware is not None:
-            return False
-        verdicts = {
-            bool(line_problems(parsed, firmware=profile, state=self._guard.modal_state()))
-            for profile in _PROFILES
-        }
-        return len(verdicts) > 1
-
-    def _validate(self, parsed: ParsedLine) -> None:
-        """:func:`validate_line` with the profile (unknown: a line both profiles refuse)."""
-        firmware = self._condition.firmware
-        if firmware is not None:
-            validate_line(parsed, firmware=firmware, state=self._guard.modal_state())
-            return
-        try:
-            validate_line(parsed, firmware="2021", state=self._guard.modal_state())
-        except InvalidLineError:
-            validate_line(parsed, firmware="classic", state=self._guard.modal_state())
 
     def _write(self, data: bytes, command: str, exclusive: bool, dwell: float | None) -> Slot:
         """Register ``data`` with the state machine and write it (synchronous: no gap)."""
