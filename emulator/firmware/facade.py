@@ -101,7 +101,9 @@ class Firmware:
         (not waiting for the planner, a homing search, a dwell or a hold).
         """
         self._wire.send(bytes(data), self.now)
-        self._deliver(self._wire.take_due(self.now))
+        due = self._wire.take_due(self.now)
+        if due:
+            self._deliver(due)
 
     def _deliver(self, data: bytes) -> None:
         """Bytes that have arrived at the UART."""
@@ -168,8 +170,8 @@ class Firmware:
                 self.now = end
                 if planner.free != free:
                     self._block_done(busy)
-                if len(self._wire):
-                    self._deliver(self._wire.take_due(self.now))  # bytes up to ``end``
+                if len(self._wire) and (due := self._wire.take_due(self.now)):
+                    self._deliver(due)  # the bytes arrived by ``end``
                 break
             planner.advance(step)
             self.now += step
@@ -178,8 +180,8 @@ class Firmware:
                 self._block_done(busy)
             if self._parse_until is not None and self._parse_until <= self.now:
                 self._finish_parse()
-            if len(self._wire):
-                self._deliver(self._wire.take_due(self.now))
+            if len(self._wire) and (due := self._wire.take_due(self.now)):
+                self._deliver(due)
             if zero_steps > 100_000:  # pragma: no cover - a planner bug, never loop forever
                 break
         self._service()
