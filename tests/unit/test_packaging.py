@@ -17,7 +17,11 @@ def _listed() -> set[str]:
 
 def _on_disk() -> set[str]:
     names: set[str] = set()
-    for directory, import_name in (("mirobot_async", "mirobot_async"), ("emulator", "mirobot_emulator")):
+    for directory, import_name in (
+        ("mirobot_async", "mirobot_async"),
+        ("emulator", "mirobot_emulator"),
+        ("examples", "mirobot_async.examples"),
+    ):
         base = ROOT / directory
         for init in base.rglob("__init__.py"):
             parts = init.parent.relative_to(base).parts
