@@ -140,8 +140,10 @@ def test_errors_are_the_asyncio_errors(arm: Mirobot) -> None:
 
     with pytest.raises(MirobotUsageError):
         arm.send("G01 X1\nG01 X2")
+    with pytest.raises(MirobotUsageError):
+        arm.send("G999")  # refused by the client's validation, before a byte is written
     with pytest.raises(MirobotCommandError):
-        arm.send("G999")
+        arm.send("G999", validate=False)  # the firmware's own refusal
     assert arm.status().state is State.IDLE
     arm.close()
     with pytest.raises(MirobotLinkLostError, match="closed"):
