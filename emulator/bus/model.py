@@ -71,7 +71,8 @@ class Bus:
         self.nodes: tuple[Controller, ...] = tuple(
             Controller(
                 i + 1,
-                Firmware(p, homing_seconds=homing_seconds),
+                # The bus models the wire's byte times itself: the arm takes each line at once.
+                Firmware(p, homing_seconds=homing_seconds, byte_seconds=0.0),
                 self.options,
                 baud_code=codes[baud],
             )
