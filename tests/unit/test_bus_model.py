@@ -219,7 +219,7 @@ def test_run_the_preinstalled_test_program() -> None:
     bus = Bus(2)
     ask(bus, b"@1M50\r\n")
     assert lines_of(ask(bus, b"@1o110\r\n")) == ['["test"]']
-    assert lines_of(ask(bus, b"@1o111test\r\n", wait=0.005)) == ["ok"]
+    assert lines_of(ask(bus, b"@1o111test\r\n", wait=0.01)) == ["ok"]
     assert bus.nodes[0].running_file == "test"  # still feeding the arm (it takes ~20 ms)
     assert lines_of(ask(bus, b"@1O103\r\n", wait=0.05)) == ["State,Run,5"]
     assert settle(bus) == b""  # the program's replies are not relayed
