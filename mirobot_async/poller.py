@@ -197,22 +197,29 @@ class StatusPoller:
         now = self._running_loop().time()
         newest_fresh = max(w.not_before for w in waiting)
         asks = self._asks
-        if asks and asks[-1] >= newest_fresh and asks[-1] > self._last_report:
-            # A "?" that can satisfy everyone is in flight (no report came since it was
-            # written; one that did may have answered it): ask again only if it is late, or
-            # (a completion wait, nothing else in flight) to keep ``depth`` "?" in flight.
-            depth = max(w.depth for w in waiting)
-            due = self._last_ask + self.retry_interval
-            if depth > 1 and not self._wire.conn.pending_count:
-                in_flight = sum(1 for asked in asks if asked > self._last_report)
-                if in_flight < depth:
-                    due = min(due, self._last_ask + self.pipeline_gap)
+        depth = max(w.depth for w in waiting)
+        pipelining = (
+            depth > 1 and newest_fresh == -math.inf and not self._wire.conn.pending_count
+        )
+        if pipelining:
+            # A completion wait: one "?" every pipeline_gap, at most ``depth`` in flight (those
+            # older than retry_interval were ignored), so the reports follow each other.
+            recent = [asked for asked in asks if asked > now - self.retry_interval]
+            due = self._last_ask + (self.pipeline_gap if recent else self.min_gap)
+            if len(recent) >= depth:
+                due = max(due, recent[0] + self.retry_interval)
             if now < due:
                 self._arm_timer(due)
                 return
-            if due == self._last_ask + self.retry_interval:
-                self._wire.stats.status_retries += 1
-                _log.debug("no status reply after %.3f s; asking again", now - self._last_ask)
+        elif asks and asks[-1] >= newest_fresh and asks[-1] > self._last_report:
+            # A "?" that can satisfy everyone is in flight (no report came since it was
+            # written; one that did may have answered it): ask again only if it is late.
+            due = self._last_ask + self.retry_interval
+            if now < due:
+                self._arm_timer(due)
+                return
+            self._wire.stats.status_retries += 1
+            _log.debug("no status reply after %.3f s; asking again", now - self._last_ask)
         else:
             due = self._last_ask + self.min_gap
             if now < due:
@@ -224,7 +231,7 @@ class StatusPoller:
         self._wire.request_status()
         asks.append(now)
         self._last_ask = now
-        self._arm_timer(now + self.retry_interval)
+        self._arm_timer(now + (self.pipeline_gap if pipelining else self.retry_interval))
 
     def _arm_timer(self, when: float) -> None:
         timer = self._timer
