@@ -112,7 +112,8 @@ async def test_units_unknown_at_connect_must_be_stated(emu: EmulatorProcess) -> 
     spy = WireSpy()
     arm = await _connect(emu, spy, Envelope(joints={1: (-50, 50)}))
     try:
-        await arm.send("G20", check_envelope=False, validate=False)  # an earlier session left inches
+        # an earlier session left inches
+        await arm.send("G20", check_envelope=False, validate=False)
         await arm.close()
         arm = await _connect(emu, spy, Envelope(joints={1: (-50, 50)}))
         await _refused(arm, spy, "M21 G90 G0 X2", "units")

@@ -31,5 +31,5 @@ def test_a_built_line_is_read_back_as_written_or_refused(value: float, decimals:
 
 
 def test_a_number_the_firmware_would_cut_is_refused() -> None:
-    with pytest.raises(MirobotUsageError, match="would read 123456.78"):
+    with pytest.raises(MirobotUsageError, match=r"would read 123456\.78"):
         gcode.move_pose(x=123456.789)
