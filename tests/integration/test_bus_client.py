@@ -364,7 +364,7 @@ async def test_classic_arms_on_the_bus(tmp_path: Path) -> None:
             results = await asyncio.gather(*(arm.stream(lines) for arm in arms))
             assert all(r.ok and r.acknowledged == len(lines) for r in results)
             with pytest.raises(MirobotCommandError, match=r"Bad number format|Expected command"):
-                await arms[1].send("G01 X1.2.3")
+                await arms[1].send("G01 X1.2.3", validate=False)  # the firmware refuses it
             assert bus.stats.stray_lines == 0
     finally:
         emulator.stop()

@@ -48,7 +48,8 @@ async def test_stream_writes_nothing_after_the_failing_reply_arrived(
     before = int((await emu.control("stats")).split("lines_in=")[1].split()[0])
     wire_spy.write_hooks.append(write_spy)
     wire_spy.receive_hooks.append(receive_spy)
-    result = await arm.stream(lines)
+    # validate=False: the firmware itself must refuse the line, so its error reply arrives
+    result = await arm.stream(lines, validate=False)
     assert result.stopped and len(result.errors) == 1
     assert result.errors[0].number == failing
     assert isinstance(result.errors[0].error, MirobotCommandError)
