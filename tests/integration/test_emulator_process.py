@@ -722,7 +722,8 @@ def test_control_motion_ends_reports_the_end_of_motion(emulator: Callable[..., E
             assert len(ends) == len(before) + 1, words
             end = ends[-1]
             # The end lies between the last status that still showed Run and the first Idle one.
-            assert last_run_asked - 0.002 <= end <= idle_seen + 0.002, (last_run_asked, end, idle_seen)
+            bracket = (last_run_asked, end, idle_seen)
+            assert last_run_asked - 0.002 <= end <= idle_seen + 0.002, bracket
             gaps.append(idle_seen - end)
             if gaps[-1] < 0.020:
                 break

@@ -1,9 +1,10 @@
 """The soak (issue 7, section 3): ``benchmarks/soak.py`` run by the test suite.
 
-20,000 lines (times ``MIROBOT_TEST_SCALE`` above 1, for thorough runs) streamed to the emulator process (time scale 0) over a real pty while the status is
-polled every 50 ms: every line acknowledged exactly once and in order (on the client's side and,
-through the pump PWM in the status reports, on the firmware's side), nothing pending at the end,
-RSS growth below 5 MB. The million-line run is ``python benchmarks/soak.py``.
+20,000 lines (times ``MIROBOT_TEST_SCALE`` above 1, for thorough runs) streamed to the emulator
+process (time scale 0) over a real pty while the status is polled every 50 ms: every line
+acknowledged exactly once and in order (on the client's side and, through the pump PWM in the
+status reports, on the firmware's side), nothing pending at the end, RSS growth below 5 MB. The
+million-line run is ``python benchmarks/soak.py``.
 """
 
 from __future__ import annotations
