@@ -237,9 +237,7 @@ def check_scenario(steps: list[dict[str, Any]], firmware: str, pump_then: tuple[
 def test_vendor_sdk_0_1_14(py310: Path, firmware: str, link: str) -> None:
     """The vendor's SDK: connect (its "%" reset), home, joint and Cartesian moves with its own
     wait for Idle, pump, gripper and valve; the same over the pty and over socket://."""
-    with run_emulator(
-        firmware, TIME_SCALE, extra_args=["--reset-on-open"], listen=link
-    ) as emulator:
+    with run_emulator(firmware, TIME_SCALE, listen=link) as emulator:  # it sends "%" itself
         if link == "tcp":
             assert emulator.url.startswith("socket://127.0.0.1:"), emulator.url
         steps = run_driver(py310, "vendor_sdk.py", emulator.url)

@@ -20,6 +20,11 @@ if "://" in URL:
 from wlkata_mirobot import WlkataMirobot  # noqa: E402
 
 arm = WlkataMirobot(portname=URL)  # opens, waits 1 s, sends "%" (reset)
+# The SDK's own wait for the reset banner (its connect() has this call commented out). Without
+# it, the "$h" below reaches the firmware while it reboots, and on the real firmware (the oracle)
+# the "?" the SDK sends right after it is answered Idle before the homing starts: on a classic
+# arm (Idle at power-on) home() would return at once.
+arm.device.wait_for_ok(reset_expected=True)
 port = arm.device.serial_device.serialport
 steps: list[dict[str, Any]] = []
 
