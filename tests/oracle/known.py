@@ -10,14 +10,13 @@ of listing it. The full transcripts: run with ``MIROBOT_ORACLE_REPORT=FILE``.
 from __future__ import annotations
 
 _HOMING_RUN = (
-    "after the homing ok the oracle spends ~2 s in Run (its return-to-zero move) before Idle: "
-    "`?` right after the ok answers <Run,...> on the oracle, <Idle,...> on ours"
+    "after the $HH (sequential homing) ok the oracle spends ~2 s in Run (its return-to-zero "
+    "move) before Idle: `?` right after the ok answers <Run,...> on the oracle, <Idle,...> on "
+    "ours (after $H and $H1 ours runs the return to zero too, at 04:35)"
 )
 
 KNOWN_DIFFERENCES: dict[str, str] = {
-    "test_diff_homing::test_homing_phases[$H]": _HOMING_RUN,
     "test_diff_homing::test_homing_phases[$HH]": _HOMING_RUN,
-    "test_diff_homing::test_homing_phases[$H1]": _HOMING_RUN,
     "test_diff_motion::test_hard_limit": (
         "J1 driven to 165 with $20=0: the oracle stops at 160.515 (the harness's switch just past "
         "160, then the stop), ours at 160.004"
@@ -29,19 +28,5 @@ KNOWN_DIFFERENCES: dict[str, str] = {
     "test_diff_motion::test_move[cart-g1-fk-digit]": (
         "forward kinematics rounding: after M20 G90 G1 X199 Y3 Z167 the oracle prints Z "
         "166.975, ours 166.976 (last digit; the firmware's float32 arithmetic)"
-    ),
-    "test_diff_timing::test_program_time[cart-g1-200-segments]": (
-        "200 short M20 G1 segments (circle r=20 at F2000): oracle 10.14 s simulated, ours "
-        "11.96 s at 04:00 (+18 %; allowed 2 %); and the end pose differs: oracle J4..J6 "
-        "0.000,-7.066,0.090 / Z 159.991 / Rx..Rz -0.000,-0.020,0.090, ours 0.000,-7.021,0.090 / "
-        "Z 160.012 / 0.000,0.018,0.090"
-    ),
-    "test_diff_timing::test_program_time[joint-short-segments]": (
-        "60 streamed M21 G90 X0.5..X30 F2000 (0.5 degree steps): oracle 1.625 s simulated, ours "
-        "1.670-1.676 s (+2.9 %; allowed 2 %) since 1d257c8"
-    ),
-    "test_diff_stream::test_burst_fills_planner": (
-        "40 joint moves (~800 bytes) written at once: the oracle answers 25 lines (the rest is "
-        "lost to the full receive ring), ours (no --baud) 7; with --baud 115200 ours answers 26"
     ),
 }

@@ -5,9 +5,10 @@ whose ``ok`` comes once the planner is empty. Its time runs from the ``ok`` of i
 (the first block is planned and starts) to the end of motion. On the oracle both instants come
 from its simulated-time log (the end: the dwell's ``ok``). On ours the end is its last
 ``motion-ends`` instant (mapped exactly from its simulated clock); its start lies between the
-wall time just before the first byte was written and the wall time its ``ok`` was read (usually
-well under a millisecond apart), times the time scale. The test passes when that interval comes
-within the tolerance of the oracle's time, and demands the interval be narrower than the
+wall time just before the first byte was written plus the first line's byte time (its last byte
+cannot arrive earlier: one byte per 100 us simulated, the oracle harness's pace, modelled by ours)
+and the wall time its ``ok`` was read, times the time scale. The test passes when that interval
+comes within the tolerance of the oracle's time, and demands the interval be narrower than the
 tolerance (else the measurement is repeated on a fresh pair, up to :data:`MEASUREMENTS` times,
 and reported as too imprecise, e.g. on an overloaded host). The replies are compared byte for
 byte too.
@@ -24,11 +25,17 @@ from .harness import HarnessError, Pair, is_terminal, lines_of, motion_ends, ora
 
 
 def circle(n: int, radius: float = 20.0) -> list[str]:
-    """``n`` short straight Cartesian segments around a circle near the start pose."""
+    """``n`` short straight Cartesian segments around a circle near the start pose.
+
+    Every line names ``A0 B0 C0``: an ``M20`` line without them re-reads the orientation from the
+    arm's current (rounded) position at parse time, which makes the oracle's own time vary
+    from run to run (10.139 s and 9.867 s; with them 7.340 s twice).
+    """
     out = ["M20 G90 G1 X202 Y0 Z160 A0 B0 C0 F2000"]
     for i in range(1, n + 1):
         a = 2 * math.pi * i / n
-        out.append(f"M20 G90 G1 X{182 + radius * math.cos(a):.3f} Y{radius * math.sin(a):.3f} Z160")
+        x, y = 182 + radius * math.cos(a), radius * math.sin(a)
+        out.append(f"M20 G90 G1 X{x:.3f} Y{y:.3f} Z160 A0 B0 C0")
     return out
 
 
@@ -70,7 +77,15 @@ def program_times(
     ends = motion_ends(pair.ours)
     start = first_ok_wall(ours_start, pair)
     assert ends and ends[-1] > start, f"no end of motion after the program's start: {ends}"
-    return oracle, (ends[-1] - start) * scale, (ends[-1] - pair.first_write) * scale
+    # The first line cannot be parsed before its last byte arrived: the wire (ours as the
+    # oracle's harness) delivers one byte per 100 us simulated, so the start is no earlier.
+    earliest = pair.first_write + len(program[0].encode() + b"\n") * BYTE_SECONDS / scale
+    return oracle, (ends[-1] - start) * scale, (ends[-1] - earliest) * scale
+
+
+BYTE_SECONDS = 100e-6
+"""Simulated seconds per received byte (the oracle harness's documented input pace, which
+our emulator models too: ``mirobot_emulator.firmware.wire``)."""
 
 
 MEASUREMENTS = 3  # fresh attempts when our side's start interval is too wide (a loaded host)
