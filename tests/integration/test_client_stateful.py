@@ -285,9 +285,15 @@ class ClientMachine(RuleBasedStateMachine):
                     RefusalReason.LOCKED,
                     RefusalReason.UNREACHABLE,
                     RefusalReason.ANGLE_OUT_OF_LIMIT,
+                    RefusalReason.SOFT_LIMIT,
                 )
             else:  # a straight line may leave the workspace although both ends are inside
-                assert err.reason in (RefusalReason.UNREACHABLE, RefusalReason.ANGLE_OUT_OF_LIMIT)
+                # (the firmware checks each interpolated point: 'Soft limit triggered:<axis>')
+                assert err.reason in (
+                    RefusalReason.UNREACHABLE,
+                    RefusalReason.ANGLE_OUT_OF_LIMIT,
+                    RefusalReason.SOFT_LIMIT,
+                )
             return
         assert expected is None, f"expected a refusal ({expected}), got {report}"
         assert report is not None
