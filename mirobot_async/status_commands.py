@@ -74,9 +74,7 @@ class StatusCommands(ClientParts):
         async with within(deadline, "the robot to be Idle", timeout):
             await self._lines.wait_answered(deadline)
             while True:
-                # depth=2: two "?" in flight, one report's time apart, as a motion wait does,
-                # so the end of motion is seen within about one report.
-                report, _ = await self._poller.fetch(fresh=False, timeout=None, depth=2)
+                report, _ = await self._poller.fetch(fresh=False, timeout=None)
                 if report.state is State.ALARM:
                     raise MirobotAlarmError(None, self._condition.alarm or "the robot is in Alarm")
                 if report.state in QUIET:
