@@ -407,7 +407,7 @@ async def test_hard_limit_fails_everything_and_nothing_is_sent_until_reset(
     reports: list[StatusReport] = []
     move = spawn(arm.move_joints(j1=30, speed=600))
     stream = spawn(arm.stream(SLOW_MOVES))
-    watch = spawn(monitor(arm, reports, interval=0.05))
+    watch = spawn(monitor(arm, reports, interval=0.2))  # status polls amid the stream
     await wait_until(lambda: arm.pending_count > 3 and len(reports) >= 2)
     await emu.control("hard-limit")
 
@@ -461,7 +461,7 @@ async def test_hard_limit_fails_everything_and_nothing_is_sent_until_reset(
 
 # ---- split into single bytes, delayed replies ---------------------------------------------------
 
-SESSION_LINES = 2000
+SESSION_LINES = 1000  # every kind of line still occurs (M99 20x, G90 X170 10x, $G twice)
 
 
 def session_lines(count: int = SESSION_LINES) -> list[str]:
@@ -497,7 +497,7 @@ async def mixed_session(arm: Mirobot, spawn: Spawn) -> list[str]:
     """Stream + concurrent status polls + moves + settings; return what is deterministic."""
     await arm.unlock()
     reports: list[StatusReport] = []
-    watch = spawn(monitor(arm, reports, interval=0.05))
+    watch = spawn(monitor(arm, reports, interval=0.2))  # status polls amid the stream
     try:
         result = await arm.stream(
             session_lines(), continue_on_error=True, timeout=40, validate=False
@@ -547,9 +547,9 @@ async def baseline(profile: str, spawn: Spawn) -> list[str]:
 def test_the_session_exercises_errors_refusals_and_outputs() -> None:
     lines = session_lines()
     assert len(lines) == SESSION_LINES
-    assert sum(line == "M99" for line in lines) == 40
-    assert sum(line == "G90 X170" for line in lines) == 20
-    assert sum(line == "$G" for line in lines) == 4
+    assert sum(line == "M99" for line in lines) == 20
+    assert sum(line == "G90 X170" for line in lines) == 10
+    assert sum(line == "$G" for line in lines) == 2
 
 
 @pytest.mark.mirobot_emulator(extra_args=("--fault", "split-bytes"))
@@ -559,10 +559,10 @@ async def test_single_byte_reads_change_nothing(
     expected = await baseline(profile, spawn)
     transcript = await mixed_session(arm, spawn)
     assert transcript == expected
-    assert len(transcript) == 40 + 20 + 1 + 1 + 4 + 2 + 1  # errors, summary, reports, $I, $$...
+    assert len(transcript) == 20 + 10 + 1 + 1 + 4 + 2 + 1  # errors, summary, reports, $I, $$...
     stats = await wire_settled(emu, arm)
     # every byte the client received was written on its own
-    assert stats["split_writes"] >= arm.stats.bytes_received > 10_000
+    assert stats["split_writes"] >= arm.stats.bytes_received > 4_000  # 1000 oks at least
 
 
 @pytest.mark.mirobot_emulator(extra_args=("--fault", "delay:20"))
