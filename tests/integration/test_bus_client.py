@@ -14,6 +14,7 @@ from collections.abc import AsyncIterator, Callable, Iterator
 from pathlib import Path
 
 import pytest
+import serial
 
 from mirobot_async import (
     MirobotCommandError,
@@ -309,8 +310,7 @@ def test_wlkatapython_drives_the_bus_emulator(own_bus: BusEmulator) -> None:
         # The SDK reads a fixed number of lines and flushes only before "$V" and "?": what
         # those leave unread ("$V"'s "ok", the arm's "ok"s for "?\r\n") would be taken as the
         # GPIO replies, so flush here as its next status query would.
-        time.sleep(0.2)
-        port.reset_input_buffer()
+        _drain_until_quiet(port)
         assert robot.gpio_mode_write("D0", 1) == 1
         assert robot.gpio_mode_read("D0") == "1"
         assert robot.gpio_output_write("D0", 1) == 1
@@ -368,3 +368,16 @@ async def test_classic_arms_on_the_bus(tmp_path: Path) -> None:
             assert bus.stats.stray_lines == 0
     finally:
         emulator.stop()
+
+
+def _drain_until_quiet(port: serial.Serial, quiet: float = 0.05, limit: float = 2.0) -> None:
+    """Read and drop what the bus still sends until ``quiet`` seconds pass without a byte
+    (bounded by ``limit``): the replies the SDK left unread."""
+    old_timeout = port.timeout
+    port.timeout = quiet
+    try:
+        end = time.monotonic() + limit
+        while time.monotonic() < end and port.read(4096):
+            pass
+    finally:
+        port.timeout = old_timeout
