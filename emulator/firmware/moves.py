@@ -210,27 +210,31 @@ class MoveBuilder:
     ) -> Planned:
         """Check every sample of every segment, then build the blocks (raises Refusal)."""
         geometry = self.geometry
-        checked: list[tuple[PathAt, float, list[Vec7]]] = []
+        sampled: list[tuple[PathAt, float, int, Sequence[float], list[Vec7]]] = []
         prev: Sequence[float] = start
-        hits_switch = False
         for at, length, n in segments:
             refs = self._samples(at, n, prev)
-            cut = self._switch_cut(refs)
-            if cut is not None:  # the path runs into a limit switch: it ends there
-                at = _truncated(at, cut)
-                length *= cut
-                refs = self._samples(at, max(1, math.ceil(n * cut)), prev)
-                hits_switch = True
+            sampled.append((at, length, n, prev, refs))
             prev = refs[-1]
-            checked.append((at, length, refs))
-            if hits_switch:
-                break
-        # soft limits on every sample (the IK limits were checked above)
-        for _at, _length, refs in checked:
+        # soft limits on every sample of the whole path first (the IK limits were checked
+        # above): with $20=1 a line that would leave the range is refused before it moves, even
+        # where a limit switch sits on the range's end
+        for *_, refs in sampled:
             for q in refs:
                 letter = geometry.soft_violation(q)
                 if letter is not None:
                     raise Refusal(c.TEXT_SOFT_LIMIT + letter)
+        checked: list[tuple[PathAt, float, list[Vec7]]] = []
+        hits_switch = False
+        for at, length, n, before, refs in sampled:
+            cut = self._switch_cut(refs)
+            if cut is not None:  # the path runs into a limit switch: it ends there
+                at = _truncated(at, cut)
+                refs = self._samples(at, max(1, math.ceil(n * cut)), before)
+                checked.append((at, length * cut, refs))
+                hits_switch = True
+                break
+            checked.append((at, length, refs))
         if locked:
             raise Refusal(c.TEXT_LOCKED)
         if check:

@@ -37,7 +37,14 @@ from mirobot_async import (
     State,
     StatusReport,
 )
-from mirobot_async.kinematics import DH_2021, DH_CLASSIC, JOINT_LIMITS, forward, inverse
+from mirobot_async.kinematics import (
+    DH_2021,
+    DH_CLASSIC,
+    JOINT_LIMITS,
+    forward,
+    in_limits,
+    inverse,
+)
 from mirobot_async.testing import EmulatorProcess
 
 pytestmark = pytest.mark.timeout(120)
@@ -93,7 +100,7 @@ class Model:
         return DH_2021 if self.profile == "2021" else DH_CLASSIC
 
     def after_reset(self) -> None:
-        self.locked = True
+        # the axis lock survives a reset: only power-on sets it (oracle), M50 / homing clear it
         self.alarm = self.profile == "2021" or self.needs_reset
         self.needs_reset = False
         self.pump = self.valve = 0
@@ -256,18 +263,21 @@ class ClientMachine(RuleBasedStateMachine):
         call = self.client.move_pose(*pose, linear=linear, speed=3000 if linear else None)
         if self.expect_blocked(call, motion=True):
             return
+        # the firmware's order for a point-to-point move (oracle): the IK (unreachable), the
+        # lock, then the soft limits ($20=1 here: their ranges are the factory JOINT_LIMITS)
         try:
-            solution = inverse(pose, m.dh, "firmware", limits=JOINT_LIMITS)
-        except MirobotUsageError as err:  # Unreachable / OutOfLimits
-            expected: RefusalReason | None = (
-                RefusalReason.UNREACHABLE
-                if "unreachable" in type(err).__name__.lower()
-                else RefusalReason.ANGLE_OUT_OF_LIMIT
-            )
+            solution = inverse(pose, m.dh, "firmware", limits=None)
+        except MirobotUsageError as err:  # Unreachable
+            expected: RefusalReason | None = RefusalReason.UNREACHABLE
             note(f"IK: {err}")
         else:
-            expected = RefusalReason.LOCKED if m.locked else None
             note(f"IK: {solution}")
+            if m.locked:
+                expected = RefusalReason.LOCKED
+            elif not in_limits(solution, JOINT_LIMITS):
+                expected = RefusalReason.SOFT_LIMIT
+            else:
+                expected = None
         if expected is None and not linear:
             report = self.run(call)
             assert report is not None
