@@ -2,11 +2,15 @@
 
 Prints the device path (or, with ``--listen HOST:PORT``, ``socket://HOST:PORT``) as the first
 line of stdout (flushed), then serves until SIGINT or SIGTERM (exit status 0, link removed, no
-traceback). Stdin is a control channel for fault
-injection (one command per line, answered ``ack <command>`` on stdout); EOF on stdin only stops
-reading it. Diagnostics go to stderr. See :mod:`mirobot_emulator.server` for what is modelled and
-:mod:`mirobot_emulator.faults` for the fault specifications and commands. With ``--bus N`` the
-port carries an RS485 bus of N controllers, each with its arm (:mod:`mirobot_emulator.bus`).
+traceback). Stdin is a control channel for fault injection (one command per line, answered
+``ack <command>`` on stdout); EOF on stdin only stops reading it, unless
+``--exit-on-stdin-eof`` (then the server stops once the commands read are answered: a parent
+that dies, even by SIGKILL, leaves no emulator behind). The control command ``renew ARGS...``
+makes the process what a new one started with ARGS would be (see
+:data:`mirobot_emulator.server.control.RENEW`). Diagnostics go to stderr. See
+:mod:`mirobot_emulator.server` for what is modelled and :mod:`mirobot_emulator.faults` for the
+fault specifications and commands. With ``--bus N`` the port carries an RS485 bus of N
+controllers, each with its arm (:mod:`mirobot_emulator.bus`).
 
 Exit status: 0 after a signal or a ``close`` fault, 2 for bad arguments, 1 if the pty, the
 socket or the link cannot be created.
@@ -18,9 +22,11 @@ import argparse
 import signal
 import sys
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NoReturn
 
 if TYPE_CHECKING:
+    from _typeshed import SupportsWrite
+
     from .server import ServerOptions
 
 BUS_BAUDS = (4800, 9600, 38400, 57600, 115200)  # as server.options.BUS_BAUDS (imported late)
@@ -34,15 +40,34 @@ def _early_stop(signum: int, frame: object) -> None:
     _stopping = True
 
 
-def _build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+class _RenewArgumentError(ValueError):
+    """Arguments of the ``renew`` control command that cannot be served."""
+
+
+class _RenewParser(argparse.ArgumentParser):
+    """The command line's parser for ``renew``: errors raise instead of exiting the process."""
+
+    def error(self, message: str) -> NoReturn:
+        raise _RenewArgumentError(message)
+
+    def exit(self, status: int = 0, message: str | None = None) -> NoReturn:
+        raise _RenewArgumentError(message or "--help and --version are not renew options")
+
+    def _print_message(self, message: str, file: SupportsWrite[str] | None = None) -> None:
+        pass  # never on stdout: it carries the control channel's answers
+
+
+def _build_parser(
+    kind: type[argparse.ArgumentParser] = argparse.ArgumentParser,
+) -> argparse.ArgumentParser:
+    parser = kind(
         prog="mirobot-emulator",
         description="A virtual WLKATA Mirobot (firmware model) on a pseudo-terminal or a TCP "
         "socket. The first line of stdout is the device path (or socket://HOST:PORT); stdin "
         "takes fault-injection commands (drop-ok [N], corrupt-status [N], ignore-status [N], "
         "stall S, hard-limit [AXIS], reset, close, split-bytes [on|off], delay MS, "
-        "time-scale X; stats, motion-ends and starvations for the server's counters), each "
-        "answered 'ack <command>'.",
+        "time-scale X; stats, motion-ends and starvations for the server's counters; renew "
+        "ARGS: become a new process started with ARGS), each answered 'ack <command>'.",
     )
     parser.add_argument(
         "--firmware",
@@ -125,6 +150,12 @@ def _build_parser() -> argparse.ArgumentParser:
         metavar="KEY=VALUE",
         help="how the controllers read a point the sources disagree on (repeatable), e.g. "
         "o103=number; see mirobot_emulator.bus.BusOptions (only with --bus)",
+    )
+    parser.add_argument(
+        "--exit-on-stdin-eof",
+        action="store_true",
+        help="stop when stdin (the control channel) ends, after answering the commands read "
+        "(a parent that dies leaves no emulator behind)",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     return parser
@@ -224,6 +255,25 @@ def _check_bus_arguments(args: argparse.Namespace, parser: argparse.ArgumentPars
         parser.error(f"--bus-option: {exc}")
 
 
+def _renew_options(argv: Sequence[str]) -> ServerOptions:
+    """The options of ``renew ARGS``, parsed as the command line is; :class:`ValueError` for
+    arguments that are wrong or name what only a new process can change."""
+    parser = _build_parser(_RenewParser)
+    args = parser.parse_args(list(argv))
+    fixed = [
+        name
+        for name, given in (
+            ("--listen", args.listen is not None),
+            ("--link", bool(args.link)),
+            ("--exit-on-stdin-eof", args.exit_on_stdin_eof),
+        )
+        if given
+    ]
+    if fixed:
+        raise ValueError(f"{', '.join(fixed)} cannot be renewed: start a new process")
+    return _options(args, parser)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``mirobot-emulator``; returns the exit status.
 
@@ -236,7 +286,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, _early_stop)
     parser = _build_parser()
-    options = _options(parser.parse_args(argv), parser)
+    args = parser.parse_args(argv)
+    options = _options(args, parser)
 
     from .server import EmulatorServer
 
@@ -244,7 +295,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         control_fd: int | None = sys.stdin.fileno() if sys.stdin is not None else None
     except (ValueError, OSError):
         control_fd = None
-    server = EmulatorServer(options, on_reply=_say, control_fd=control_fd, log=_log)
+    server = EmulatorServer(
+        options,
+        on_reply=_say,
+        control_fd=control_fd,
+        log=_log,
+        stop_on_control_eof=args.exit_on_stdin_eof,
+        renew_parser=_renew_options,
+    )
     try:
         try:
             path = server.open()  # the port, the firmware (numpy), the power-on banner, the link

@@ -9,14 +9,16 @@ change is due (the firmware's, the wire's, a timed fault's).
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import os
 import selectors
+import shlex
 import socket
 import sys
 import time
 import traceback
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
 from ..faults import (
@@ -28,7 +30,7 @@ from ..faults import (
     parse_command,
 )
 from .clock import Simulation
-from .control import QUERIES, ControlReader, answer_query, planner_counters
+from .control import QUERIES, RENEW, ControlReader, answer_query, wire_counters
 from .link import InputPath, OutputPath
 from .options import FirmwareLike, ServerOptions
 from .port import Arrival, Port
@@ -65,6 +67,22 @@ def _default_firmware_factory(options: ServerOptions) -> Callable[[], FirmwareLi
     return make
 
 
+def _make_link(link: str, target: str) -> None:
+    """A symlink ``link`` -> ``target``, replacing a stale one atomically (never a file)."""
+    if os.path.lexists(link) and not os.path.islink(link):
+        raise FileExistsError(f"--link {link}: exists and is not a symlink, not replacing it")
+    tmp = f"{link}.{os.getpid()}.tmp"
+    os.symlink(target, tmp)
+    os.replace(tmp, link)  # atomic, replaces a stale link from an earlier run
+
+
+def _unregister(selector: selectors.BaseSelector, fileobjs: Iterable[Any]) -> None:
+    """Take ``fileobjs`` out of ``selector`` (those already gone or closed too)."""
+    for fileobj in fileobjs:
+        with contextlib.suppress(KeyError, ValueError, OSError):
+            selector.unregister(fileobj)
+
+
 def _make_port(options: ServerOptions, log: Callable[[str], None]) -> Port:
     if options.listen is not None:
         from .tcp_port import TcpPort
@@ -85,6 +103,9 @@ class EmulatorServer:
     (idempotent). Control commands come from ``control_fd`` (the CLI passes stdin; read in a
     thread) and/or :meth:`submit` (thread-safe); each is answered by calling ``on_reply`` (or the
     ``reply`` given to :meth:`submit`) with ``"ack <command>"`` or ``"error <command>: ..."``.
+    With ``stop_on_control_eof`` the end of ``control_fd`` stops the server (its owner is gone).
+    ``renew_parser`` turns the arguments of the ``renew`` control command into options (the
+    CLI's own parser): see :meth:`renew`.
     """
 
     def __init__(
@@ -95,12 +116,17 @@ class EmulatorServer:
         on_reply: Callable[[str], None] | None = None,
         control_fd: int | None = None,
         log: Callable[[str], None] | None = None,
+        stop_on_control_eof: bool = False,
+        renew_parser: Callable[[Sequence[str]], ServerOptions] | None = None,
     ) -> None:
         options.check()
         self.options = options
+        self._custom_factory = firmware_factory
         self._factory = firmware_factory or _default_firmware_factory(options)
         self._on_reply = on_reply
         self._control_fd = control_fd
+        self._stop_on_control_eof = stop_on_control_eof
+        self._renew_parser = renew_parser
         self._log = log or (lambda message: None)
         self.path: str | None = None
         """The address clients open: the pty's path, or ``socket://HOST:PORT``."""
@@ -110,9 +136,16 @@ class EmulatorServer:
         self._wake_w: socket.socket | None = None
         self._link_made = False
         self._stop = False
+        self._stop_when_idle = False  # stop once the queued control commands are answered
         self._result = "stopped"
         self._commands: deque[tuple[str, Callable[[str], None] | None]] = deque()
+        self._selector: selectors.BaseSelector | None = None  # while serving
+        self._watched: dict[Any, int] = {}  # the port's registrations in the selector
         self._start = 0.0
+        self._build_paths(options)
+
+    def _build_paths(self, options: ServerOptions) -> None:
+        """The fault filter and schedule, both directions of the wire, the counters: all new."""
         self._filter = FaultFilter(options.faults, seed=options.seed)
         self._schedule = FaultSchedule(options.faults)
         self.input = InputPath(options.baud, self._filter)
@@ -154,6 +187,18 @@ class EmulatorServer:
         if self.sim is None:
             firmware = self._factory()
             self.sim = Simulation(firmware, self.options.time_scale, time.monotonic())
+        self._power_on()
+        if self.options.link:
+            _make_link(self.options.link, path)
+            self._link_made = True
+        if self._control_fd is not None:
+            on_eof = self._stop_after_commands if self._stop_on_control_eof else None
+            ControlReader(self._control_fd, self.submit, on_eof=on_eof).start()
+        return path
+
+    def _power_on(self) -> None:
+        """The banner into the port; timed faults count from now; the link faults armed."""
+        assert self.sim is not None
         self._start = time.monotonic()
         self.output.power_on(self.sim.firmware.read_output())
         self.output.write_to(self.port)
@@ -161,19 +206,34 @@ class EmulatorServer:
             self._apply(command, self._start)
         if self.options.reset_on_open and not getattr(self.port, "sees_opens", True):
             self._log("this platform's pty does not report opens: --reset-on-open has no effect")
-        if self.options.link:
-            self._make_link(self.options.link, path)
-        if self._control_fd is not None:
-            ControlReader(self._control_fd, self.submit).start()
-        return path
 
-    def _make_link(self, link: str, target: str) -> None:
-        if os.path.lexists(link) and not os.path.islink(link):
-            raise FileExistsError(f"--link {link}: exists and is not a symlink, not replacing it")
-        tmp = f"{link}.{os.getpid()}.tmp"
-        os.symlink(target, tmp)
-        os.replace(tmp, link)  # atomic, replaces a stale link from an earlier run
-        self._link_made = True
+    def renew(self, options: ServerOptions) -> str:
+        """Become what a new process with ``options`` would be; return the new port's address.
+
+        A new port (a new pty, or a new listening socket on the same ``listen`` address: a
+        connected client and every byte in flight both ways are dropped), a freshly powered-on
+        firmware model (its banner in the port), new fault filter and schedule, wire paths and
+        counters. ``options.listen`` is replaced by this server's (its kind cannot change);
+        :class:`ValueError` if the options cannot be served or this server made a ``link``
+        (nothing has changed then). Call it from the loop's thread (the ``renew`` command does).
+        """
+        if self.options.link or options.link:
+            raise ValueError("a server with a link (--link) cannot be renewed: start a new one")
+        options = dataclasses.replace(options, listen=self.options.listen)
+        options.check()
+        factory = self._custom_factory or _default_firmware_factory(options)
+        firmware = factory()  # before anything is torn down: a failure changes nothing
+        if self._selector is not None:  # the port's file objects out, before they are closed
+            _unregister(self._selector, self._watched)
+        self._watched = {}
+        self.port.close()
+        self.options, self._factory = options, factory
+        self.port = _make_port(options, self._log)
+        self.path = self.port.open()
+        self.sim = Simulation(firmware, options.time_scale, time.monotonic())
+        self._build_paths(options)
+        self._power_on()
+        return self.path
 
     def close(self) -> None:
         """Close the port and the wake sockets, remove the link (only if it still points here)."""
@@ -197,6 +257,11 @@ class EmulatorServer:
     def request_stop(self) -> None:
         """Make :meth:`serve` return soon. Safe from a signal handler or another thread."""
         self._stop = True
+        self._wake()
+
+    def _stop_after_commands(self) -> None:
+        """Stop once every command submitted so far is answered (thread-safe)."""
+        self._stop_when_idle = True
         self._wake()
 
     def submit(self, command: str, reply: Callable[[str], None] | None = None) -> None:
@@ -230,8 +295,8 @@ class EmulatorServer:
         """Run until stopped; return ``"stopped"`` or ``"closed"`` (a close fault)."""
         self.open()
         assert self._wake_r is not None
-        selector = selectors.DefaultSelector()
-        watched: dict[Any, int] = {}
+        selector = self._selector = selectors.DefaultSelector()
+        self._watched = {}
         try:
             selector.register(self._wake_r, selectors.EVENT_READ, "wake")
             # A client may have opened the port already (while the firmware was being built):
@@ -242,7 +307,7 @@ class EmulatorServer:
                 self._guard(self._step, now)
                 if self._stop or not self.port.is_open:
                     break
-                watched = self._watch(selector, watched)
+                self._watched = self._watch(selector, self._watched)
                 try:
                     timeout = self._timeout(now)
                 except Exception:
@@ -256,7 +321,10 @@ class EmulatorServer:
                 while self._commands and not self._stop:
                     text, reply = self._commands.popleft()
                     self._handle_command(text, reply)
+                if self._stop_when_idle and not self._commands:
+                    self._stop = True
         finally:
+            self._selector = None
             selector.close()
         return self._result
 
@@ -266,9 +334,7 @@ class EmulatorServer:
             read=not self.output.full and self.input.room() > 0,
             write=self.output.wants_write(self.port),
         )
-        for fileobj in watched.keys() - want.keys():
-            with contextlib.suppress(KeyError, ValueError, OSError):
-                selector.unregister(fileobj)
+        _unregister(selector, watched.keys() - want.keys())
         for fileobj, events in want.items():
             if fileobj not in watched:
                 selector.register(fileobj, events, "port")
@@ -344,6 +410,9 @@ class EmulatorServer:
     def _handle_command(self, text: str, reply: Callable[[str], None] | None) -> None:
         answer = reply or self._on_reply or (lambda line: None)
         words = text.split()
+        if words and words[0].lower() == RENEW:
+            answer(self._renew_command(text))
+            return
         if words and words[0].lower() in QUERIES:  # asks the server, changes nothing
             if self.sim is not None and self.port.is_open:
                 self._guard(self.sim.sync, time.monotonic())  # the present, not the last step
@@ -363,34 +432,34 @@ class EmulatorServer:
         extra = f" {self.stats_text()}" if command.kind == "stats" else ""
         answer(f"ack {command.text}{extra}")
 
+    def _renew_command(self, text: str) -> str:
+        """Answer ``renew ARGS...`` (ARGS: the command line's options, shell-quoted)."""
+        text = text.strip()
+        if self._renew_parser is None:
+            return f"error {text}: this server cannot parse options (renew is the CLI's)"
+        try:
+            options = self._renew_parser(shlex.split(text)[1:])
+            address = self.renew(options)
+        except ValueError as exc:
+            return f"error {text}: {exc}"
+        except OSError as exc:  # the new port: the old one is gone, the server stops
+            self._log(f"renew: cannot create the port: {exc}")
+            return f"error {text}: cannot create the port: {exc}"
+        except Exception:
+            self._firmware_error()
+            return f"error {text}: the firmware model raised (see stderr)"
+        return f"ack {text} url={address}"
+
     def stats(self) -> dict[str, int]:
         """The counters answered to the ``stats`` command (see the package docstring)."""
-        flt, link_in, link_out = self._filter, self.input, self.output
-        counters = {
-            "bytes_in": link_in.bytes_in,
-            "lines_in": link_in.lines_in,
-            "status_requests_in": link_in.status_requests_in,
-            "resets_in": link_in.resets_in,
-            "bytes_out": link_out.bytes_out,
-            "oks_seen": flt.oks_seen,
-            "dropped_oks": flt.dropped_oks,
-            "status_lines": flt.status_lines_seen,
-            "corrupted_status": flt.corrupted_status_lines,
-            "ignored_status": flt.ignored_status_requests,
-            "split_writes": link_out.split_writes,
-            "ports_opened": self.ports_opened,
-            "refused_clients": int(getattr(self.port, "refused", 0)),
-            "input_held": link_in.held(),
-            "input_held_max": link_in.held_max,
-            "output_held": link_out.held(),
-            "output_held_max": link_out.held_max,
-        }
-        firmware = self.firmware
-        rx_lost = getattr(firmware, "rx_lost", None)
-        if isinstance(rx_lost, int):
-            counters["rx_lost"] = rx_lost
-        counters.update(planner_counters(firmware))
-        return counters
+        return wire_counters(
+            self._filter,
+            self.input,
+            self.output,
+            ports_opened=self.ports_opened,
+            refused_clients=int(getattr(self.port, "refused", 0)),
+            firmware=self.firmware,
+        )
 
     def stats_text(self) -> str:
         """:meth:`stats` as ``name=value`` words."""
