@@ -115,7 +115,8 @@ ASSUMED points implemented (each in one constant or function, named here)
   refuses in ``Alarm`` (``Alarm lock``) and prints ``Locked status`` while locked.
 * Homing: ``homing_seconds`` (default ``CLASSIC_HOMING_SECONDS`` = 8.17 s on classic, oracle;
   ``DEFAULT_HOMING_SECONDS`` = 10 s on 2021, PROTOCOL) is the switch search of ``$H``;
-  ``$HH`` and ``$HE`` are sequential (:mod:`mirobot_emulator.motion`); ``$H0`` (arm + rail)
+  ``$HH`` and ``$HE`` are sequential (:mod:`mirobot_emulator.motion`; classic ``$HH``
+  searches ``CLASSIC_SEQUENTIAL_HOMING_FACTOR`` times as long, oracle 29.11 s); ``$H0`` (arm + rail)
   searches ``HOMING_RAIL_FACTOR`` times as long, ``$H1..$H7`` (one axis; 7 = rail) for
   ``HOMING_SINGLE_AXIS_FACTOR`` of it. During the search ``?`` is not answered; one deferred
   ``?`` is answered (state ``Home``) when it ends (oracle). Then the homed axes read zero, the

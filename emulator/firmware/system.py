@@ -22,6 +22,11 @@ HOMING_RAIL_FACTOR: Final = 1.5
 HOMING_SINGLE_AXIS_FACTOR: Final = 0.4
 """ASSUMED: ``$H1..$H7`` (a single axis) search this fraction of ``homing_seconds``."""
 
+CLASSIC_SEQUENTIAL_HOMING_FACTOR: Final = 29.11 / 8.17
+"""Classic ``$HH`` (one axis after another) searches this many times ``homing_seconds``: the
+oracle's ``ok`` comes 29.11 s after ``$HH``, 8.17 s after ``$H`` (its harness's switches; both
+are followed by the same ~2.3 s return move)."""
+
 FREE_MEMORY: Final = 2036
 """The number of the classic ``Free memory:`` line (any number, PROTOCOL 4.3)."""
 
@@ -212,6 +217,9 @@ class SystemCommands:
         order: tuple[tuple[int, ...], ...] | None = None
         axes: tuple[int, ...] = motion.ARM_AXES
         home_rail = False
+        if m.profile == "classic" and sequential:
+            groups = len(motion.SEQUENTIAL_ORDER) * motion.SEQUENTIAL_SEARCH_FRACTION
+            seconds *= CLASSIC_SEQUENTIAL_HOMING_FACTOR / groups  # the total, split evenly
         if m.profile == "2021" and not sequential:
             if suffix == "E":
                 sequential = True

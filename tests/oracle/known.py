@@ -9,14 +9,7 @@ of listing it. The full transcripts: run with ``MIROBOT_ORACLE_REPORT=FILE``.
 
 from __future__ import annotations
 
-_HOMING_RUN = (
-    "after the $HH (sequential homing) ok the oracle spends ~2 s in Run (its return-to-zero "
-    "move) before Idle: `?` right after the ok answers <Run,...> on the oracle, <Idle,...> on "
-    "ours (after $H and $H1 ours runs the return to zero too, at 04:35)"
-)
-
 KNOWN_DIFFERENCES: dict[str, str] = {
-    "test_diff_homing::test_homing_phases[$HH]": _HOMING_RUN,
     "test_diff_motion::test_hard_limit": (
         "J1 driven to 165 with $20=0: the oracle stops at 160.515 (the harness's switch just past "
         "160, then the stop), ours at 160.004"
