@@ -7,9 +7,9 @@ from collections.abc import Mapping
 from typing import Final
 
 from .. import motion
-from .. import settings as cfg
 from ..motion import Vec7
 from . import codes as c
+from .float32 import print_float, step_angle
 from .geometry import vec7
 from .machine import Machine
 from .scanner import c_round, uint8
@@ -19,14 +19,16 @@ NUMERIC_ZERO: Final = 1e-9
 
 
 def fmt(value: float) -> str:
-    """A status number as GRBL prints it: 3 decimals, ``-0.000`` for a small negative value
-    (oracle); values within ``NUMERIC_ZERO`` of 0 print ``0.000``."""
-    return cfg.grbl_float(0.0 if abs(value) < NUMERIC_ZERO else value)
+    """A status number as the firmware prints it (float32, :func:`.float32.print_float`):
+    3 decimals, ``-0.000`` for a small negative value (oracle); values within
+    ``NUMERIC_ZERO`` of 0 print ``0.000``."""
+    return print_float(0.0 if abs(value) < NUMERIC_ZERO else value)
 
 
 def step_position(q: Vec7, settings: Mapping[int, float]) -> Vec7:
     """``q`` in whole motor steps, as the firmware counts and reports it: each axis rounded
-    (half away from zero) to its ``$100..$106`` steps per degree (mm for the rail).
+    (half away from zero) to its ``$100..$106`` steps per degree (mm for the rail), then
+    divided back in float32 as the firmware does (:func:`.float32.step_angle`).
 
     The one place where the report quantises; it goes when the planner tracks steps itself.
     """
@@ -34,7 +36,7 @@ def step_position(q: Vec7, settings: Mapping[int, float]) -> Vec7:
     for k, joint in enumerate(motion.LETTER_TO_JOINT):
         per_unit = settings[100 + k]
         if per_unit > 0.0:
-            out[joint] = c_round(q[joint] * per_unit) / per_unit
+            out[joint] = step_angle(c_round(q[joint] * per_unit), per_unit)
     return vec7(out)
 
 
