@@ -1,4 +1,10 @@
-"""The ``mirobot`` command line as a user runs it: ``python -m mirobot_async ...`` subprocesses.
+"""The ``mirobot`` command line: ``main(argv)`` in this process, and as a user runs it.
+
+Most tests run ``mirobot_async.cli.main(argv)`` in the test's process (the ``cli`` fixture:
+stdout and stderr captured at the file descriptors, so an embedded emulator's output is seen
+too, as in a terminal): the subcommands' logic without an interpreter start per command. The
+entry point itself (``python -m mirobot_async``: exit statuses 0, 1, 2 and 130, signals, Ctrl-C,
+README's first command, the example scripts) runs as subprocesses (``mirobot``, ``spawn``).
 
 Every subcommand runs twice: against the embedded virtual Mirobot (no ``--port``: the command
 starts and stops its own emulator) and against an emulator started separately (``--port``): one
@@ -28,6 +34,7 @@ import psutil
 import pytest
 import serial
 
+from mirobot_async.cli import main
 from mirobot_async.plotting import read_trace
 from mirobot_async.testing import SyncEmulatorProcess
 
@@ -68,6 +75,35 @@ def mirobot(
             kill_group(proc)
             raise
     return subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
+
+
+Cli = Callable[..., subprocess.CompletedProcess[str]]
+
+
+@pytest.fixture
+def cli(capfd: pytest.CaptureFixture[str]) -> Iterator[Cli]:
+    """``mirobot ARGS`` as ``main(argv)`` in this process, to completion: its exit status and
+    what it wrote. Captured at the file descriptors (``capfd``), so whatever an embedded
+    emulator or a child writes is there too, as it would be in the subprocess's pipes.
+    ``main`` installs SIGINT/SIGTERM handlers while it runs: this test's are put back after."""
+    saved = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+
+    def run(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+        capfd.readouterr()  # only this command's output
+        with contextlib.chdir(cwd) if cwd is not None else contextlib.nullcontext():
+            try:
+                status: object = main(list(args))
+            except SystemExit as exited:  # argparse: --help, usage errors
+                status = 0 if exited.code is None else exited.code
+        out, err = capfd.readouterr()
+        assert isinstance(status, int), status
+        return subprocess.CompletedProcess(["mirobot", *args], status, out, err)
+
+    try:
+        yield run
+    finally:
+        for sig, handler in saved.items():
+            signal.signal(sig, handler)
 
 
 def spawn(*args: str, cwd: Path | None = None) -> subprocess.Popen[str]:
@@ -235,8 +271,8 @@ def test_status_embedded_says_so_on_stderr() -> None:
     assert "J1" in proc.stdout and "rail" in proc.stdout and "mode" in proc.stdout
 
 
-def test_status_embedded_classic() -> None:
-    proc = mirobot("status", "--firmware", "classic")
+def test_status_embedded_classic(cli: Cli) -> None:
+    proc = cli("status", "--firmware", "classic")
     assert proc.returncode == 0, proc.stderr
     assert "firmware classic, time-scale 10" in proc.stderr
     status = parse_table(proc.stdout)
@@ -244,50 +280,50 @@ def test_status_embedded_classic() -> None:
     assert close_to(status.pose, [202, 0, 181, 0, 0, 0])
 
 
-def test_status_on_a_port(port: str) -> None:
-    proc = mirobot("status", "--port", port)
+def test_status_on_a_port(cli: Cli, port: str) -> None:
+    proc = cli("status", "--port", port)
     assert proc.returncode == 0, proc.stderr
     assert_clean(proc)
     assert "embedded" not in proc.stderr
     assert parse_table(proc.stdout).state in ("Alarm", "Idle")
 
 
-def test_verbose_shows_the_wire_traffic(port: str) -> None:
-    proc = mirobot("status", "--port", port, "-v")
+def test_verbose_shows_the_wire_traffic(cli: Cli, port: str) -> None:
+    proc = cli("status", "--port", port, "-v")
     assert proc.returncode == 0, proc.stderr
     assert "-> ?" in proc.stderr
     assert "<- <" in proc.stderr  # the status line as received
-    quiet = mirobot("status", "--port", port)
+    quiet = cli("status", "--port", port)
     assert "->" not in quiet.stderr
 
 
 @pytest.mark.parametrize("sequential", [False, True])
-def test_home_embedded(sequential: bool) -> None:
-    proc = mirobot("home", *FAST, *(["--sequential"] if sequential else []))
+def test_home_embedded(cli: Cli, sequential: bool) -> None:
+    proc = cli("home", *FAST, *(["--sequential"] if sequential else []))
     assert proc.returncode == 0, proc.stderr
     status = parse_table(proc.stdout)
     assert status.state == "Idle"
     assert close_to(status.joints, [0] * 6)
 
 
-def test_home_unlock_reset_on_a_port(port: str) -> None:
-    proc = mirobot("reset", "--port", port)
+def test_home_unlock_reset_on_a_port(cli: Cli, port: str) -> None:
+    proc = cli("reset", "--port", port)
     assert proc.returncode == 0, proc.stderr
     assert parse_table(proc.stdout).state == "Alarm"  # 2021: locked again after a reset
-    proc = mirobot("unlock", "--port", port)
+    proc = cli("unlock", "--port", port)
     assert proc.returncode == 0, proc.stderr
     assert parse_table(proc.stdout).state == "Idle"
-    proc = mirobot("home", "--port", port)
+    proc = cli("home", "--port", port)
     assert proc.returncode == 0, proc.stderr
     status = parse_table(proc.stdout)
     assert status.state == "Idle" and close_to(status.joints, [0] * 6)
 
 
-def test_unlock_and_reset_embedded() -> None:
-    proc = mirobot("unlock", *FAST)
+def test_unlock_and_reset_embedded(cli: Cli) -> None:
+    proc = cli("unlock", *FAST)
     assert proc.returncode == 0, proc.stderr
     assert parse_table(proc.stdout).state == "Idle"
-    proc = mirobot("reset", *FAST)
+    proc = cli("reset", *FAST)
     assert proc.returncode == 0, proc.stderr
     assert parse_table(proc.stdout).state == "Alarm"
 
@@ -296,8 +332,8 @@ def test_unlock_and_reset_embedded() -> None:
 # move, pump, gripper
 
 
-def test_move_joints_embedded_homes_first() -> None:
-    proc = mirobot("move", "joints", "j1=30", "j2=10", "J6=-45", *FAST)
+def test_move_joints_embedded_homes_first(cli: Cli) -> None:
+    proc = cli("move", "joints", "j1=30", "j2=10", "J6=-45", *FAST)
     assert proc.returncode == 0, proc.stderr
     assert "homing the virtual Mirobot first" in proc.stderr
     status = parse_table(proc.stdout)
@@ -305,43 +341,39 @@ def test_move_joints_embedded_homes_first() -> None:
     assert close_to(status.joints, [30, 10, 0, 0, 0, -45])
 
 
-def test_move_joints_relative_with_speed_on_a_port(port: str) -> None:
-    proc = mirobot("move", "joints", "j1=0", "j3=5", "--port", port, "--home")
+def test_move_joints_relative_with_speed_on_a_port(cli: Cli, port: str) -> None:
+    proc = cli("move", "joints", "j1=0", "j3=5", "--port", port, "--home")
     assert proc.returncode == 0, proc.stderr
-    proc = mirobot(
-        "move", "joints", "j1=10", "j3=-5", "--relative", "--speed", "2000", "--port", port
-    )
+    proc = cli("move", "joints", "j1=10", "j3=-5", "--relative", "--speed", "2000", "--port", port)
     assert proc.returncode == 0, proc.stderr
     assert "homing" not in proc.stderr  # never implicitly on a real port
     assert close_to(parse_table(proc.stdout).joints, [10, 0, 0, 0, 0, 0])
 
 
-def test_move_pose_linear_embedded() -> None:
-    proc = mirobot("move", "pose", "x=200", "y=50", "z=150", "--linear", *FAST)
+def test_move_pose_linear_embedded(cli: Cli) -> None:
+    proc = cli("move", "pose", "x=200", "y=50", "z=150", "--linear", *FAST)
     assert proc.returncode == 0, proc.stderr
     status = parse_table(proc.stdout)
     assert close_to(status.pose[:3], [200, 50, 150], tol=0.1)
 
 
-def test_move_pose_on_a_port(port: str) -> None:
-    proc = mirobot("move", "pose", "x=220", "y=-40", "z=120", "--port", port, "--home")
+def test_move_pose_on_a_port(cli: Cli, port: str) -> None:
+    proc = cli("move", "pose", "x=220", "y=-40", "z=120", "--port", port, "--home")
     assert proc.returncode == 0, proc.stderr
     assert close_to(parse_table(proc.stdout).pose[:3], [220, -40, 120], tol=0.1)
-    proc = mirobot(
-        "move", "pose", "z=20", "--relative", "--linear", "--speed", "1000", "--port", port
-    )
+    proc = cli("move", "pose", "z=20", "--relative", "--linear", "--speed", "1000", "--port", port)
     assert proc.returncode == 0, proc.stderr
     assert close_to(parse_table(proc.stdout).pose[:3], [220, -40, 140], tol=0.1)
 
 
-def test_move_refused_while_locked_exits_1() -> None:
-    proc = mirobot("move", "joints", "j1=30", "--no-home", *FAST)
+def test_move_refused_while_locked_exits_1(cli: Cli) -> None:
+    proc = cli("move", "joints", "j1=30", "--no-home", *FAST)
     assert proc.returncode == 1
     assert error_line(proc) == "mirobot: error: " + LOCKED
 
 
-def test_move_to_an_unreachable_pose_exits_1_with_the_firmware_words() -> None:
-    proc = mirobot("move", "pose", "x=900", *FAST)
+def test_move_to_an_unreachable_pose_exits_1_with_the_firmware_words(cli: Cli) -> None:
+    proc = cli("move", "pose", "x=900", *FAST)
     assert proc.returncode == 1
     line = error_line(proc)
     assert "not executed (unreachable)" in line
@@ -359,23 +391,23 @@ def test_move_to_an_unreachable_pose_exits_1_with_the_firmware_words() -> None:
         (["gripper", "close", "--legacy"], 0, 40),
     ],
 )
-def test_pump_and_gripper_embedded(argv: list[str], pump: int, valve: int) -> None:
-    proc = mirobot(*argv, *FAST)
+def test_pump_and_gripper_embedded(cli: Cli, argv: list[str], pump: int, valve: int) -> None:
+    proc = cli(*argv, *FAST)
     assert proc.returncode == 0, proc.stderr
     assert "unlocking the virtual Mirobot first" in proc.stderr
     status = parse_table(proc.stdout)
     assert (status.pump, status.valve) == (pump, valve)
 
 
-def test_pump_and_gripper_on_a_port(port: str) -> None:
-    proc = mirobot("pump", "blow", "--port", port, "--unlock")
+def test_pump_and_gripper_on_a_port(cli: Cli, port: str) -> None:
+    proc = cli("pump", "blow", "--port", port, "--unlock")
     assert proc.returncode == 0, proc.stderr
     assert parse_table(proc.stdout).pump == 500
-    proc = mirobot("gripper", "open", "--legacy", "--port", port)
+    proc = cli("gripper", "open", "--legacy", "--port", port)
     assert proc.returncode == 0, proc.stderr
     status = parse_table(proc.stdout)
     assert (status.pump, status.valve) == (500, 65)
-    proc = mirobot("pump", "off", "--port", port)
+    proc = cli("pump", "off", "--port", port)
     assert parse_table(proc.stdout).pump == 0
 
 
@@ -406,22 +438,22 @@ def test_readme_command_runs_pick_and_place_in_seconds() -> None:
 
 
 @pytest.mark.parametrize("example", ["square.gcode", "dance.gcode"])
-def test_run_the_other_examples_on_a_port(port: str, example: str) -> None:
-    proc = mirobot("run", str(EXAMPLES / example), "--port", port, "--home")
+def test_run_the_other_examples_on_a_port(cli: Cli, port: str, example: str) -> None:
+    proc = cli("run", str(EXAMPLES / example), "--port", port, "--home")
     assert proc.returncode == 0, proc.stderr
     assert parse_table(proc.stdout).state == "Idle"
 
 
-def test_run_on_a_classic_port(classic_port: str) -> None:
-    proc = mirobot("run", str(EXAMPLES / "pick_and_place.gcode"), "--port", classic_port, "--home")
+def test_run_on_a_classic_port(cli: Cli, classic_port: str) -> None:
+    proc = cli("run", str(EXAMPLES / "pick_and_place.gcode"), "--port", classic_port, "--home")
     assert proc.returncode == 0, proc.stderr
     assert close_to(parse_table(proc.stdout).pose[:3], [200, 0, 230], tol=0.1)
 
 
-def test_run_stops_at_a_refused_line(tmp_path: Path) -> None:
+def test_run_stops_at_a_refused_line(cli: Cli, tmp_path: Path) -> None:
     program = tmp_path / "bad.gcode"
     program.write_text("; a program with a typo\nM21 G90\nG0 X10\n\nG7 X1 ; no such G code\n")
-    proc = mirobot("run", "bad.gcode", "--no-check", *FAST, cwd=tmp_path)
+    proc = cli("run", "bad.gcode", "--no-check", *FAST, cwd=tmp_path)
     assert proc.returncode == 1
     assert_clean(proc)
     # refused by the robot, or by the client's check before sending: either way named
@@ -431,14 +463,16 @@ def test_run_stops_at_a_refused_line(tmp_path: Path) -> None:
     assert parse_table(proc.stdout).state == "Idle"  # the final status is still shown
 
 
-def test_run_and_move_on_a_locked_arm_send_nothing_and_say_so_once(tmp_path: Path) -> None:
+def test_run_and_move_on_a_locked_arm_send_nothing_and_say_so_once(
+    cli: Cli, tmp_path: Path
+) -> None:
     """Pre-flight: one line, exit 1, and not a byte of the program on the wire."""
     program = tmp_path / "p.gcode"
     program.write_text("M21 G90 G0 X10\nG0 X20\nG0 X30\n")
     with SyncEmulatorProcess(time_scale=0) as emulator:  # powers on locked (Alarm)
         for argv in (["run", str(program)], ["move", "joints", "j1=10"]):
             before = emulator_stats(emulator)
-            proc = mirobot(*argv, "--port", emulator.url)  # a real port: no implicit homing
+            proc = cli(*argv, "--port", emulator.url)  # a real port: no implicit homing
             assert proc.returncode == 1
             assert error_line(proc) == "mirobot: error: " + LOCKED
             assert proc.stdout == ""
@@ -448,12 +482,12 @@ def test_run_and_move_on_a_locked_arm_send_nothing_and_say_so_once(tmp_path: Pat
             assert sent == after["status_requests_in"] - before["status_requests_in"]  # only "?"
 
 
-def test_run_checks_the_whole_program_before_sending_anything(tmp_path: Path) -> None:
+def test_run_checks_the_whole_program_before_sending_anything(cli: Cli, tmp_path: Path) -> None:
     program = tmp_path / "bad.gcode"
     program.write_text("M21 G90\nG0 X10\nM3 S2000 ; not a PWM value\nG0 X20\n")
     with SyncEmulatorProcess(time_scale=0) as emulator:
         before = emulator_stats(emulator)
-        proc = mirobot("run", str(program), "--port", emulator.url, "--home")
+        proc = cli("run", str(program), "--port", emulator.url, "--home")
         after = emulator_stats(emulator)
     assert proc.returncode == 1
     assert proc.stderr.splitlines() == [
@@ -464,10 +498,10 @@ def test_run_checks_the_whole_program_before_sending_anything(tmp_path: Path) ->
     assert after["lines_in"] - before["lines_in"] <= 1  # at most "$$", never the program
 
 
-def test_run_continue_on_error_reports_every_refused_line(tmp_path: Path) -> None:
+def test_run_continue_on_error_reports_every_refused_line(cli: Cli, tmp_path: Path) -> None:
     program = tmp_path / "bad.gcode"
     program.write_text("M21 G90\nG7\nG0 X20\nG0 X500\nG0 X25\n")
-    proc = mirobot("run", str(program), "--continue-on-error", "--no-check", *FAST)
+    proc = cli("run", str(program), "--continue-on-error", "--no-check", *FAST)
     assert proc.returncode == 1
     assert re.search(rf"^{re.escape(str(program))}:2: G7: .*Unsupported command", proc.stderr, re.M)
     assert f"{program}:4: G0 X500: " in proc.stderr  # refused by the firmware (out of limit)
@@ -475,7 +509,7 @@ def test_run_continue_on_error_reports_every_refused_line(tmp_path: Path) -> Non
     assert close_to(parse_table(proc.stdout).joints[:1], [25])
 
 
-def test_run_trace_then_plot(tmp_path: Path) -> None:
+def test_run_trace_then_plot(cli: Cli, tmp_path: Path) -> None:
     """The square, then the pump, the pump off and the older gripper, at the default speed:
     the trace is in the robot's time, dense enough for the corners, with the events."""
     trace = tmp_path / "square.csv"
@@ -483,7 +517,7 @@ def test_run_trace_then_plot(tmp_path: Path) -> None:
     program = tmp_path / "square_and_events.gcode"
     square = (EXAMPLES / "square.gcode").read_text()
     program.write_text(square + "M3 S1000\nG4 P0.2\nM3 S0\nM4 E65\n")
-    proc = mirobot("run", str(program), "--trace", str(trace), "--unlock")  # homing: elsewhere
+    proc = cli("run", str(program), "--trace", str(trace), "--unlock")  # homing: elsewhere
     assert proc.returncode == 0, proc.stderr
     recorded = read_trace(trace)
     assert recorded.robot_time
@@ -504,7 +538,7 @@ def test_run_trace_then_plot(tmp_path: Path) -> None:
     assert min(xs) < 172 and max(xs) > 228 and min(ys) < -28 and max(ys) > 28  # the square
     assert samples[-1][1] == "Idle"  # the final status closes the trace
 
-    proc = mirobot("plot", str(trace), "-o", str(image))
+    proc = cli("plot", str(trace), "-o", str(image))
     assert proc.returncode == 0, proc.stderr
     assert f"wrote {image} (1200x800 px" in proc.stdout
     import matplotlib.image
@@ -533,16 +567,16 @@ def test_plot_without_matplotlib_says_how_to_install_it(tmp_path: Path) -> None:
 # monitor
 
 
-def test_monitor_samples_to_csv_on_a_port(port: str, tmp_path: Path) -> None:
+def test_monitor_samples_to_csv_on_a_port(cli: Cli, port: str, tmp_path: Path) -> None:
     trace = tmp_path / "m.csv"
-    proc = mirobot(
+    proc = cli(
         "monitor", "--port", port, "--interval", "0.05", "--samples", "3", "--csv", str(trace)
     )
     assert proc.returncode == 0, proc.stderr
     lines = proc.stdout.splitlines()
     assert len(lines) == 3  # not a terminal: one line per sample
     assert all("joints" in line and "pose" in line for line in lines)
-    proc = mirobot("monitor", "--port", port, "--samples", "2", "--csv", str(trace))
+    proc = cli("monitor", "--port", port, "--samples", "2", "--csv", str(trace))
     assert proc.returncode == 0, proc.stderr
     rows = read_csv(trace)
     assert rows[0] == TRACE_HEADER
@@ -630,18 +664,18 @@ def test_run_interrupted_exits_130_quietly(tmp_path: Path) -> None:
 # check
 
 
-def test_check_examples() -> None:
+def test_check_examples(cli: Cli) -> None:
     for example in ("pick_and_place.gcode", "square.gcode", "dance.gcode"):
-        proc = mirobot("check", f"examples/{example}", cwd=ROOT)
+        proc = cli("check", f"examples/{example}", cwd=ROOT)
         assert proc.returncode == 0, proc.stdout
         assert proc.stdout.startswith("OK: ")
         assert " lines" in proc.stdout
 
 
-def test_check_lists_problems_by_line(tmp_path: Path) -> None:
+def test_check_lists_problems_by_line(cli: Cli, tmp_path: Path) -> None:
     program = tmp_path / "bad.gcode"
     program.write_text("M21 G90\nG0 X500 ; too far\nG0 X10\nM3 S5000\n")
-    proc = mirobot("check", "bad.gcode", cwd=tmp_path)
+    proc = cli("check", "bad.gcode", cwd=tmp_path)
     assert proc.returncode == 1
     assert proc.stdout.splitlines() == [
         "bad.gcode:2: J1=500 is outside -100..160",
@@ -668,8 +702,10 @@ def test_check_lists_problems_by_line(tmp_path: Path) -> None:
         (["teleport"], "invalid choice: 'teleport'"),
     ],
 )
-def test_bad_arguments_exit_2_with_one_line(argv: list[str], message: str, tmp_path: Path) -> None:
-    proc = mirobot(*argv, cwd=tmp_path)
+def test_bad_arguments_exit_2_with_one_line(
+    cli: Cli, argv: list[str], message: str, tmp_path: Path
+) -> None:
+    proc = cli(*argv, cwd=tmp_path)
     assert proc.returncode == 2
     assert proc.stderr.count("\n") == 1, proc.stderr  # no emulator started, nothing else said
     assert message in error_line(proc)
@@ -685,24 +721,26 @@ def test_bad_arguments_exit_2_with_one_line(argv: list[str], message: str, tmp_p
         ["run", "missing.gcode"],
     ],
 )
-def test_bad_arguments_with_a_port_exit_2(port: str, argv: list[str], tmp_path: Path) -> None:
-    proc = mirobot(*argv, "--port", port, cwd=tmp_path)
+def test_bad_arguments_with_a_port_exit_2(
+    cli: Cli, port: str, argv: list[str], tmp_path: Path
+) -> None:
+    proc = cli(*argv, "--port", port, cwd=tmp_path)
     assert proc.returncode == 2
     error_line(proc)
 
 
-def test_missing_port_exits_2(tmp_path: Path) -> None:
-    proc = mirobot("status", "--port", str(tmp_path / "ttyUSB9"))
+def test_missing_port_exits_2(cli: Cli, tmp_path: Path) -> None:
+    proc = cli("status", "--port", str(tmp_path / "ttyUSB9"))
     assert proc.returncode == 2
     assert "ttyUSB9: no such port" in error_line(proc)
-    proc = mirobot("status", "--port", "socket://127.0.0.1:9")
+    proc = cli("status", "--port", "socket://127.0.0.1:9")
     assert proc.returncode == 2
     assert "could not open 'socket://127.0.0.1:9'" in error_line(proc)
 
 
-def test_busy_port_exits_2(port: str) -> None:
+def test_busy_port_exits_2(cli: Cli, port: str) -> None:
     with serial.Serial(port, exclusive=True):  # another program holds the port
-        proc = mirobot("status", "--port", port)
+        proc = cli("status", "--port", port)
     assert proc.returncode == 2
     assert f"{port} is busy" in error_line(proc)
 
