@@ -28,6 +28,9 @@ What is modelled (checked against the oracle where it says so)
   A line holds 79 bytes after filtering; the 80th byte is dropped, ``Line overflow`` is printed
   at once and the bytes after it start a new line (oracle: ``LINE_BUFFER_SIZE``). The receive
   ring holds 127 bytes, the rest is lost (oracle: ``RX_CAPACITY``; :attr:`Firmware.rx_lost`).
+* After a soft reset the banner takes ``BOOT_SECONDS`` (30 ms, oracle): lines received meanwhile
+  wait, a ``?`` received meanwhile is answered first when it ends (before those lines), one
+  within ``RESET_DEAF_SECONDS`` of the ``%`` is lost (oracle: the reset clears its flags).
 * Realtime bytes ``?`` ``!`` ``~`` ``%`` and ``@`` anywhere in the stream; ``@`` holds the
   parser (lines wait, motion and the state word go on) until ``~`` (oracle). ``0x18`` is an
   ordinary (dropped) byte.
@@ -77,7 +80,7 @@ ASSUMED points implemented (each in one constant or function, named here)
 * ``Machine.reset_condition``: only power-on locks the axes (oracle; PROTOCOL 6.1 said every
   ``%`` too); after a reset the 2021 profile is in ``Alarm`` (ASSUMED, its power-on state), the
   classic profile only when the reset interrupted motion.
-* ``Firmware._m50_allowed_in_alarm``: on 2021 a bare ``M50`` line is accepted in ``Alarm`` and
+* ``facade.m50_allowed_in_alarm``: on 2021 a bare ``M50`` line is accepted in ``Alarm`` and
   clears it (the 2021 manual unlocks with ``M50`` right after power-on, when the arm is in
   ``Alarm``); on classic ``M50`` in ``Alarm`` gets ``error: Alarm lock`` like any G-code.
 * Only a valid line has effects: ``M20``/``M21``/``M50`` act and print only when the whole line

@@ -36,6 +36,17 @@ STATUS_DURING_CRITICAL_ALARM: Final = False
 loop does not answer it (its status report there is commented out as a TODO); PROTOCOL 6.1:
 "nothing but ``%`` is processed until reset"."""
 
+BOOT_SECONDS: Final = 0.030
+"""After a soft reset the firmware prints its banner before it reads a line (oracle: ~29 ms
+from the reset to ``Using reset pos!``, bound by the UART's transmit rate). Lines that arrive
+meanwhile wait; a ``?`` that arrives meanwhile is answered first when the boot ends, before
+those lines (oracle: ``%$I\nG4 P0\n?`` prints the banner, the status, then ``$I``'s reply)."""
+
+RESET_DEAF_SECONDS: Final = 0.00035
+"""A ``?`` that arrives this soon after the ``%`` is lost: the reset re-initialises the
+firmware's realtime flags after the byte was flagged (oracle: lost 100-300 us after ``%``,
+answered from 400 us; the bytes of lines are kept)."""
+
 SWITCH_SLACK: Final = 0.1
 """Degrees within which an arm stopped at a switch counts as on it (its position is whole steps)."""
 
@@ -83,6 +94,11 @@ class Firmware:
         """When the line being parsed (``Machine.parsing``) is done."""
         self._status_after_parse = False
         """``?`` arrived during a parse: answered right after the line's reply."""
+        self._boot_until: float | None = None
+        """When the banner after a soft reset is printed (``BOOT_SECONDS``): lines wait."""
+        self._reset_at = -math.inf
+        self._status_after_boot = False
+        """``?`` arrived during the boot: answered when it ends, before any line."""
         self.settings: dict[int, float] = self._m.settings
         self._gcode = GcodeExecutor(self._m)
         self._system = SystemCommands(self._m, self.reset, self._gcode.execute)
@@ -153,7 +169,7 @@ class Firmware:
         while True:
             ttc = planner.time_to_next_change()
             step = ttc
-            for at in (self._parse_until, self._wire.next_event()):
+            for at in (self._parse_until, self._wire.next_event(), self._boot_until):
                 if at is not None:
                     wait = max(at - self.now, 0.0)
                     step = wait if step is None else min(step, wait)
@@ -178,6 +194,8 @@ class Firmware:
             zero_steps = zero_steps + 1 if step == 0.0 else 0
             if planner.free != free:
                 self._block_done(busy)
+            if self._boot_until is not None and self._boot_until <= self.now:
+                self._finish_boot()
             if self._parse_until is not None and self._parse_until <= self.now:
                 self._finish_parse()
             if len(self._wire) and (due := self._wire.take_due(self.now)):
@@ -205,7 +223,7 @@ class Firmware:
         when nothing changes by itself."""
         ttc = self._m.planner.time_to_next_change()
         deadline = None if ttc is None else self.now + ttc
-        for at in (self._parse_until, self._wire.next_event()):
+        for at in (self._parse_until, self._wire.next_event(), self._boot_until):
             if at is not None:
                 deadline = at if deadline is None else min(deadline, at)
         return deadline
@@ -244,6 +262,21 @@ class Firmware:
         m.parser_init(feed=200.0)
         m.emit_lines(banner(m))
         self._run_startup_lines()
+        self._reset_at = self.now
+        self._status_after_boot = False
+        self._boot_until = self.now + BOOT_SECONDS
+        m.booting = True
+
+    def _finish_boot(self) -> None:
+        """The banner is out: a ``?`` received meanwhile is answered, then lines are read."""
+        m = self._m
+        self._boot_until = None
+        m.booting = False
+        if self._status_after_boot:
+            self._status_after_boot = False
+            if not m.critical:
+                m.emit(status_line(m))
+        self._service()
 
     def _run_startup_lines(self) -> None:
         """After a reset out of Alarm, the stored ``$N0``/``$N1`` lines run, each printed with
@@ -303,13 +336,11 @@ class Firmware:
 
     @property
     def input_deadline(self) -> float | None:
-        """When received bytes next arrive (a line end or realtime byte, :mod:`.wire`) or the
-        line being parsed is done (:mod:`.linecost`); None when nothing is in transit or being
-        parsed."""
-        at = self._wire.next_event()
-        if self._parse_until is None:
-            return at
-        return self._parse_until if at is None else min(at, self._parse_until)
+        """When received bytes next arrive (a line end or realtime byte, :mod:`.wire`), the
+        line being parsed is done (:mod:`.linecost`) or the boot after a reset ends
+        (``BOOT_SECONDS``); None when nothing is in transit, being parsed or booting."""
+        times = [self._wire.next_event(), self._parse_until, self._boot_until]
+        return min((t for t in times if t is not None), default=None)
 
     @property
     def parser_blocked(self) -> bool:
@@ -329,7 +360,10 @@ class Firmware:
             return  # nothing but % until reset (GRBL's critical-event loop)
         if byte == 0x3F:  # ?
             running = m.planner.running
-            if running is not None and running.kind == "home_search":
+            if m.booting:
+                if self.now - self._reset_at >= RESET_DEAF_SECONDS:
+                    self._status_after_boot = True  # answered when the banner is out
+            elif running is not None and running.kind == "home_search":
                 m.status_deferred = True  # oracle: the homing search answers no ``?``
             elif m.parsing is not None:
                 self._status_after_parse = True  # GRBL answers between lines
@@ -416,17 +450,18 @@ class Firmware:
             m.emit("ok")
         elif line[0] == "$":
             self._system.execute(line)
-        elif m.alarm and not self._m50_allowed_in_alarm(line):
+        elif m.alarm and not m50_allowed_in_alarm(self.profile, line):
             m.error(c.ALARM_LOCK)
         else:
             self._gcode.execute(line)
 
-    def _m50_allowed_in_alarm(self, line: str) -> bool:
-        """ASSUMED: on 2021 a bare ``M50`` unlocks even in Alarm (the manual's power-on use)."""
-        if self.profile != "2021" or line[:1] != "M":
-            return False
-        parsed = read_float(line, 1)
-        return parsed is not None and parsed == (50.0, len(line))
+
+def m50_allowed_in_alarm(profile: str, line: str) -> bool:
+    """ASSUMED: on 2021 a bare ``M50`` unlocks even in Alarm (the manual's power-on use)."""
+    if profile != "2021" or line[:1] != "M":
+        return False
+    parsed = read_float(line, 1)
+    return parsed is not None and parsed == (50.0, len(line))
 
 
 __all__ = ["RX_BUFFER_SIZE", "RX_CAPACITY", "Firmware"]

@@ -74,6 +74,8 @@ class Machine:
         """After homing's return move: the position to read when the planner is next idle."""
         """``@`` received: lines wait until ``~`` (the state word does not change)."""
         self.check = False
+        self.booting = False
+        """The banner after a soft reset is being printed: received lines wait."""
 
     # output ---------------------------------------------------------------------------------
 
@@ -146,6 +148,7 @@ class Machine:
             or self.hold
             or self.suspended
             or self.critical
+            or self.booting
         )
 
     def machine_position(self) -> Vec7:

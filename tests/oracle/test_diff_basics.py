@@ -89,3 +89,14 @@ def test_setting_writes(pair: Pair, group: str) -> None:
     pair.lines(*SETTINGS[group])
     pair.send("$$\n")
     pair.check()
+
+
+def test_status_during_reboot(pair: Pair) -> None:
+    """A ``?`` that arrives while the banner after ``%`` is printed is answered first when the
+    boot ends, before the lines that arrived with it; one that arrives 100 us after the ``%``
+    is lost (the reset re-initialises the realtime flags), the empty lines after it are not."""
+    pair.lines("M50")
+    pair.send(b"%$I\nG4 P0\n?", Until(text=BANNER_END, terminals=2, statuses=1))
+    pair.send(b"%?\n\n\n?", Until(text=BANNER_END, terminals=3, statuses=1, quiet=0.2))
+    pair.status()
+    pair.check()
