@@ -98,10 +98,29 @@ async def wait_until(predicate: Callable[[], bool], limit: float = 5.0) -> None:
         await asyncio.sleep(0.002)
 
 
+PACED = 4.0
+"""Time scale of the buses whose tests time the arms' motion against the bus's traffic."""
+FAST = 20.0
+"""Time scale of the buses whose tests only wait for motion to end (homing, files, streams):
+an arm's 18-block planner still holds ~0.6 s of wall time, more than any pause under load."""
+
+
 @pytest.fixture(scope="module")
 def shared_bus(tmp_path_factory: pytest.TempPathFactory) -> Iterator[BusEmulator]:
-    """One 4-node bus emulator for the tests whose state does not matter to each other."""
-    emulator = BusEmulator(tmp_path_factory.mktemp("bus"), NODES, 4.0, 0.3)
+    """One paced 4-node bus emulator for the tests whose state does not matter to each other
+    and whose motion must outlast what they do meanwhile."""
+    emulator = BusEmulator(tmp_path_factory.mktemp("bus"), NODES, PACED, 0.3)
+    try:
+        yield emulator
+    finally:
+        emulator.stop()
+
+
+@pytest.fixture(scope="module")
+def fast_bus(tmp_path_factory: pytest.TempPathFactory) -> Iterator[BusEmulator]:
+    """One fast 4-node bus emulator for the tests whose state does not matter to each other and
+    that only wait for motion to end."""
+    emulator = BusEmulator(tmp_path_factory.mktemp("bus"), NODES, FAST, 0.3)
     try:
         yield emulator
     finally:
@@ -110,8 +129,8 @@ def shared_bus(tmp_path_factory: pytest.TempPathFactory) -> Iterator[BusEmulator
 
 @pytest.fixture
 def own_bus(tmp_path: Path) -> Iterator[BusEmulator]:
-    """A fresh 4-node bus emulator for a test that breaks or reconfigures it."""
-    emulator = BusEmulator(tmp_path, NODES, 4.0, 0.3)
+    """A fresh paced 4-node bus emulator for a test that breaks it while an arm moves."""
+    emulator = BusEmulator(tmp_path, NODES, PACED, 0.3)
     try:
         yield emulator
     finally:
@@ -119,7 +138,23 @@ def own_bus(tmp_path: Path) -> Iterator[BusEmulator]:
 
 
 @pytest.fixture
-async def bus(shared_bus: BusEmulator) -> AsyncIterator[ControllerBus]:
+def own_fast_bus(tmp_path: Path) -> Iterator[BusEmulator]:
+    """A fresh fast 4-node bus emulator for a test that reconfigures it."""
+    emulator = BusEmulator(tmp_path, NODES, FAST, 0.3)
+    try:
+        yield emulator
+    finally:
+        emulator.stop()
+
+
+@pytest.fixture
+async def bus(fast_bus: BusEmulator) -> AsyncIterator[ControllerBus]:
+    async with ControllerBus.open(fast_bus.path) as opened:
+        yield opened
+
+
+@pytest.fixture
+async def paced_bus(shared_bus: BusEmulator) -> AsyncIterator[ControllerBus]:
     async with ControllerBus.open(shared_bus.path) as opened:
         yield opened
 
@@ -236,7 +271,8 @@ async def test_a_missing_node_times_out_naming_its_address(bus: ControllerBus) -
     assert (await bus.controller(2).arm_state()).word
 
 
-async def test_cancelling_a_waiting_call_shifts_no_reply(bus: ControllerBus) -> None:
+async def test_cancelling_a_waiting_call_shifts_no_reply(paced_bus: ControllerBus) -> None:
+    bus = paced_bus  # the dwell (0.1 s of wall time) outlasts the wait for its pending reply
     arm = await bus.connect_arm(3)
     await arm.send("$X")
     task = asyncio.create_task(arm.send("G4 P0.4"))
@@ -251,8 +287,8 @@ async def test_cancelling_a_waiting_call_shifts_no_reply(bus: ControllerBus) -> 
     assert bus.stats.stray_lines == 0
 
 
-async def test_change_of_address_and_baud(own_bus: BusEmulator) -> None:
-    async with ControllerBus.open(own_bus.path) as bus:
+async def test_change_of_address_and_baud(own_fast_bus: BusEmulator) -> None:
+    async with ControllerBus.open(own_fast_bus.path) as bus:
         controller = bus.controller(4)
         await controller.set_bus_address(7)
         assert controller.address == 7 and bus.controller(7) is controller
@@ -288,16 +324,16 @@ async def test_a_lost_link_fails_every_pending_call_of_every_arm(own_bus: BusEmu
             await arms[1].status()
 
 
-async def test_connect_one_arm_by_address(shared_bus: BusEmulator) -> None:
-    async with connect(shared_bus.path, address=2) as arm:
+async def test_connect_one_arm_by_address(fast_bus: BusEmulator) -> None:
+    async with connect(fast_bus.path, address=2) as arm:
         assert (await arm.status()).state is not None
         assert "@02" in str(arm.url)
 
 
-def test_wlkatapython_drives_the_bus_emulator(own_bus: BusEmulator) -> None:
+def test_wlkatapython_drives_the_bus_emulator(own_fast_bus: BusEmulator) -> None:
     uart = pytest.importorskip("Mirobot_robot.Mirobot_UART", reason="wlkatapython not installed")
     serial = pytest.importorskip("serial")
-    port = serial.Serial(own_bus.path, 38400, timeout=1)
+    port = serial.Serial(own_fast_bus.path, 38400, timeout=1)
     try:
         robot = uart.Mirobot_UART(block_flag=False)  # blocking mode polls "?" 3x 0.2 s a round
         robot.init(port, 2)
@@ -325,7 +361,7 @@ async def test_a_streaming_arm_leaves_room_for_the_others(shared_bus: BusEmulato
     timing = BusTiming(planner_window=3)  # small, so that 12 lines fill it several times
     async with ControllerBus.open(shared_bus.path, timing=timing) as bus:
         arm1, arm2 = await bus.connect_arm(1), await bus.connect_arm(2)
-        await bus.controller(1).home()
+        await arm1.unlock()  # where it powered on (not homed): the moves below are relative
         lines = ["M21 G91 F600"] + [f"G01 X{2 if i % 2 else -2}" for i in range(12)]
         stream = asyncio.ensure_future(arm1.stream(lines))
         delays: list[float] = []
@@ -352,7 +388,7 @@ async def test_reset_through_the_controller(bus: ControllerBus) -> None:
 
 
 async def test_classic_arms_on_the_bus(tmp_path: Path) -> None:
-    emulator = BusEmulator(tmp_path, 2, 4.0, 0.3, profile="classic")
+    emulator = BusEmulator(tmp_path, 2, FAST, 0.3, profile="classic")
     try:
         async with ControllerBus.open(emulator.path) as bus:
             arms = [await bus.connect_arm(1), await bus.connect_arm(2)]
