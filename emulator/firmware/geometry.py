@@ -6,6 +6,7 @@ IK failures arrive as the kinematics module's typed exceptions and leave here as
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from typing import Final
 
@@ -24,6 +25,37 @@ IK_CHECKS_JOINT_RANGES: Final = False
 """Whether the IK refuses angles outside the factory ranges (``There is one angle out of
 limit!!!``). The oracle does not: a wrist out of range gets ``Soft limit triggered:B`` with
 ``$20=1`` and moves with ``$20=0``; J1 beyond 160 runs into the switch."""
+
+def shoulder_mirrored_pose(
+    pose: Sequence[float], dh: kin.DH, tool: Sequence[float]
+) -> tuple[float, ...]:
+    """The pose whose textbook IK gives the firmware's joints for ``pose``.
+
+    The firmware measures the wrist centre's horizontal distance from the shoulder (J2's axis,
+    ``A1`` from the base axis) without its sign: a wrist centre behind the shoulder is solved as
+    if it were as far in front of it, on the same J1 azimuth, and the arm goes there (oracle:
+    ``M20 G90 G0 X1 Y5 Z182 A0 B0 C0`` with ``$20=0`` ends at J2 -78.770, pose X 11.551 Y 57.749;
+    the textbook J2 is -102.326, which is why ``$20=1`` names ``Y`` there, not ``B``). The
+    returned pose has that mirrored wrist centre and the same orientation; ``pose`` itself when
+    the wrist centre is in front of the shoulder."""
+    x, y, z, rx, ry, rz = (float(v) for v in pose[:6])
+    sx, cx = math.sin(math.radians(rx)), math.cos(math.radians(rx))
+    sy = math.sin(math.radians(ry))
+    sz, cz = math.sin(math.radians(rz)), math.cos(math.radians(rz))
+    # z column of the orientation Rz Ry Rx (kin.rpy_to_matrix), cheap: this runs per IK
+    wx = x - dh.l * (cz * sy * cx + sz * sx)
+    wy = y - dh.l * (sz * sy * cx - cz * sx)
+    if any(tool):
+        rot = kin.rpy_to_matrix(rx, ry, rz)
+        wx -= float(rot[0] @ tool)
+        wy -= float(rot[1] @ tool)
+    rho = math.hypot(wx, wy)
+    if rho >= dh.a1:
+        return (x, y, z, rx, ry, rz)
+    ux, uy = (wx / rho, wy / rho) if rho > 1e-12 else (1.0, 0.0)  # on the axis: J1 = 0
+    shift = 2.0 * (dh.a1 - rho)  # from rho to the mirrored distance 2 * A1 - rho
+    return (x + ux * shift, y + uy * shift, z, rx, ry, rz)
+
 
 _LIMIT_SETTINGS: Final = (11, *range(100, 107), *range(110, 117), *range(120, 127))
 """The settings :meth:`Geometry.limits` is built from (junction deviation, steps, rates,
@@ -124,12 +156,14 @@ class Geometry:
         self, pose: Sequence[float], *, check_limits: bool = IK_CHECKS_JOINT_RANGES
     ) -> tuple[float, ...]:
         """Firmware-branch IK, raising :class:`Refusal` with the firmware's text. The oracle
-        checks no joint range here: the soft limits (``$20``) or the switches do."""
+        checks no joint range here: the soft limits (``$20``) or the switches do; a wrist centre
+        behind the shoulder is solved mirrored (:func:`shoulder_mirrored_pose`)."""
+        dh = self.dh()
         try:
             return tuple(
                 kin.inverse(
-                    tuple(float(v) for v in pose),
-                    self.dh(),
+                    shoulder_mirrored_pose(pose, dh, self.tool()),
+                    dh,
                     "firmware",
                     tool=self.tool(),
                     limits=kin.JOINT_LIMITS if check_limits else None,

@@ -112,6 +112,10 @@ UNREACHABLE: dict[str, list[str]] = {
     "cart-wrist-out": ["M20 G90 G0 X200 Y0 Z170 A0 B60 C0"],
     "cart-wrist-out-soft-off": ["$20=0", "M20 G90 G0 X200 Y0 Z170 A0 B60 C0"],
     "back-in-range": ["M21 G90 X170 F2000", "M21 G90 X150"],
+    # wrist centre behind the shoulder: the firmware solves J2 mirrored (beyond -30: Y), the
+    # textbook branch would need J5 beyond 36 (B)
+    "cart-near-base-axis": ["M20 G90 G0 X1 Y5 Z182 A0 B0 C0"],
+    "cart-on-base-axis-g1": ["M20 G90 G1 X0 Y0 Z182 A0 B0 C0 F2000"],
 }
 
 

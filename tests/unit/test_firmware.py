@@ -985,12 +985,44 @@ def test_cartesian_refusals() -> None:
     send(fw, "M20 G90 G0 X100 Y-100 Z150 A0 B0 C0\n", math.inf)
     before = status(fw)
     assert send(fw, "G0 X-100 Y100\nG0 X100 Y-100\n", math.inf) == ["ok", "ok"]  # both ends ok
-    out = send(fw, "G1 X-100 Y100 F2000\n", 1.0)  # passes over the base
+    # passes over the base: with the wrist centre behind the shoulder the firmware solves J2
+    # mirrored, beyond -30 (oracle), so its soft limit (Y) refuses the line
+    out = send(fw, "G1 X-100 Y100 F2000\n", 1.0)
     assert out[-2:] in (
         ["", "GOAL OUT OF WORKSPACE, THERE IS NO VAILD VALUS FOR  THETA3!ok"],
-        ["Soft limit triggered:B", "ok"],
+        ["Soft limit triggered:Y", "ok"],
     )
     assert status(fw) == before
+
+
+# the oracle's joints (status after the move, soft limits off, no switches): the firmware
+# solves a wrist centre behind the shoulder mirrored in front of it (J2 and the wrist change)
+MIRRORED_IK = [
+    ((1, 5, 182, 0, 0, 0), (78.689, -78.77, 46.375, 0.0, 32.403, -78.668)),
+    ((0, 0, 182, 0, 0, 0), (0.0, -76.008, 45.766, 0.0, 30.243, 0.0)),
+    ((1, 5, 182, 10, 20, 0), (4.001, -81.92, 47.781, 18.625, 51.935, -18.722)),
+    ((30, 5, 182, 0, 0, 0), (9.466, -91.335, 47.844, 0.0, 43.474, -9.451)),
+    ((-20, -5, 160, 0, 0, 30), (-165.962, -99.029, 59.344, 0.0, 39.694, -163.996)),
+    ((100, 100, 182, 0, 0, 0), (45.003, -32.207, 26.219, 0.0, 5.986, -45.005)),  # in front
+]
+
+
+@pytest.mark.parametrize(("pose", "oracle"), MIRRORED_IK)
+def test_wrist_centre_behind_the_shoulder_is_solved_mirrored(
+    pose: tuple[float, ...], oracle: tuple[float, ...]
+) -> None:
+    fw = boot("classic", unlocked=True)
+    send(fw, "$21=0\n$20=0\n")
+    x, y, z, a, b, c = pose
+    send(fw, f"M20 G90 G0 X{x} Y{y} Z{z} A{a} B{b} C{c}\n")
+    send(fw, "G4 P0\n", math.inf)
+    assert status(fw).joints == pytest.approx(oracle, abs=0.1)  # a step or two of J4/J6
+
+
+def test_near_the_base_axis_the_soft_limit_names_j2() -> None:
+    fw = boot("classic", unlocked=True)
+    out = send(fw, "M20 G90 G0 X1 Y5 Z182 A0 B0 C0\n")
+    assert out[-2:] == ["Soft limit triggered:Y", "ok"]  # oracle (the textbook J5 would be B)
 
 
 # ----------------------------------------------------------------------------------------------
