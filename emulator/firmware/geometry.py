@@ -26,6 +26,7 @@ IK_CHECKS_JOINT_RANGES: Final = False
 limit!!!``). The oracle does not: a wrist out of range gets ``Soft limit triggered:B`` with
 ``$20=1`` and moves with ``$20=0``; J1 beyond 160 runs into the switch."""
 
+
 def shoulder_mirrored_pose(
     pose: Sequence[float], dh: kin.DH, tool: Sequence[float]
 ) -> tuple[float, ...]:
