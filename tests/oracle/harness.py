@@ -472,3 +472,225 @@ def motion_ends(device: Device) -> list[float]:
     """Our emulator's ends of motion (wall instants mapped exactly from its simulated clock)."""
     words = device.control("motion-ends").split()
     return [float(w) for w in words[2:]]
+
+
+# --------------------------------------------------------------------------------------------
+# Replay: the oracle's bytes at its own simulated instants, into our pure firmware model
+
+ORACLE_TX_BYTE = 93.5e-6
+"""Simulated seconds per byte the oracle's UART sends (measured on its ``-l`` log: the banner's
+``D1: 78\\r\\n`` lines end 0.748 ms apart, an ``ok\\r\\n`` 0.374 ms after the line before)."""
+
+REPLAY_STEPS_PER_UNIT = (56.73, 113.33, 64.0, 16.0, 22.22, 11.11, 200.0)
+"""``$100..$106`` at power-on in JOINT order (J1..J6, rail): the status angles back to steps."""
+
+
+@dataclass
+class Sent:
+    """One write to the oracle during a recording: the bytes and how many output lines the
+    host had received before it (replies to it come later)."""
+
+    data: bytes
+    anchor: int
+
+
+class OracleRecording:
+    """The oracle alone, driven by a script; what was written and when, for :func:`replay`.
+
+    Every write must provoke a reply line the replay can time it by: a status (a chunk that
+    ends with ``?``, so ``!`` and ``~`` are sent as ``!?`` and ``~?``) or one ok/error per
+    line end."""
+
+    def __init__(self, workdir: Path) -> None:
+        workdir.mkdir(parents=True, exist_ok=True)
+        self.workdir = workdir
+        self.device = spawn_oracle(workdir)
+        self.sent: list[Sent] = []
+        try:
+            self.device.connect()
+        except BaseException:
+            self.device.close()
+            raise
+
+    def received_lines(self) -> int:
+        return len(lines_of(bytes(self.device.received)))
+
+    def write(self, data: bytes) -> None:
+        if not (data.endswith(b"?") or line_ends(data)):
+            raise ValueError(f"{data!r} provokes no reply line to time it by")
+        self.sent.append(Sent(data, self.received_lines()))
+        self.device.write(data)
+
+    def send(self, data: bytes | str, until: Until | None = None, timeout: float = 30.0) -> None:
+        """Write ``data`` and read until ``until`` (default: one reply line per line end, or
+        the status of a trailing ``?``)."""
+        raw = data.encode() if isinstance(data, str) else data
+        if until is None:
+            until = Until(terminals=line_ends(raw), statuses=1 if raw.endswith(b"?") else 0)
+        self.write(raw)
+        if not self.device.read_until(until.met, timeout):
+            raise HarnessError(f"oracle: {until} not met after {raw!r}: {self.device.pending()!r}")
+        if until.quiet:
+            self.device.read_quiet(until.quiet)
+        self.device.take()
+
+    def poll(self, interval: float, done: Callable[[bytes], bool], timeout: float = 60.0) -> None:
+        """``?`` every ``interval`` wall seconds (each after the previous status) until
+        ``done(everything received since the poll began)``."""
+        start = len(self.device.received)
+        deadline = time.monotonic() + timeout
+        while not done(bytes(self.device.received[start:])):
+            if time.monotonic() > deadline:
+                raise HarnessError(f"oracle: poll did not end: {self.device.pending()!r}")
+            before = self.device.received.count(b">")
+            self.write(b"?")
+            if not self.device.read_until(
+                lambda _d, n=before: self.device.received.count(b">") > n, 5.0
+            ):
+                raise HarnessError("oracle: no status within 5 s")
+            self.device.read_quiet(interval)
+        self.device.take()
+
+    def close(self) -> None:
+        self.device.close()
+
+
+@dataclass
+class ReplayResult:
+    """Our model's transcript beside the oracle's, line by line (after the power-on banner)."""
+
+    oracle: list[bytes]
+    ours: list[bytes]
+    equal_statuses: int = 0
+    moving_statuses: int = 0
+    differences: list[str] = field(default_factory=list)
+    step_differences: list[int] = field(default_factory=list)
+    """Per differing status line: the largest difference of an axis, in motor steps."""
+    time_shifts: list[float] = field(default_factory=list)
+    """Per differing status line: seconds by which our model reaches the oracle's step counts
+    later (positive) or earlier than the oracle's sampling instant (nearest within 0.2 s)."""
+
+
+def status_steps(line: bytes) -> tuple[int, ...] | None:
+    """Motor steps (joint order J1..J6, rail) of a status line's angles (None: no angles)."""
+    match = re.search(rb"Angle\(ABCDXYZ\):([-\d.,]+),Cartesian", line)
+    if match is None:
+        return None
+    a = [float(x) for x in match.group(1).split(b",")]
+    joints = (a[4], a[5], a[6], a[0], a[1], a[2], a[3])
+    return tuple(round(q * s) for q, s in zip(joints, REPLAY_STEPS_PER_UNIT, strict=True))
+
+
+def _reply_times(recording: OracleRecording) -> tuple[list[bytes], list[float], list[float]]:
+    """The oracle's lines, the simulated instant each began to be sent, and one instant per
+    write: when its timing reply began (status for a chunk ending ``?``, else its last
+    ok/error)."""
+    log = oracle_log(recording.workdir)
+    lines = lines_of(bytes(recording.device.received))
+    if len(log) < len(lines):
+        raise HarnessError(f"oracle log has {len(log)} lines, the host received {len(lines)}")
+    starts = [t - (len(text) + 2) * ORACLE_TX_BYTE for t, text in log[: len(lines)]]
+    claimed: set[int] = set()
+    replies = []
+    for sent in recording.sent:
+        wanted = is_status if sent.data.endswith(b"?") else is_terminal
+        count = 1 if sent.data.endswith(b"?") else line_ends(sent.data)
+        found = []
+        for i in range(sent.anchor, len(lines)):
+            if i not in claimed and wanted(lines[i]):
+                found.append(i)
+                if len(found) == count:
+                    break
+        if len(found) < count:
+            raise HarnessError(f"no reply to {sent.data!r} in the oracle's transcript")
+        claimed.update(found)
+        replies.append(starts[found[-1]])
+    return lines, starts, replies
+
+
+def replay(recording: OracleRecording, settle: float = 1.0) -> ReplayResult:
+    """Feed our pure firmware model (:class:`mirobot_emulator.firmware.Firmware`) the recorded
+    writes so that each one's timing reply begins at the oracle's simulated instant (our own
+    latency for it measured on a copy of the model), and compare every line.
+
+    Our clock starts where the oracle's banner line ``Using reset pos!`` began."""
+    import copy
+
+    from mirobot_emulator.firmware import Firmware
+
+    lines, starts, replies = _reply_times(recording)
+    banner_end = next(i for i, line in enumerate(lines) if BANNER_END.startswith(line + b"\r"))
+    t0 = starts[banner_end]
+    fw = Firmware("classic")
+    fw.read_output()
+    ours: list[tuple[float, bytes]] = []
+    timeline: list[tuple[float, tuple[int, ...]]] = []
+
+    def steps_now() -> tuple[int, ...]:
+        return tuple(round(q * s) for q, s in zip(fw.joints, REPLAY_STEPS_PER_UNIT, strict=True))
+
+    def run_to(t: float, trace: float = 0.0005) -> None:
+        while fw.now < t - 1e-12:
+            deadline = fw.next_deadline()
+            step = t - fw.now if deadline is None else min(max(deadline - fw.now, 0.0), t - fw.now)
+            fw.advance(min(step, trace) if fw.planner.busy else step)
+            timeline.append((fw.now, steps_now()))
+            for line in lines_of(fw.read_output()):
+                ours.append((fw.now, line))
+
+    def latency(data: bytes) -> float:
+        probe = copy.deepcopy(fw)
+        start = probe.now
+        probe.receive(data)
+        wanted = is_status if data.endswith(b"?") else is_terminal
+        need = 1 if data.endswith(b"?") else line_ends(data)
+        got = 0
+        while True:
+            got += sum(map(wanted, lines_of(probe.read_output())))
+            if got >= need:
+                return probe.now - start
+            deadline = probe.next_deadline()
+            if deadline is None or deadline - start > 30.0:
+                return 0.0
+            probe.advance(max(deadline - probe.now, 0.0))
+
+    for sent, reply in zip(recording.sent, replies, strict=True):
+        run_to(max(reply - t0 - latency(sent.data), fw.now))
+        fw.receive(sent.data)
+    run_to(max(starts[-1] - t0, fw.now) + settle)
+    result = ReplayResult(lines[banner_end + 1 :], [line for _t, line in ours])
+    _compare(result, [at for at, _line in ours], timeline)
+    return result
+
+
+def _compare(
+    result: ReplayResult, our_times: list[float], timeline: list[tuple[float, tuple[int, ...]]]
+) -> None:
+    """Other lines in order, statuses in order (a status and an ``ok`` printed within a
+    fraction of a millisecond of each other may come in either order)."""
+    others = [line for line in result.oracle if not is_status(line)]
+    mine = [line for line in result.ours if not is_status(line)]
+    if others != mine:
+        result.differences.append(f"other lines: oracle {others!r}\n          ours   {mine!r}")
+    ours = [(t, line) for t, line in zip(our_times, result.ours, strict=True) if is_status(line)]
+    theirs_all = [line for line in result.oracle if is_status(line)]
+    for k, (theirs, (at, line)) in enumerate(zip(theirs_all, ours, strict=False)):
+        moving = not theirs.startswith(b"<Idle")
+        result.moving_statuses += moving
+        if theirs == line:
+            result.equal_statuses += 1
+            continue
+        result.differences.append(f"status {k}: oracle {theirs!r}\n          ours   {line!r}")
+        a, b = status_steps(theirs), status_steps(line)
+        if a is None or b is None:
+            continue
+        result.step_differences.append(max(abs(x - y) for x, y in zip(a, b, strict=True)))
+        near = [
+            (max(abs(x - y) for x, y in zip(a, s, strict=True)), abs(t - at), t - at)
+            for t, s in timeline
+            if abs(t - at) <= 0.2
+        ]
+        if near:
+            result.time_shifts.append(min(near)[2])
+    if len(theirs_all) != len(ours):
+        result.differences.append(f"{len(theirs_all)} oracle statuses, {len(ours)} ours")
