@@ -1,10 +1,14 @@
 """The emulator as a real process on a real pty or TCP socket, driven with raw pyserial.
 
-Every test starts ``python -m mirobot_emulator`` with stdin/stdout pipes, reads the device path
-(or ``socket://HOST:PORT`` with ``--listen``) from the first stdout line, and talks to the port
-with ``serial.serial_for_url`` (not our client, except in the TCP test of the real client).
-Waits are conditions with timeouts (read until a line appears); every process and port is
-closed in ``finally``.
+The tests of a process's life (start-up, signals, stdin, ``--link``, ``--listen``, a ``close``
+that ends it) start ``python -m mirobot_emulator`` with stdin/stdout pipes and read the device
+path (or ``socket://HOST:PORT`` with ``--listen``) from the first stdout line. The tests of what
+the options and control commands do take one of the module's processes (one per link) and
+renew it with their options (the ``renew`` control command: what a new process started with
+them would be, a fresh power-on on a new port, without an interpreter start each time).
+Either way they talk to the port with ``serial.serial_for_url`` (not our client, except in the
+TCP test of the real client). Waits are conditions with timeouts (read until a line appears);
+every process and port is closed in ``finally``.
 """
 
 from __future__ import annotations
@@ -13,6 +17,7 @@ import contextlib
 import os
 import re
 import selectors
+import shlex
 import signal
 import socket
 import subprocess
@@ -55,12 +60,45 @@ class Emulator:
         )
         self._buf = b""
         self.stderr: str | None = None
+        self._stderr_read = b""
         self._selector = selectors.DefaultSelector()
         assert self.proc.stdout is not None
         self._selector.register(self.proc.stdout, selectors.EVENT_READ)
         self.path = self.stdout_line(timeout=10)
         self.path_seen = time.monotonic()
         assert self.path.startswith(("/dev/", "socket://")), self.path
+
+    def renew(self, *args: str) -> None:
+        """Make this process what a new one started with ``args`` would be (the ``renew``
+        control command: a new port, a fresh power-on, faults and counters new); ``spawned``
+        and ``path_seen`` are then the renewal's times. Lines a failed test left unread on
+        stdout are skipped."""
+        self.spawned = time.monotonic()
+        assert self.proc.stdin is not None
+        self.proc.stdin.write(shlex.join(["renew", *args]).encode() + b"\n")
+        self.proc.stdin.flush()
+        answer = self.stdout_line()
+        while not answer.startswith(("ack renew", "error renew")):
+            answer = self.stdout_line()
+        assert answer.startswith("ack renew ") and " url=" in answer, answer
+        self.path = answer.rsplit(" url=", 1)[1]
+        self.path_seen = time.monotonic()
+
+    def stderr_since_last_call(self) -> str:
+        """What the running process wrote to stderr since the last call (without waiting)."""
+        assert self.proc.stderr is not None
+        fd = self.proc.stderr.fileno()
+        chunks = []
+        with selectors.DefaultSelector() as ready:
+            ready.register(fd, selectors.EVENT_READ)
+            while ready.select(0):
+                chunk = os.read(fd, 65536)
+                if not chunk:
+                    break
+                chunks.append(chunk)
+        data = b"".join(chunks)
+        self._stderr_read += data
+        return data.decode(errors="replace")
 
     def stdout_line(self, timeout: float = 5.0) -> str:
         assert self.proc.stdout is not None
@@ -100,7 +138,7 @@ class Emulator:
             self.proc.stdin = None  # closed by the test: communicate() would trip on it
         if self.stderr is None:
             _, err = self.proc.communicate(timeout=timeout)
-            self.stderr = err.decode(errors="replace")
+            self.stderr = (self._stderr_read + err).decode(errors="replace")
 
     def close(self) -> None:
         """Stop the process if needed (terminate, then kill) and close every pipe."""
@@ -139,35 +177,41 @@ def emulator() -> Iterator[Callable[..., Emulator]]:
 
 
 @pytest.fixture(scope="module")
-def shared_emulator() -> Iterator[Emulator]:
-    """One default emulator (2021, pty, time scale 1) for the tests whose state does not
-    matter: counted faults each test uses up, a time scale put back, no motion."""
-    emu = Emulator()
-    try:
-        yield emu
-    finally:
-        emu.close()
-    assert "Traceback" not in (emu.stderr or ""), emu.stderr
-
-
-@pytest.fixture(scope="module")
-def instant_emulator() -> Iterator[Callable[[str], Emulator]]:
-    """One ``--time-scale 0`` emulator per profile for the module, for tests that reset it or
-    move to absolute targets (their order does not matter)."""
+def processes() -> Iterator[dict[str, Emulator]]:
+    """The module's emulator processes that tests renew, one per link (started on first use)."""
     started: dict[str, Emulator] = {}
-
-    def get(profile: str) -> Emulator:
-        if profile not in started:
-            started[profile] = Emulator("--firmware", profile, "--time-scale", "0")
-        return started[profile]
-
     try:
-        yield get
+        yield started
     finally:
         for emu in started.values():
             emu.close()
     for emu in started.values():
         assert "Traceback" not in (emu.stderr or ""), emu.stderr
+
+
+@pytest.fixture
+def renewed(processes: dict[str, Emulator]) -> Iterator[Callable[..., Emulator]]:
+    """``renewed(*args)``: the module's process for the link ``args`` name (a pty, or TCP with
+    ``*LISTEN``), renewed with the other ``args``: as a new process started with ``args``."""
+    used: list[Emulator] = []
+
+    def get(*args: str) -> Emulator:
+        link = "pty"
+        if "--listen" in args:
+            at = args.index("--listen")
+            assert args[at : at + 2] == LISTEN, args  # what a renewal keeps: a free port
+            args, link = args[:at] + args[at + 2 :], "tcp"
+        if link not in processes or processes[link].proc.poll() is not None:
+            processes[link] = Emulator(*TRANSPORTS[link])
+        emu = processes[link]
+        emu.renew(*args)
+        used.append(emu)
+        return emu
+
+    yield get
+    for emu in used:  # the emulator logs a traceback when its firmware model raises
+        err = emu.stderr_since_last_call()
+        assert "Traceback" not in err, err
 
 
 # ----------------------------------------------------------------------------- serial helpers
@@ -266,9 +310,9 @@ def test_startup_to_first_status_is_fast(emulator: Callable[..., Emulator]) -> N
 @pytest.mark.parametrize("transport", TRANSPORTS)
 @pytest.mark.parametrize("profile", PROFILES)
 def test_banner_on_open_with_reset_on_open(
-    emulator: Callable[..., Emulator], profile: str, transport: str
+    renewed: Callable[..., Emulator], profile: str, transport: str
 ) -> None:
-    emu = emulator(
+    emu = renewed(
         "--firmware", profile, "--reset-on-open", "--time-scale", "0", *TRANSPORTS[transport]
     )
     for _ in range(2):  # every open resets
@@ -280,8 +324,8 @@ def test_banner_on_open_with_reset_on_open(
             assert status(port)["state"] == ("Idle" if profile == "classic" else "Alarm")
 
 
-def test_state_survives_reopen_without_reset_on_open(emulator: Callable[..., Emulator]) -> None:
-    emu = emulator("--firmware", "classic", "--time-scale", "0")
+def test_state_survives_reopen_without_reset_on_open(renewed: Callable[..., Emulator]) -> None:
+    emu = renewed("--firmware", "classic", "--time-scale", "0")
     with emu.port() as port:
         unlock(port, "classic")
         command(port, "M21 G90 G1 X10 F2000")
@@ -300,8 +344,8 @@ def test_state_survives_reopen_without_reset_on_open(emulator: Callable[..., Emu
 
 @pytest.mark.parametrize("profile", PROFILES)
 @pytest.mark.parametrize("scale", ["100", "0"])
-def test_joint_move(emulator: Callable[..., Emulator], profile: str, scale: str) -> None:
-    emu = emulator("--firmware", profile, "--time-scale", scale)
+def test_joint_move(renewed: Callable[..., Emulator], profile: str, scale: str) -> None:
+    emu = renewed("--firmware", profile, "--time-scale", scale)
     with emu.port() as port:
         unlock(port, profile)
         replies = command(port, "M21 G90 G1 X10 F2000")
@@ -319,10 +363,8 @@ def test_joint_move(emulator: Callable[..., Emulator], profile: str, scale: str)
 
 
 @pytest.mark.parametrize("profile", PROFILES)
-def test_time_scale_zero_is_instant(
-    instant_emulator: Callable[[str], Emulator], profile: str
-) -> None:
-    emu = instant_emulator(profile)
+def test_time_scale_zero_is_instant(renewed: Callable[..., Emulator], profile: str) -> None:
+    emu = renewed("--firmware", profile, "--time-scale", "0")
     with emu.port() as port:
         unlock(port, profile)
         port.write(b"M21 G90 G1 X10 Y-5 F100\n?")  # 10 s of motion at F100
@@ -335,8 +377,8 @@ def test_time_scale_zero_is_instant(
 
 
 @pytest.mark.parametrize("profile", PROFILES)
-def test_homing(emulator: Callable[..., Emulator], profile: str) -> None:
-    emu = emulator("--firmware", profile, "--time-scale", "100", "--homing-seconds", "10")
+def test_homing(renewed: Callable[..., Emulator], profile: str) -> None:
+    emu = renewed("--firmware", profile, "--time-scale", "100", "--homing-seconds", "10")
     with emu.port() as port:
         unlock(port, profile)
         command(port, "M21 G90 G0 X20 Y10")
@@ -350,8 +392,8 @@ def test_homing(emulator: Callable[..., Emulator], profile: str) -> None:
 
 
 @pytest.mark.parametrize("profile", PROFILES)
-def test_percent_resets(instant_emulator: Callable[[str], Emulator], profile: str) -> None:
-    emu = instant_emulator(profile)
+def test_percent_resets(renewed: Callable[..., Emulator], profile: str) -> None:
+    emu = renewed("--firmware", profile, "--time-scale", "0")
     with emu.port() as port:
         port.write(b"%")
         lines = read_until(port, lambda text: BANNER_LAST in text)
@@ -467,8 +509,8 @@ def _received_rate(port: serial.SerialBase, expected: int, timeout: float) -> tu
 
 
 @pytest.mark.parametrize("transport", TRANSPORTS)
-def test_baud_paces_output(emulator: Callable[..., Emulator], transport: str) -> None:
-    emu = emulator("--baud", "9600", "--time-scale", "0", *TRANSPORTS[transport])
+def test_baud_paces_output(renewed: Callable[..., Emulator], transport: str) -> None:
+    emu = renewed("--baud", "9600", "--time-scale", "0", *TRANSPORTS[transport])
     with emu.port(timeout=0.5) as port:
         port.write(b"\n" * 200)  # 200 bytes in (0.21 s), 200 x "ok\r\n" = 800 bytes out (0.83 s)
         rate, data = _received_rate(port, 800, timeout=6)
@@ -478,8 +520,8 @@ def test_baud_paces_output(emulator: Callable[..., Emulator], transport: str) ->
 
 
 @pytest.mark.parametrize("transport", TRANSPORTS)
-def test_baud_paces_input(emulator: Callable[..., Emulator], transport: str) -> None:
-    emu = emulator("--baud", "9600", "--time-scale", "0", *TRANSPORTS[transport])
+def test_baud_paces_input(renewed: Callable[..., Emulator], transport: str) -> None:
+    emu = renewed("--baud", "9600", "--time-scale", "0", *TRANSPORTS[transport])
     line = b"(" + b"x" * 62 + b")\n"  # 64 bytes in, "ok\r\n" out: input-bound
     with emu.port(timeout=0.5) as port:
         port.write(b"\n")
@@ -496,8 +538,8 @@ def test_baud_paces_input(emulator: Callable[..., Emulator], transport: str) -> 
 
 
 @pytest.mark.parametrize("transport", TRANSPORTS)
-def test_usb_latency_holds_short_output(emulator: Callable[..., Emulator], transport: str) -> None:
-    emu = emulator("--usb-latency-ms", "80", "--time-scale", "0", *TRANSPORTS[transport])
+def test_usb_latency_holds_short_output(renewed: Callable[..., Emulator], transport: str) -> None:
+    emu = renewed("--usb-latency-ms", "80", "--time-scale", "0", *TRANSPORTS[transport])
     with emu.port(timeout=0.5) as port:
         delays = []
         for _ in range(3):
@@ -512,8 +554,8 @@ def test_usb_latency_holds_short_output(emulator: Callable[..., Emulator], trans
 
 # ----------------------------------------------------------------------------- faults (flags)
 @pytest.mark.parametrize("transport", TRANSPORTS)
-def test_fault_drop_ok(emulator: Callable[..., Emulator], transport: str) -> None:
-    emu = emulator("--fault", "drop-ok:2", "--fault", "drop-ok:3", *TRANSPORTS[transport])
+def test_fault_drop_ok(renewed: Callable[..., Emulator], transport: str) -> None:
+    emu = renewed("--fault", "drop-ok:2", "--fault", "drop-ok:3", *TRANSPORTS[transport])
     with emu.port() as port:
         port.write(b"\n\n\n\nM99\n")  # the 2nd and 3rd oks dropped, then an error
         lines = read_until(port, lambda text: text.startswith(("error", "Error")))
@@ -522,8 +564,8 @@ def test_fault_drop_ok(emulator: Callable[..., Emulator], transport: str) -> Non
         assert read_until(port, lambda text: text != "")[-1] == "ok"
 
 
-def test_fault_corrupt_status(emulator: Callable[..., Emulator]) -> None:
-    emu = emulator("--fault", "corrupt-status:2")
+def test_fault_corrupt_status(renewed: Callable[..., Emulator]) -> None:
+    emu = renewed("--fault", "corrupt-status:2")
     with emu.port() as port:
         port.write(b"?")
         first = read_until(port, lambda text: text.startswith("<"))[-1]
@@ -539,26 +581,25 @@ def test_fault_corrupt_status(emulator: Callable[..., Emulator]) -> None:
 
 
 def test_fault_corrupt_status_rate_is_deterministic_by_seed(
-    emulator: Callable[..., Emulator],
+    renewed: Callable[..., Emulator],
 ) -> None:
     runs = []
     for _ in range(2):
-        emu = emulator("--fault", "corrupt-status-rate:0.5", "--seed", "42")
+        emu = renewed("--fault", "corrupt-status-rate:0.5", "--seed", "42")
         with emu.port() as port:
             port.write(b"?" * 12)
             lines = []
             for _ in range(12):
                 lines.append(read_until(port, lambda text: text.startswith("<"))[-1])
         runs.append(lines)
-        emu.stop()
     assert runs[0] == runs[1]
     corrupted = [not STATUS_RE.fullmatch(text) for text in runs[0]]
     assert any(corrupted)
     assert not all(corrupted)
 
 
-def test_fault_ignore_status(emulator: Callable[..., Emulator]) -> None:
-    emu = emulator("--fault", "ignore-status:1")
+def test_fault_ignore_status(renewed: Callable[..., Emulator]) -> None:
+    emu = renewed("--fault", "ignore-status:1")
     with emu.port() as port:
         port.write(b"?\n")
         lines = read_until(port, lambda text: text == "ok")
@@ -566,8 +607,8 @@ def test_fault_ignore_status(emulator: Callable[..., Emulator]) -> None:
         assert status(port)
 
 
-def test_fault_stall(emulator: Callable[..., Emulator]) -> None:
-    emu = emulator("--fault", "stall:0:0.8")
+def test_fault_stall(renewed: Callable[..., Emulator]) -> None:
+    emu = renewed("--fault", "stall:0:0.8")
     with emu.port() as port:
         port.write(b"\n")
         read_until(port, lambda text: text == "ok", timeout=5)
@@ -576,8 +617,8 @@ def test_fault_stall(emulator: Callable[..., Emulator]) -> None:
     assert arrived - emu.path_seen < 2.0
 
 
-def test_fault_hard_limit(emulator: Callable[..., Emulator]) -> None:
-    emu = emulator("--firmware", "classic", "--fault", "hard-limit:0.3")
+def test_fault_hard_limit(renewed: Callable[..., Emulator]) -> None:
+    emu = renewed("--firmware", "classic", "--fault", "hard-limit:0.3")
     with emu.port() as port:
         lines = read_until(port, lambda text: "Hard limit" in text, timeout=5)
         assert HARD_LIMIT.fullmatch(lines[-1]), lines
@@ -588,8 +629,8 @@ def test_fault_hard_limit(emulator: Callable[..., Emulator]) -> None:
         assert status(port)["state"] == "Alarm"
 
 
-def test_fault_reset(emulator: Callable[..., Emulator]) -> None:
-    emu = emulator("--fault", "reset:0.3")
+def test_fault_reset(renewed: Callable[..., Emulator]) -> None:
+    emu = renewed("--fault", "reset:0.3")
     with emu.port() as port:
         lines = read_until(port, lambda text: BANNER_LAST in text, timeout=5)
         assert any("Qinnew Robot" in text for text in lines), lines
@@ -610,8 +651,8 @@ def test_fault_close(emulator: Callable[..., Emulator], transport: str) -> None:
 
 
 # ----------------------------------------------------------------------------- control channel
-def test_control_drop_ok(shared_emulator: Emulator) -> None:
-    emu = shared_emulator
+def test_control_drop_ok(renewed: Callable[..., Emulator]) -> None:
+    emu = renewed()
     with emu.port() as port:
         port.write(b"\n")
         assert read_until(port, lambda text: text == "ok")
@@ -622,8 +663,8 @@ def test_control_drop_ok(shared_emulator: Emulator) -> None:
         assert [text for text in lines[:-1] if text] == ["ok"], lines
 
 
-def test_control_corrupt_and_ignore_status(shared_emulator: Emulator) -> None:
-    emu = shared_emulator
+def test_control_corrupt_and_ignore_status(renewed: Callable[..., Emulator]) -> None:
+    emu = renewed()
     with emu.port() as port:
         assert STATUS_RE.fullmatch(status(port)[0])
         assert emu.command("corrupt-status") == "ack corrupt-status"
@@ -638,8 +679,8 @@ def test_control_corrupt_and_ignore_status(shared_emulator: Emulator) -> None:
 
 
 @pytest.mark.parametrize("transport", TRANSPORTS)
-def test_control_stall(emulator: Callable[..., Emulator], transport: str) -> None:
-    emu = emulator(*TRANSPORTS[transport])
+def test_control_stall(renewed: Callable[..., Emulator], transport: str) -> None:
+    emu = renewed(*TRANSPORTS[transport])
     with emu.port(timeout=0.05) as port:
         assert emu.command("stall 0.5") == "ack stall 0.5"
         started = time.monotonic()
@@ -672,8 +713,8 @@ def test_control_hard_limit_reset_and_close(
     assert code == 0, err
 
 
-def test_control_time_scale(emulator: Callable[..., Emulator]) -> None:
-    emu = emulator("--firmware", "classic", "--time-scale", "1")
+def test_control_time_scale(renewed: Callable[..., Emulator]) -> None:
+    emu = renewed("--firmware", "classic", "--time-scale", "1")
     with emu.port() as port:
         unlock(port, "classic")
         command(port, "M21 G90 G1 X60 F300")  # 60 degrees at 300 deg/min: 12 s of real time
@@ -684,23 +725,23 @@ def test_control_time_scale(emulator: Callable[..., Emulator]) -> None:
         assert joints(match)[0] == pytest.approx(60.0, abs=STEP)
 
 
-def test_control_errors(shared_emulator: Emulator) -> None:
-    emu = shared_emulator
+def test_control_errors(renewed: Callable[..., Emulator]) -> None:
+    emu = renewed()
     assert emu.command("explode").startswith("error explode:")
     assert emu.command("drop-ok zero").startswith("error drop-ok zero:")
     assert emu.command("time-scale 2") == "ack time-scale 2"
     with emu.port() as port:
         assert status(port)
-    assert emu.command("time-scale 1") == "ack time-scale 1"  # as the other sharers expect
+    assert emu.command("time-scale 1") == "ack time-scale 1"
 
 
-def test_control_motion_ends_reports_the_end_of_motion(emulator: Callable[..., Emulator]) -> None:
+def test_control_motion_ends_reports_the_end_of_motion(renewed: Callable[..., Emulator]) -> None:
     """The reported end lies between the last Run and the first Idle status, within 20 ms of it.
 
     The 20 ms bound is the polling latency, which only load can stretch: up to three moves,
     the tightest counts (the bracket must hold for every one).
     """
-    emu = emulator("--firmware", "2021", "--time-scale", "1")
+    emu = renewed("--firmware", "2021", "--time-scale", "1")
     gaps: list[float] = []
     with emu.port() as port:
         unlock(port, "2021")
@@ -734,10 +775,10 @@ def test_control_motion_ends_reports_the_end_of_motion(emulator: Callable[..., E
 # ----------------------------------------------------------------------------- reset on open
 @pytest.mark.parametrize("transport", TRANSPORTS)
 def test_reset_on_open_resets_on_open_not_on_a_flush(
-    emulator: Callable[..., Emulator], transport: str
+    renewed: Callable[..., Emulator], transport: str
 ) -> None:
     """The vendor's newer SDK flushes the input before each status poll: that is no open."""
-    emu = emulator(
+    emu = renewed(
         "--firmware", "2021", "--reset-on-open", "--time-scale", "0", *TRANSPORTS[transport]
     )
     with emu.port() as port:
@@ -767,8 +808,8 @@ def test_tcp_binds_the_loopback_and_picks_a_port(emulator: Callable[..., Emulato
         assert joints(wait_idle(port))[0] == pytest.approx(10.0, abs=STEP)
 
 
-def test_tcp_serves_one_client_at_a_time(emulator: Callable[..., Emulator]) -> None:
-    emu = emulator(*LISTEN, "--firmware", "classic", "--time-scale", "0")
+def test_tcp_serves_one_client_at_a_time(renewed: Callable[..., Emulator]) -> None:
+    emu = renewed(*LISTEN, "--firmware", "classic", "--time-scale", "0")
     host, port_text = emu.path.removeprefix("socket://").rsplit(":", 1)
     with emu.port() as port:
         unlock(port, "classic")
@@ -811,10 +852,10 @@ def test_listen_argument_errors_exit_2(
     assert not (tmp_path / "mirobot").exists()
 
 
-async def test_the_real_client_over_tcp(emulator: Callable[..., Emulator]) -> None:
+async def test_the_real_client_over_tcp(renewed: Callable[..., Emulator]) -> None:
     from mirobot_async import Mirobot
 
-    emu = emulator(*LISTEN, "--firmware", "classic", "--time-scale", "100")
+    emu = renewed(*LISTEN, "--firmware", "classic", "--time-scale", "100")
     async with Mirobot.connect(emu.path) as arm:
         homed = await arm.home(timeout=20)
         assert homed.joints == pytest.approx((0.0,) * 6, abs=STEP)
