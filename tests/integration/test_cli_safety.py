@@ -4,21 +4,25 @@ program from stdin (the plots in robot time: ``test_cli.py::test_run_trace_then_
 Ctrl-C / SIGTERM tests run the CLI as a subprocess against an emulator started separately, and
 read the emulator through second channels the CLI does not use: its control channel (``stats``:
 the bytes it received) while the CLI runs, and the serial port itself once the CLI has exited.
+The commands around them, and the stdin tests but one (a real pipe), run ``main(argv)`` in this
+process (the ``cli`` fixture).
 """
 
 from __future__ import annotations
 
+import io
 import os
 import signal
 import subprocess
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
 import serial
 
+from mirobot_async.cli import main
 from mirobot_async.replies import State, StatusReport, parse_status
 from mirobot_async.testing import SyncEmulatorProcess
 
@@ -49,6 +53,34 @@ def mirobot(*args: str, stdin: str | None = None) -> subprocess.CompletedProcess
             proc.communicate()
             raise
     return subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
+
+
+Cli = Callable[..., subprocess.CompletedProcess[str]]
+
+
+@pytest.fixture
+def cli(capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> Iterator[Cli]:
+    """``mirobot ARGS`` as ``main(argv)`` in this process, to completion (``stdin``: the text
+    standard input holds); output captured at the file descriptors. ``main`` installs
+    SIGINT/SIGTERM handlers while it runs: this test's are put back after."""
+    saved = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+
+    def run(*args: str, stdin: str = "") -> subprocess.CompletedProcess[str]:
+        monkeypatch.setattr(sys, "stdin", io.TextIOWrapper(io.BytesIO(stdin.encode())))
+        capfd.readouterr()  # only this command's output
+        try:
+            status: object = main(list(args))
+        except SystemExit as exited:  # argparse: usage errors
+            status = 0 if exited.code is None else exited.code
+        out, err = capfd.readouterr()
+        assert isinstance(status, int), status
+        return subprocess.CompletedProcess(["mirobot", *args], status, out, err)
+
+    try:
+        yield run
+    finally:
+        for sig, handler in saved.items():
+            signal.signal(sig, handler)
 
 
 def spawn(*args: str) -> subprocess.Popen[str]:
@@ -183,10 +215,10 @@ def test_ctrl_c_while_homing_stops_it_with_a_soft_reset() -> None:
     assert len({report.joints for report in reports}) == 1  # no further motion
 
 
-def test_a_held_arm_is_refused_by_the_pre_flight_check() -> None:
+def test_a_held_arm_is_refused_by_the_pre_flight_check(cli: Cli) -> None:
     with SyncEmulatorProcess(time_scale=1) as emulator:
         program = ["M21 G90", "G0 X100"]
-        assert mirobot("unlock", "--port", emulator.url).returncode == 0
+        assert cli("unlock", "--port", emulator.url).returncode == 0
         moving = spawn("move", "joints", "j1=100", "--port", emulator.url, "--speed", "300")
         try:
             wait_for(lambda: stats(emulator)["lines_in"] >= 3, 20, "the move to be sent")
@@ -197,7 +229,7 @@ def test_a_held_arm_is_refused_by_the_pre_flight_check() -> None:
         assert moving.returncode == 130, err
         assert "the arm is Hold" in err
         before = stats(emulator)
-        proc = mirobot("run", "-", "--port", emulator.url, stdin="\n".join(program))
+        proc = cli("run", "-", "--port", emulator.url, stdin="\n".join(program))
         assert stats(emulator)["lines_in"] == before["lines_in"]  # not a line of it was sent
     assert proc.returncode == 1
     assert proc.stderr.splitlines() == [
@@ -206,15 +238,15 @@ def test_a_held_arm_is_refused_by_the_pre_flight_check() -> None:
     ]
 
 
-def test_run_reads_the_program_from_stdin() -> None:
+def test_run_reads_the_program_from_stdin(cli: Cli) -> None:
     proc = mirobot("run", "-", *FAST, stdin="; from a pipe\nM21 G90\nG0 X20 Y10 Z0 A0 B0 C0\n")
     assert proc.returncode == 0, proc.stderr
     joints = next(line for line in proc.stdout.splitlines() if line.startswith("joints"))
     j1, j2 = (float(v) for v in joints.split()[1:3])
     assert abs(j1 - 20) < 0.02 and abs(j2 - 10) < 0.02  # within a motor step
-    proc = mirobot("run", "-", *FAST, stdin="; nothing\n")
+    proc = cli("run", "-", *FAST, stdin="; nothing\n")
     assert proc.returncode == 2
     assert proc.stderr.strip() == "mirobot: error: <stdin>: no commands in the input"
-    proc = mirobot("check", "-", stdin="M21 G90\nG0 X500\n")
+    proc = cli("check", "-", stdin="M21 G90\nG0 X500\n")
     assert proc.returncode == 1
     assert proc.stdout.splitlines() == ["<stdin>:2: J1=500 is outside -100..160"]
