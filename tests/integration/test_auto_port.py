@@ -7,9 +7,9 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import signal
 import socket
 import subprocess
-import sys
 import threading
 from collections.abc import Callable, Iterator
 
@@ -18,6 +18,7 @@ import serial.tools.list_ports
 from serial.tools.list_ports_common import ListPortInfo
 
 from mirobot_async import Mirobot, MirobotConnectionError
+from mirobot_async.cli import main
 from mirobot_async.ports import AUTO_PORTS_ENV, find_mirobot
 from mirobot_async.testing import SyncEmulatorProcess, run_emulator
 
@@ -168,20 +169,37 @@ async def test_connect_auto_without_a_mirobot_fails(monkeypatch: pytest.MonkeyPa
             await Mirobot.connect("auto", timeout=PROBE)
 
 
-def mirobot(*args: str, env: dict[str, str]) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "mirobot_async", *args],
-        capture_output=True,
-        text=True,
-        env={**os.environ, **env},
-        stdin=subprocess.DEVNULL,
-        timeout=60,
-        check=False,
-    )
+Cli = Callable[..., subprocess.CompletedProcess[str]]
+
+
+@pytest.fixture
+def mirobot(capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> Iterator[Cli]:
+    """``mirobot ARGS`` with ``env`` added to the environment, as ``main(argv)`` in this process
+    (output captured at the file descriptors); its SIGINT/SIGTERM handlers are put back after."""
+    saved = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+
+    def run(*args: str, env: dict[str, str]) -> subprocess.CompletedProcess[str]:
+        capfd.readouterr()  # only this command's output
+        with monkeypatch.context() as environment:
+            for name, value in env.items():
+                environment.setenv(name, value)
+            try:
+                status: object = main(list(args))
+            except SystemExit as exited:  # argparse: usage errors
+                status = 0 if exited.code is None else exited.code
+        out, err = capfd.readouterr()
+        assert isinstance(status, int), status
+        return subprocess.CompletedProcess(["mirobot", *args], status, out, err)
+
+    try:
+        yield run
+    finally:
+        for sig, handler in saved.items():
+            signal.signal(sig, handler)
 
 
 def test_cli_auto_and_mirobot_port_env(
-    emulators: tuple[SyncEmulatorProcess, SyncEmulatorProcess],
+    emulators: tuple[SyncEmulatorProcess, SyncEmulatorProcess], mirobot: Cli
 ) -> None:
     first, tcp = emulators
     one = {AUTO_PORTS_ENV: tcp.url}

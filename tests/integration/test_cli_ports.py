@@ -5,14 +5,15 @@ The emulators' counters prove the probe sent nothing but ``?`` and ``$$``."""
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
-import sys
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 import pytest
 
+from mirobot_async.cli import main
 from mirobot_async.testing import SyncEmulatorProcess
 
 pytestmark = pytest.mark.timeout(60)
@@ -21,6 +22,32 @@ pytestmark = pytest.mark.timeout(60)
 def stats(emulator: SyncEmulatorProcess) -> dict[str, int]:
     words = emulator.control("stats").split()
     return {name: int(value) for name, _, value in (w.partition("=") for w in words if "=" in w)}
+
+
+Cli = Callable[..., subprocess.CompletedProcess[str]]
+
+
+@pytest.fixture
+def mirobot(capfd: pytest.CaptureFixture[str]) -> Iterator[Cli]:
+    """``mirobot ARGS`` as ``main(argv)`` in this process (output captured at the file
+    descriptors); its SIGINT/SIGTERM handlers are put back after."""
+    saved = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+
+    def run(*args: str) -> subprocess.CompletedProcess[str]:
+        capfd.readouterr()  # only this command's output
+        try:
+            status: object = main(list(args))
+        except SystemExit as exited:  # argparse: usage errors
+            status = 0 if exited.code is None else exited.code
+        out, err = capfd.readouterr()
+        assert isinstance(status, int), status
+        return subprocess.CompletedProcess(["mirobot", *args], status, out, err)
+
+    try:
+        yield run
+    finally:
+        for sig, handler in saved.items():
+            signal.signal(sig, handler)
 
 
 @pytest.fixture
@@ -50,20 +77,14 @@ def garbage_port() -> Iterator[str]:
         os.close(master)
 
 
-def test_ports_probes_emulators_and_a_garbage_port(garbage_port: str) -> None:
+def test_ports_probes_emulators_and_a_garbage_port(garbage_port: str, mirobot: Cli) -> None:
     with (
         SyncEmulatorProcess(time_scale=0) as quiet,
         SyncEmulatorProcess("classic", time_scale=0, extra_args=["--reset-on-open"]) as booting,
     ):
         started = time.monotonic()
         devices = [quiet.url, booting.url, garbage_port]
-        proc = subprocess.run(
-            [sys.executable, "-m", "mirobot_async", "ports", *devices, "--timeout", "1.5"],
-            capture_output=True,
-            text=True,
-            timeout=30,
-            stdin=subprocess.DEVNULL,
-        )
+        proc = mirobot("ports", *devices, "--timeout", "1.5")
         took = time.monotonic() - started
         quiet_stats, booting_stats = stats(quiet), stats(booting)
     assert proc.returncode == 0, proc.stderr  # a Mirobot answered
@@ -83,13 +104,7 @@ def test_ports_probes_emulators_and_a_garbage_port(garbage_port: str) -> None:
     assert booting_stats["bytes_in"] == booting_stats["status_requests_in"]
 
 
-def test_ports_with_nothing_to_probe_says_so_and_exits_1(tmp_path: object) -> None:
-    proc = subprocess.run(
-        [sys.executable, "-m", "mirobot_async", "ports", "/dev/null/nothing", "--timeout", "0.2"],
-        capture_output=True,
-        text=True,
-        timeout=30,
-        stdin=subprocess.DEVNULL,
-    )
+def test_ports_with_nothing_to_probe_says_so_and_exits_1(mirobot: Cli) -> None:
+    proc = mirobot("ports", "/dev/null/nothing", "--timeout", "0.2")
     assert proc.returncode == 1
     assert "cannot open" in proc.stdout
