@@ -15,7 +15,9 @@ descriptor (``loop://``) are served by a small polling transport.
 Guarantees:
 
 * Opening fails at once with :class:`~mirobot_async.errors.MirobotConnectionError` quoting the
-  operating system's words (missing path, busy port, refused socket).
+  operating system's words (missing path, busy port, refused socket). A network server that
+  accepts the connection and then says it is busy (our emulator, ser2net) ends the link with
+  such an error, quoting the server's words, passed to ``on_lost`` (:func:`refusal_error`).
 * :meth:`SerialLink.write` never blocks: bytes the OS cannot take now are buffered by the
   transport (the client never has more than a few hundred bytes outstanding).
 * End of file, an I/O error or the peer going away calls ``on_lost`` exactly once, promptly
@@ -34,15 +36,17 @@ import errno
 import functools
 import logging
 import os
+import socket
 import urllib.parse
 from collections.abc import Callable
 from typing import Any, Literal
 
 import serial
+from serial.urlhandler import protocol_socket
 
 from mirobot_async.errors import MirobotConnectionError, MirobotUsageError
 
-__all__ = ["DEFAULT_BAUDRATE", "Implementation", "SerialLink"]
+__all__ = ["DEFAULT_BAUDRATE", "Implementation", "SerialLink", "refusal_error"]
 
 _log = logging.getLogger("mirobot_async.transport")
 
@@ -56,17 +60,53 @@ DataCallback = Callable[[bytes], None]
 LostCallback = Callable[[BaseException | None], None]
 
 
-class _LinkProtocol(asyncio.Protocol):
-    """Forwards bytes and the end of the link to the owner's callbacks (end reported once)."""
+_REFUSAL_LIMIT = 256
+"""A server's refusal is one short line then the end of the stream: bytes seen at most."""
+_NETWORK_SCHEMES = ("socket", "rfc2217")
 
-    def __init__(self, on_data: DataCallback, on_lost: LostCallback) -> None:
+
+def refusal_error(url: str, received: bytes) -> MirobotConnectionError | None:
+    """The error for a network server that said it is busy and ended the stream, or ``None``.
+
+    ``received``: every byte the link brought before it ended. Our emulator says
+    ``mirobot-emulator: port busy: another client is connected``; ser2net
+    ``Port already in use``. The server's words are quoted, as the OS's are for a local port.
+    """
+    if urllib.parse.urlparse(url).scheme not in _NETWORK_SCHEMES:
+        return None
+    if not received or len(received) >= _REFUSAL_LIMIT:
+        return None
+    words = received.decode("ascii", "replace").strip()
+    if not words or "\n" in words or "\r" in words:
+        return None
+    lowered = words.lower()
+    if "busy" not in lowered and "in use" not in lowered:
+        return None
+    return MirobotConnectionError(
+        f"could not open {url!r}: it is in use by another program "
+        f"(could not lock it: the server says {words!r})"
+    )
+
+
+class _LinkProtocol(asyncio.Protocol):
+    """Forwards bytes and the end of the link to the owner's callbacks (end reported once).
+
+    A link that ends having brought only a server's "busy" line (:func:`refusal_error`) is
+    reported to ``on_lost`` with that :class:`MirobotConnectionError`.
+    """
+
+    def __init__(self, url: str, on_data: DataCallback, on_lost: LostCallback) -> None:
+        self._url = url
         self._on_data = on_data
         self._on_lost = on_lost
         self._ended = False
+        self._head = bytearray()  # the first bytes received (up to _REFUSAL_LIMIT)
         self.lost: asyncio.Future[None] = asyncio.get_running_loop().create_future()
 
     def data_received(self, data: bytes) -> None:
         if not self._ended and data:
+            if len(self._head) < _REFUSAL_LIMIT:
+                self._head += data[: _REFUSAL_LIMIT - len(self._head)]
             self._on_data(data)
 
     def eof_received(self) -> bool:
@@ -83,7 +123,7 @@ class _LinkProtocol(asyncio.Protocol):
     def _end(self, exc: BaseException | None) -> None:
         if not self._ended:
             self._ended = True
-            self._on_lost(exc)
+            self._on_lost(refusal_error(self._url, bytes(self._head)) or exc)
 
 
 class _PolledSerialTransport(asyncio.Transport):
@@ -165,6 +205,32 @@ class _PolledSerialTransport(asyncio.Transport):
         with contextlib.suppress(Exception):
             self._serial.close()
         self._loop.call_soon(self._protocol.connection_lost, _as_exception(exc))
+
+
+class _SocketSerial(protocol_socket.Serial):
+    """pyserial's ``socket://`` port with a close that releases the socket, at once.
+
+    pyserial 3.5 skips ``close()`` of the socket when ``shutdown()`` fails (it does once the
+    peer has reset the connection: a leaked socket, a ``ResourceWarning``), then sleeps 0.3 s
+    "for quick reconnects", on the event loop when pyserial-asyncio closes it. Used for
+    ``socket://`` with ``implementation="original"`` (the fast one uses asyncio's own socket).
+    """
+
+    def close(self) -> None:
+        sock: socket.socket | None = getattr(self, "_socket", None)
+        self._socket = None
+        self.is_open = False
+        if sock is not None:
+            with contextlib.suppress(OSError):
+                sock.shutdown(socket.SHUT_RDWR)  # fails once the peer has reset the connection
+            sock.close()
+
+
+def _open_port(url: str, **serial_kwargs: Any) -> Any:
+    """The pyserial object for ``url`` (blocking: run in a thread)."""
+    if urllib.parse.urlparse(url).scheme == "socket":
+        return _SocketSerial(url, **serial_kwargs)
+    return serial.serial_for_url(url, **serial_kwargs)
 
 
 class _EndOnce:
@@ -343,7 +409,7 @@ class SerialLink:
         }
         if exclusive and "://" not in url:
             serial_kwargs["exclusive"] = True
-        protocol = _LinkProtocol(on_data, on_lost)
+        protocol = _LinkProtocol(url, on_data, on_lost)
         transport: asyncio.BaseTransport
         try:
             async with asyncio.timeout(timeout):
@@ -355,7 +421,7 @@ class SerialLink:
                     )
                 else:
                     opening = loop.run_in_executor(
-                        None, functools.partial(serial.serial_for_url, url, **serial_kwargs)
+                        None, functools.partial(_open_port, url, **serial_kwargs)
                     )
                     try:
                         # shielded: if this wait is cancelled (or times out) while the OS is

@@ -22,6 +22,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Protocol
 
+from mirobot_async.errors import MirobotConnectionError
 from mirobot_async.ports import AUTO, DEFAULT_PROBE_TIMEOUT, find_mirobot
 from mirobot_async.protocol import Event, MirobotConnection, PendingLine
 from mirobot_async.transport import Implementation, SerialLink
@@ -129,6 +130,10 @@ class Wire:
         self.transport: Transport | None = None
         self._progress = asyncio.Event()
         self._rx_log = bytearray()
+        self.refusal: MirobotConnectionError | None = None
+        """Why the link ended, when the transport says the open failed after all (a network
+        server that accepted the connection, then said it is busy): the error to raise for
+        the failed connect instead of "link lost"."""
 
     @property
     def rx_buffer_size(self) -> int:
@@ -145,7 +150,13 @@ class Wire:
         timeout: float,
     ) -> None:
         """Open the transport (raises what the opener raises; cancellation as the opener's)."""
-        self.transport = await opener(url, on_data=on_data, on_lost=on_lost, timeout=timeout)
+
+        def lost(exc: BaseException | None) -> None:
+            if isinstance(exc, MirobotConnectionError):
+                self.refusal = exc
+            on_lost(exc)
+
+        self.transport = await opener(url, on_data=on_data, on_lost=lost, timeout=timeout)
 
     def receive(self, data: bytes) -> Iterator[Event]:
         """Count and log ``data``, feed it to the state machine and yield its events."""

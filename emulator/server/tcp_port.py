@@ -1,14 +1,17 @@
 """The emulator's serial port as a TCP socket: ``socket://HOST:PORT`` for pyserial and our client.
 
 Portable (plain sockets, no pty, no ``fcntl``/``termios``). One client at a time, as on a serial
-port: a second connection while one is served gets one line saying the port is busy and is
-closed. A connection is an open of the port; it takes effect (``--reset-on-open`` resets the
-firmware then) at the client's first byte or :data:`~.port.OPEN_SETTLE_S` after it connected,
-so that pyserial's open-time flush does not swallow the banner. When the client goes away the
-robot keeps its state, and output meanwhile is lost (nobody is on the other end of the cable).
-``TCP_NODELAY`` is set: every write goes out at once, as on a serial line. What a client writes
-is read only while the emulator has room for it (bounded input), so a client writing faster
-than the emulator takes bytes is blocked by TCP's flow control.
+port: a second connection while one is served gets one line saying the port is busy, then the
+end of the stream (FIN, not a reset: what it sent meanwhile is read and dropped, so that the
+line is not lost to a reset); it is closed when its client closes it or after
+:data:`REFUSED_LINGER_S`. A connection is an open of the port; it takes effect
+(``--reset-on-open`` resets the firmware then) at the client's first byte or
+:data:`~.port.OPEN_SETTLE_S` after it connected, so that pyserial's open-time flush does not
+swallow the banner. When the client goes away the robot keeps its state, and output meanwhile
+is lost (nobody is on the other end of the cable). ``TCP_NODELAY`` is set: every write goes out
+at once, as on a serial line. What a client writes is read only while the emulator has room for
+it (bounded input), so a client writing faster than the emulator takes bytes is blocked by
+TCP's flow control.
 """
 
 from __future__ import annotations
@@ -22,9 +25,12 @@ from typing import Any
 
 from .port import OPEN_SETTLE_S, READ_CHUNK, Arrival, Port
 
-__all__ = ["BUSY_MESSAGE", "TcpPort", "socket_url"]
+__all__ = ["BUSY_MESSAGE", "REFUSED_LINGER_S", "TcpPort", "socket_url"]
 
 BUSY_MESSAGE = b"mirobot-emulator: port busy: another client is connected\r\n"
+REFUSED_LINGER_S = 2.0
+"""A refused connection is closed by us this long after the busy line if its client has not
+closed it first (closing at once while its bytes are unread would reset it: the line lost)."""
 
 
 def socket_url(host: str, port: int) -> str:
@@ -43,6 +49,7 @@ class TcpPort(Port):
         self._listener: socket.socket | None = None
         self._conn: socket.socket | None = None
         self._open_since: float | None = None  # connected; the open not yet in effect
+        self._refused: dict[socket.socket, float] = {}  # told busy -> when to close it anyway
         self.refused = 0
         """Connections refused because a client was already connected."""
 
@@ -81,6 +88,8 @@ class TcpPort(Port):
         watched: dict[Any, int] = {}
         if self._listener is not None:
             watched[self._listener] = selectors.EVENT_READ  # always: refuse a second client
+        for conn in self._refused:
+            watched[conn] = selectors.EVENT_READ  # its bytes are dropped, its close seen
         if self._conn is not None:
             events = (selectors.EVENT_READ if read else 0) | (selectors.EVENT_WRITE if write else 0)
             if events:
@@ -92,6 +101,9 @@ class TcpPort(Port):
             return Arrival()
         if fileobj is self._listener:
             return self._accept()
+        if fileobj in self._refused:
+            self._drain_refused(fileobj)
+            return Arrival()
         if fileobj is self._conn and events & selectors.EVENT_READ and room > 0:
             return self._receive(room)
         return Arrival()
@@ -116,23 +128,48 @@ class TcpPort(Port):
         return Arrival()
 
     def poll(self, now: float) -> Arrival:
+        for conn, until in list(self._refused.items()):
+            if now >= until:
+                self._close_refused(conn)
         if self._open_since is not None and now >= self._open_since + OPEN_SETTLE_S:
             self._open_since = None
             return Arrival(opened=1)
         return Arrival()
 
     def next_time(self) -> float | None:
-        return None if self._open_since is None else self._open_since + OPEN_SETTLE_S
+        times = list(self._refused.values())
+        if self._open_since is not None:
+            times.append(self._open_since + OPEN_SETTLE_S)
+        return min(times) if times else None
 
     def _refuse(self, conn: socket.socket, peer: Any) -> None:
+        """Tell a second client the port is busy and end its stream (closed later: see
+        :meth:`_drain_refused`)."""
         self.refused += 1
         self._log(f"refused a connection from {_peer_text(peer)}: another client is connected")
         try:
             conn.setblocking(False)
             conn.send(BUSY_MESSAGE)  # a short line into an empty buffer: taken whole
+            conn.shutdown(socket.SHUT_WR)
+        except OSError:
+            conn.close()
+            return
+        self._refused[conn] = time.monotonic() + REFUSED_LINGER_S
+
+    def _drain_refused(self, conn: socket.socket) -> None:
+        """Drop what a refused client sent; close once it has closed (or failed)."""
+        try:
+            while conn.recv(READ_CHUNK):
+                pass
+        except (BlockingIOError, InterruptedError):
+            return
         except OSError:
             pass
-        finally:
+        self._close_refused(conn)
+
+    def _close_refused(self, conn: socket.socket) -> None:
+        self._refused.pop(conn, None)
+        with contextlib.suppress(OSError):
             conn.close()
 
     def _receive(self, room: int) -> Arrival:
@@ -175,6 +212,8 @@ class TcpPort(Port):
         self.close()
 
     def close(self) -> None:
+        for conn in list(self._refused):
+            self._close_refused(conn)
         for sock in (self._conn, self._listener):
             if sock is not None:
                 with contextlib.suppress(OSError):
