@@ -63,6 +63,9 @@ from mirobot_async.testing.control import (
     control_text,
     default_link,
     emulator_command,
+    renew_text,
+    renewed_command,
+    renewed_url,
 )
 from mirobot_async.testing.sync import SyncEmulatorProcess, run_emulator
 
@@ -71,6 +74,7 @@ _log = logging.getLogger("mirobot_async.testing")
 if TYPE_CHECKING:
     import pytest
 
+    from mirobot_async.testing.pool import BorrowedEmulatorProcess, EmulatorPool
     from mirobot_async.testing.spy import WireSpy
 
 
@@ -79,11 +83,17 @@ def __getattr__(name: str) -> Any:
         from mirobot_async.testing.spy import WireSpy
 
         return WireSpy
+    if name in ("EmulatorPool", "BorrowedEmulatorProcess"):  # it builds on EmulatorProcess
+        from mirobot_async.testing import pool
+
+        return getattr(pool, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 __all__ = [
+    "BorrowedEmulatorProcess",
     "EmulatorError",
+    "EmulatorPool",
     "EmulatorProcess",
     "SyncEmulatorProcess",
     "WireSpy",
@@ -213,6 +223,28 @@ class EmulatorProcess:
                 self._replies.put_nowait(None)  # keep reporting the end to later calls
             return control_result(text, reply)
 
+    async def renew(
+        self,
+        firmware: str = DEFAULT_FIRMWARE,
+        time_scale: float = DEFAULT_TIME_SCALE,
+        *,
+        extra_args: Sequence[str] = (),
+        timeout: float = CONTROL_TIMEOUT,
+    ) -> str:
+        """Make the running emulator what a new one started with these settings would be: a new
+        port (its URL is returned and becomes :attr:`url`), a fresh power-on, only the faults of
+        ``extra_args`` armed, counters at zero; milliseconds instead of a process start.
+
+        ``extra_args`` cannot name ``--listen`` or ``--link``. Raises :class:`EmulatorError` if
+        the emulator refuses or has exited, :class:`MirobotTimeoutError` after ``timeout`` s
+        (as :meth:`control`).
+        """
+        text = renew_text(firmware, time_scale, extra_args)
+        url = renewed_url(await self.control(text, timeout=timeout))
+        self.url = url
+        self.command = tuple(renewed_command(self.command, firmware, time_scale, extra_args))
+        return url
+
     def kill(self) -> None:
         """SIGKILL the emulator now (its port disappears, like a pulled cable); does not wait."""
         if self._process.returncode is None:
@@ -327,10 +359,11 @@ async def start_emulator(
 # pytest plugin (entry point pytest11 -> mirobot_async.testing)
 
 _MARKER_HELP = (
-    "mirobot_emulator(firmware='2021', time_scale=0.0, extra_args=(), listen=None): settings of "
-    "the virtual Mirobot behind the mirobot_emulator fixture"
+    "mirobot_emulator(firmware='2021', time_scale=0.0, extra_args=(), listen=None, fresh=False): "
+    "settings of the virtual Mirobot behind the mirobot_emulator fixture (fresh: a new process, "
+    "not one renewed from the pool)"
 )
-_MARKER_KEYS = frozenset({"firmware", "time_scale", "extra_args", "listen"})
+_MARKER_KEYS = frozenset({"firmware", "time_scale", "extra_args", "listen", "fresh"})
 LINK_CHOICES = ("pty", "tcp", "both")
 
 
@@ -355,6 +388,14 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         default=None,
         help="link of the mirobot_emulator fixture: pty, tcp or both (each test runs once per "
         "link); default $MIROBOT_TEST_LINK, else pty where ptys exist",
+    )
+    group.addoption(
+        "--mirobot-pool-size",
+        type=int,
+        default=None,
+        metavar="N",
+        help="idle emulator processes kept per link between tests and renewed for the next "
+        "(default 2; 0: a new process for every test)",
     )
 
 
@@ -384,10 +425,11 @@ def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
     metafunc.parametrize("mirobot_link", links, indirect=True, scope="function")
 
 
-def _fixture_settings(request: Any, link: str) -> tuple[str, float, tuple[str, ...], str]:
+def _fixture_settings(request: Any, link: str) -> tuple[str, float, tuple[str, ...], str, bool]:
     firmware: str = request.config.getoption("--mirobot-firmware")
     time_scale: float = request.config.getoption("--mirobot-time-scale")
     extra: tuple[str, ...] = ()
+    fresh = False
     marker = request.node.get_closest_marker("mirobot_emulator")
     if marker is not None:
         if marker.args:
@@ -404,7 +446,8 @@ def _fixture_settings(request: Any, link: str) -> tuple[str, float, tuple[str, .
         time_scale = marker.kwargs.get("time_scale", time_scale)
         extra = tuple(marker.kwargs.get("extra_args", ()))
         link = marker.kwargs.get("listen") or link
-    return firmware, time_scale, extra, link
+        fresh = bool(marker.kwargs.get("fresh", False))
+    return firmware, time_scale, extra, link, fresh
 
 
 def _define_fixtures() -> None:
@@ -419,11 +462,26 @@ def _define_fixtures() -> None:
         link: str = getattr(request, "param", None) or default_link()
         return link
 
+    @pytest.fixture(scope="session")
+    def mirobot_emulator_pool(request: Any) -> Iterator[EmulatorPool]:
+        """Emulator processes renewed between this session's tests (every one stopped at its
+        end; see :mod:`mirobot_async.testing.pool`). Size: ``--mirobot-pool-size``."""
+        from mirobot_async.testing.pool import DEFAULT_MAX_IDLE, EmulatorPool
+
+        size = request.config.getoption("--mirobot-pool-size")
+        with EmulatorPool(DEFAULT_MAX_IDLE if size is None else size) as pool:
+            yield pool
+
     @pytest.fixture
-    def mirobot_emulator_process(request: Any, mirobot_link: str) -> Iterator[SyncEmulatorProcess]:
-        """A virtual Mirobot process for this test (see :mod:`mirobot_async.testing`)."""
-        firmware, time_scale, extra, link = _fixture_settings(request, mirobot_link)
-        with run_emulator(firmware, time_scale, extra_args=extra, listen=link) as emulator:
+    def mirobot_emulator_process(
+        request: Any, mirobot_link: str, mirobot_emulator_pool: EmulatorPool
+    ) -> Iterator[SyncEmulatorProcess]:
+        """A virtual Mirobot for this test, as a new process would be (see
+        :mod:`mirobot_async.testing`): renewed from the session's pool, or started."""
+        firmware, time_scale, extra, link, fresh = _fixture_settings(request, mirobot_link)
+        with mirobot_emulator_pool.lend(
+            firmware, time_scale, extra_args=extra, listen=link, fresh=fresh
+        ) as emulator:
             yield emulator
 
     @pytest.fixture
@@ -432,6 +490,7 @@ def _define_fixtures() -> None:
         return mirobot_emulator_process.url
 
     globals()["mirobot_link"] = mirobot_link
+    globals()["mirobot_emulator_pool"] = mirobot_emulator_pool
     globals()["mirobot_emulator_process"] = mirobot_emulator_process
     globals()["mirobot_emulator"] = mirobot_emulator
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import logging
 import os
+import shlex
 import sys
 from collections.abc import Sequence
 
@@ -14,6 +15,7 @@ __all__ = [
     "CONTROL_TIMEOUT",
     "DEFAULT_FIRMWARE",
     "DEFAULT_TIME_SCALE",
+    "EXIT_ON_EOF",
     "LINK_ENV",
     "STARTUP_TIMEOUT",
     "STOP_TIMEOUT",
@@ -22,8 +24,12 @@ __all__ = [
     "control_result",
     "control_text",
     "default_link",
+    "emulator_args",
     "emulator_command",
     "link_args",
+    "renew_text",
+    "renewed_command",
+    "renewed_url",
 ]
 
 _log = logging.getLogger("mirobot_async.testing")
@@ -37,6 +43,9 @@ STOP_TIMEOUT = 5.0
 CONTROL_TIMEOUT = 5.0
 """Seconds to wait for the ``ack`` of a control command."""
 
+
+EXIT_ON_EOF = "--exit-on-stdin-eof"
+"""The emulator's option that stops it when its stdin ends: the process that started it is gone."""
 
 LINK_ENV = "MIROBOT_TEST_LINK"
 """Environment variable choosing the emulator's link when a caller names none: ``pty`` or
@@ -74,6 +83,22 @@ class EmulatorError(MirobotError):
     """The emulator process could not be started, died, or refused a control command."""
 
 
+def emulator_args(
+    firmware: str = DEFAULT_FIRMWARE,
+    time_scale: float = DEFAULT_TIME_SCALE,
+    extra_args: Sequence[str] = (),
+) -> list[str]:
+    """The emulator's options for these settings (checked: :class:`MirobotUsageError`)."""
+    if firmware not in ("2021", "classic"):
+        raise MirobotUsageError(f"firmware={firmware!r} must be '2021' or 'classic'")
+    scale = float(time_scale)
+    if not scale >= 0 or scale == float("inf"):
+        raise MirobotUsageError(f"time_scale={time_scale!r} must be a finite number >= 0")
+    if isinstance(extra_args, str):
+        raise MirobotUsageError("extra_args must be a sequence of strings, not one string")
+    return ["--firmware", firmware, "--time-scale", repr(scale), *extra_args]
+
+
 def emulator_command(
     firmware: str = DEFAULT_FIRMWARE,
     time_scale: float = DEFAULT_TIME_SCALE,
@@ -82,24 +107,51 @@ def emulator_command(
 ) -> list[str]:
     """The argument vector that starts the emulator with this Python interpreter
     (``listen``: see :func:`link_args`)."""
-    if firmware not in ("2021", "classic"):
-        raise MirobotUsageError(f"firmware={firmware!r} must be '2021' or 'classic'")
-    scale = float(time_scale)
-    if not scale >= 0 or scale == float("inf"):
-        raise MirobotUsageError(f"time_scale={time_scale!r} must be a finite number >= 0")
-    if isinstance(extra_args, str):
-        raise MirobotUsageError("extra_args must be a sequence of strings, not one string")
+    options = emulator_args(firmware, time_scale, extra_args)
     return [
         sys.executable,
         "-m",
         "mirobot_emulator",
-        "--firmware",
-        firmware,
-        "--time-scale",
-        repr(scale),
+        *options[:4],
         *link_args(listen),
-        *extra_args,
+        *options[4:],
     ]
+
+
+def renew_text(
+    firmware: str = DEFAULT_FIRMWARE,
+    time_scale: float = DEFAULT_TIME_SCALE,
+    extra_args: Sequence[str] = (),
+) -> str:
+    """The ``renew`` control command that makes a running emulator a new one with these
+    settings (arguments shell-quoted: the emulator splits them as a shell would)."""
+    return "renew " + shlex.join(emulator_args(firmware, time_scale, extra_args))
+
+
+def renewed_command(
+    command: Sequence[str],
+    firmware: str = DEFAULT_FIRMWARE,
+    time_scale: float = DEFAULT_TIME_SCALE,
+    extra_args: Sequence[str] = (),
+) -> list[str]:
+    """The argument vector of a new process equivalent to ``command`` renewed with these
+    settings: its link (``--listen``) and ``--exit-on-stdin-eof`` kept, the rest replaced."""
+    words = list(command)
+    listen = "pty"
+    if "--listen" in words[3:-1]:
+        listen = words[words.index("--listen", 3) + 1]
+    renewed = emulator_command(firmware, time_scale, extra_args, listen)
+    if EXIT_ON_EOF in words[3:]:
+        renewed.append(EXIT_ON_EOF)
+    return renewed
+
+
+def renewed_url(reply: str) -> str:
+    """The new port's address in the emulator's answer to ``renew`` (``ack renew ... url=X``)."""
+    _, sep, url = reply.rpartition(" url=")
+    if not sep or not url:
+        raise EmulatorError(f"the emulator's answer to renew names no port: {reply!r}")
+    return url
 
 
 def control_reply(raw: bytes) -> str | None:

@@ -23,6 +23,9 @@ from mirobot_async.testing.control import (
     control_result,
     control_text,
     emulator_command,
+    renew_text,
+    renewed_command,
+    renewed_url,
 )
 
 __all__ = ["SyncEmulatorProcess", "run_emulator"]
@@ -51,6 +54,7 @@ class SyncEmulatorProcess:
         self._replies: queue.Queue[str | None] = queue.Queue()
         self._first: queue.Queue[bytes] = queue.Queue()
         self._control_lock = threading.Lock()
+        self._cut = False  # killed, stopped, or its port closed by a close fault
         self._process = subprocess.Popen(
             self.command,
             stdin=subprocess.PIPE,
@@ -131,16 +135,49 @@ class SyncEmulatorProcess:
                 raise MirobotTimeoutError(f"the emulator's answer to {text!r}", timeout) from err
             if reply is None:
                 self._replies.put(None)  # keep reporting the end to later calls
+            if text.split()[0].lower() == "close":
+                self._cut = True  # the port is gone and the process is on its way out
             return control_result(text, reply)
+
+    def renew(
+        self,
+        firmware: str = DEFAULT_FIRMWARE,
+        time_scale: float = DEFAULT_TIME_SCALE,
+        *,
+        extra_args: Sequence[str] = (),
+        timeout: float = CONTROL_TIMEOUT,
+    ) -> str:
+        """Make the running emulator what a new one started with these settings would be; return
+        its new port URL (also in :attr:`url`; :attr:`command` becomes the new settings').
+
+        The emulator drops its port (a connected client, bytes in flight both ways) for a new
+        one, powers a fresh firmware model on, arms only the faults of ``extra_args`` and zeroes
+        its counters, in milliseconds instead of a process start. ``extra_args`` cannot name
+        ``--listen`` or ``--link`` (a new process's business). Raises :class:`EmulatorError` if
+        it refuses or has exited, :class:`MirobotTimeoutError` after ``timeout`` s.
+        """
+        text = renew_text(firmware, time_scale, extra_args)
+        url = renewed_url(self.control(text, timeout=timeout))
+        self.url = url
+        self.command = tuple(renewed_command(self.command, firmware, time_scale, extra_args))
+        return url
+
+    @property
+    def reusable(self) -> bool:
+        """True while the process runs and was neither killed, stopped nor cut by ``close``
+        (then :meth:`renew` can make it as good as new)."""
+        return not self._cut and self._process.poll() is None
 
     def kill(self) -> None:
         """SIGKILL the emulator now (like a pulled cable); does not wait."""
+        self._cut = True
         if self._process.poll() is None:
             with contextlib.suppress(ProcessLookupError):
                 self._process.kill()
 
     def stop(self, timeout: float = STOP_TIMEOUT) -> int:
         """SIGTERM, wait up to ``timeout`` s, SIGKILL; close the pipes. Idempotent."""
+        self._cut = True
         if self._process.poll() is None:
             with contextlib.suppress(ProcessLookupError):
                 self._process.send_signal(signal.SIGTERM)

@@ -2,10 +2,12 @@
 
 * ``profile``: both firmware profiles (``2021``, ``classic``), so every test using the emulator
   runs against each.
-* ``emu``: a fresh :class:`~mirobot_async.testing.EmulatorProcess` for the test (its fault
-  channel is ``await emu.control("drop-ok")``). Its options come from the
-  ``@pytest.mark.mirobot_emulator(firmware=..., time_scale=..., extra_args=...)`` marker (the
-  plugin's marker); ``firmware`` there overrides the ``profile`` parameter. Default time scale 0:
+* ``emu``: an :class:`~mirobot_async.testing.EmulatorProcess` for the test, as a new process
+  would be (its fault channel is ``await emu.control("drop-ok")``): a process of the session's
+  pool (the plugin's ``mirobot_emulator_pool``) renewed with the test's options, or a new one.
+  Its options come from the ``@pytest.mark.mirobot_emulator(firmware=..., time_scale=...,
+  extra_args=..., fresh=...)`` marker (the plugin's marker); ``firmware`` there overrides the
+  ``profile`` parameter; ``fresh=True`` asks for a process of its own. Default time scale 0:
   every motion completes at once.
 * ``wire_spy``: a :class:`~mirobot_async.testing.WireSpy` (every byte written and received);
 * ``arm``: a connected :class:`~mirobot_async.Mirobot` on ``emu`` (closed afterwards), its
@@ -24,7 +26,7 @@ from typing import Any
 import pytest
 
 from mirobot_async import Mirobot
-from mirobot_async.testing import EmulatorProcess, WireSpy
+from mirobot_async.testing import EmulatorPool, EmulatorProcess, WireSpy
 
 PROFILES = ("2021", "classic")
 
@@ -45,13 +47,19 @@ def profile(request: pytest.FixtureRequest) -> str:
 
 
 @pytest.fixture
-async def emu(request: pytest.FixtureRequest, profile: str) -> AsyncIterator[EmulatorProcess]:
-    """A fresh emulator process for this test, stopped (and reaped) afterwards."""
+async def emu(
+    request: pytest.FixtureRequest, profile: str, mirobot_emulator_pool: EmulatorPool
+) -> AsyncIterator[EmulatorProcess]:
+    """An emulator for this test as a new process would be (renewed from the session's pool,
+    or started); returned to the pool afterwards (or stopped, if it was killed or closed)."""
     options = emulator_options(request, profile)
-    emulator = await EmulatorProcess.start(
-        options["firmware"], options["time_scale"], extra_args=tuple(options["extra_args"])
-    )
-    async with emulator:
+    async with mirobot_emulator_pool.lend_async(
+        options["firmware"],
+        options["time_scale"],
+        extra_args=tuple(options["extra_args"]),
+        listen=options.get("listen"),
+        fresh=bool(options.get("fresh", False)),
+    ) as emulator:
         yield emulator
 
 
