@@ -105,13 +105,18 @@ ASSUMED points implemented (each in one constant or function, named here)
   ``G2``/``G3`` arcs and ``G05`` are checked sample by sample (every 2 mm / 2 degrees) before
   any motion; J4 and J6 are kept continuous along a path; if the current joints are not the IK
   of the commanded pose (to a motor step), a rapid joint move to it comes first.
-* ``HARD_LIMIT_SWITCHES``: J1..J3 switches sit at the factory range ends (the oracle's harness
-  puts them just outside, e.g. J1 stops at 160.515); a move that would carry J1..J3 out of them
-  (``$21=1``; possible with ``$20=0`` or widened ``$13x``/``$14x``), joint-space or along a
-  path, is cut at the switch: the arm stops there and ``<8 binary digits>ALARM: Hard limit``
-  (the closed switches, bit 4 = J1: oracle ``00010000ALARM: Hard limit``) and ``[Reset to
-  continue]`` are printed; nothing but ``%`` is processed until reset, not even ``?``
-  (``STATUS_DURING_CRITICAL_ALARM``); after the reset the arm is in Alarm where it stopped.
+* ``HARD_LIMIT_SWITCHES`` and ``SWITCH_OVERTRAVEL`` (ASSUMED for a real arm: the oracle
+  harness's switch model): the J1..J3 switches close 0.5 degrees beyond the factory range ends;
+  a move that would carry J1..J3 past one (``$21=1``; possible with ``$20=0`` or widened
+  ``$13x``/``$14x``) stops on the first whole motor step past it, at the speed it had there
+  (GRBL kills the step pulses at once; the other axes where GRBL's line has them at that step
+  event), e.g. J1 at 160.515 (oracle, any feed); joint moves are exact, Cartesian paths (2021)
+  stop within a step or two. A switch that is already closed when a move starts is passed
+  (no edge). Then ``<8 binary digits>ALARM: Hard limit`` (the closed switches, bit 4 = J1:
+  oracle ``00010000ALARM: Hard limit``) and ``[Reset to continue]`` are printed; nothing but
+  ``%`` is processed until reset, not even ``?`` (``STATUS_DURING_CRITICAL_ALARM``); after the
+  reset the arm is in Alarm where it stopped. The oracle's harness turns its range switches off
+  once homing has completed; ours stay (a real arm's switches do not go away).
   :meth:`Firmware.trigger_hard_limit` raises the same alarm at once (fault injection).
 * 2021 ``G2``/``G3`` arcs are always in the XY plane (2021 manual), Z and orientation move
   linearly (helix); ``G2``/``G3``/``G05`` in ``M21`` (joint) mode answer ``Unsupported command``.

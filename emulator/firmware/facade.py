@@ -47,9 +47,6 @@ RESET_DEAF_SECONDS: Final = 0.00035
 firmware's realtime flags after the byte was flagged (oracle: lost 100-300 us after ``%``,
 answered from 400 us; the bytes of lines are kept)."""
 
-SWITCH_SLACK: Final = 0.1
-"""Degrees within which an arm stopped at a switch counts as on it (its position is whole steps)."""
-
 _REALTIME: Final = frozenset(b"?!~%@")
 _LINE_ENDS: Final = frozenset(b"\r\n")
 _RUN: Final = re.compile(rb"[^?!~%@\r\n]*[\r\n]?")
@@ -400,7 +397,7 @@ class Firmware:
             queued = m.planner.blocks
             for block in m.limit_blocks:
                 if not any(b is block for b in queued):
-                    m.hard_limit_alarm(m.geometry.limit_pins(m.planner.position, SWITCH_SLACK))
+                    m.hard_limit_alarm(m.geometry.limit_pins(m.planner.position))
                     return
         self._service()
 

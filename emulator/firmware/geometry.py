@@ -19,7 +19,17 @@ from . import codes as c
 Pose = tuple[float, float, float, float, float, float]
 
 HARD_LIMIT_SWITCHES: Final[tuple[tuple[float, float], ...]] = tuple(kin.JOINT_LIMITS[:3])
-"""ASSUMED: positions (deg) of the J1..J3 limit switches: the factory range ends."""
+"""ASSUMED: the J1..J3 limit switches sit at the factory range ends (degrees) ..."""
+
+SWITCH_OVERTRAVEL: Final = 0.5
+"""... and close once the joint is more than this many degrees beyond them (ASSUMED for a real
+arm, whose switch placement nobody has measured: it is the oracle harness's switch model,
+``[-100, 160]``, ``[-30, 70]``, ``[-170, 60]`` widened by 0.5, checked against the firmware's
+own step count). GRBL stops the step pulses the moment a switch closes, so the arm stops on the
+first whole motor step past it: J1 at 160.515 (9106 steps at 56.73/degree) or -100.511, J2 at
+70.502 or -30.504, J3 at 60.516 or -170.516, the other axes where their steps are at that step
+event (oracle, at any feed; ``M21 G90 X165 Y75``: J2 closes first, J1 at 155.086). A move
+that starts with its switch already closed passes it (no edge, no alarm; oracle)."""
 
 IK_CHECKS_JOINT_RANGES: Final = False
 """Whether the IK refuses angles outside the factory ranges (``There is one angle out of
@@ -192,34 +202,77 @@ class Geometry:
                 return letter
         return None
 
-    @staticmethod
-    def limit_pins(q: Sequence[float], slack: float = 1e-9) -> int:
-        """The ``Lim`` bits of the J1..J3 switches closed at ``q`` (within ``slack``)."""
-        pins = 0
+    def switch_steps(self) -> list[tuple[int, int]]:
+        """Per J1..J3, the motor steps (low, high) at and beyond which its switch is closed:
+        the first whole steps past the switch positions (``SWITCH_OVERTRAVEL``)."""
+        steps = self.limits().steps
+        out = []
         for j, (lo, hi) in enumerate(HARD_LIMIT_SWITCHES):
-            if q[j] <= lo + slack or q[j] >= hi - slack:
+            per = steps[j] if steps is not None else 1e6  # an ideal machine: a fine grid
+            out.append(
+                (
+                    math.ceil((lo - SWITCH_OVERTRAVEL) * per) - 1,
+                    math.floor((hi + SWITCH_OVERTRAVEL) * per) + 1,
+                )
+            )
+        return out
+
+    def _to_steps(self, q: Sequence[float]) -> list[int]:
+        limits = self.limits()
+        if limits.steps is not None:
+            return list(limits.to_steps(vec7(q)))
+        return [round(v * 1e6) for v in q[:3]]
+
+    def limit_pins(self, q: Sequence[float]) -> int:
+        """The ``Lim`` bits of the J1..J3 switches closed at ``q``."""
+        at = self._to_steps(q)
+        pins = 0
+        for j, (lo, hi) in enumerate(self.switch_steps()):
+            if at[j] <= lo or at[j] >= hi:
                 pins |= switch_pins(j + 1)
         return pins
 
     def switch_crossing(self, start: Sequence[float], end: Sequence[float]) -> Vec7 | None:
-        """Where a joint move first carries J1..J3 out of their switches (``$21=1``), or None."""
+        """Where a joint move from ``start`` to ``end`` stops on a J1..J3 switch (``$21=1``):
+        the step event of GRBL's Bresenham line at which the first switch closes, or None."""
         if not self.settings[21]:
             return None
-        best: float | None = None
-        for j, (lo, hi) in enumerate(HARD_LIMIT_SWITCHES):
-            a, b = start[j], end[j]
-            if not lo <= a <= hi or lo <= b <= hi:
+        limits = self.limits()
+        if limits.steps is None:  # an ideal machine: the first switch position on the line
+            return self._ideal_crossing(start, end)
+        first, last = limits.to_steps(vec7(start)), limits.to_steps(vec7(end))
+        delta = [b - a for a, b in zip(first, last, strict=True)]
+        events = max(abs(d) for d in delta)
+        half = events // 2
+        best: int | None = None
+        for j, (lo, hi) in enumerate(self.switch_steps()):
+            a, d = first[j], delta[j]
+            if not lo < a < hi:
+                continue  # closed already: no edge while it stays closed
+            if a + d >= hi:
+                need = hi - a
+            elif a + d <= lo:
+                need = a - lo
+            else:
                 continue
-            edge = hi if b > hi else lo
-            f = (edge - a) / (b - a)
-            if best is None or f < best:
-                best = f
+            # axis j has made (k |d| + half) // events steps after step event k
+            k = -((half - need * events) // abs(d))
+            best = k if best is None else min(best, k)
         if best is None:
             return None
-        point = list(lerp(start, end, best))
-        for j, (lo, hi) in enumerate(HARD_LIMIT_SWITCHES):
-            point[j] = min(max(point[j], lo), hi) if lo <= start[j] <= hi else point[j]
-        return vec7(point)
+        done = [(best * abs(d) + half) // events for d in delta]
+        cut = [a + (n if d >= 0 else -n) for a, n, d in zip(first, done, delta, strict=True)]
+        return limits.from_steps(cut)
+
+    def _ideal_crossing(self, start: Sequence[float], end: Sequence[float]) -> Vec7 | None:
+        best: float | None = None
+        for j, (low, high) in enumerate(HARD_LIMIT_SWITCHES):
+            lo, hi = low - SWITCH_OVERTRAVEL, high + SWITCH_OVERTRAVEL
+            a, b = start[j], end[j]
+            if lo < a < hi and not lo < b < hi:
+                f = ((hi if b >= hi else lo) - a) / (b - a)
+                best = f if best is None else min(best, f)
+        return None if best is None else vec7(lerp(start, end, best))
 
     @staticmethod
     def unwrap(q: Sequence[float], ref: Sequence[float]) -> tuple[float, ...]:

@@ -173,17 +173,17 @@ class MoveBuilder:
     def joint_move(
         self, start: Vec7, end: Vec7, feed: float | None, feed_mode: int, *, check: bool
     ) -> Planned:
-        """One joint-space block (feed None: rapid), cut at a limit switch."""
+        """One joint-space block (feed None: rapid); one that runs into a limit switch is two
+        collinear blocks split where the switch closes (they blend, so the arm reaches it at
+        the speed of the whole move, as GRBL's single block does) and the alarm stops it when
+        the first is done."""
         letter = self.geometry.soft_violation(end)
         if letter is not None:
             raise Refusal(c.TEXT_SOFT_LIMIT + letter)
         if check:
             return [], None, end
-        cut = self.geometry.switch_crossing(start, end)
-        if cut is not None:
-            end = cut
         length = math.sqrt(math.fsum((b - a) ** 2 for a, b in zip(start, end, strict=True)))
-        if length == 0.0 and cut is None:
+        if length == 0.0:
             return [], None, end
         if feed is not None and feed_mode == 93:
             feed = feed * length
@@ -191,11 +191,17 @@ class MoveBuilder:
             feed = None  # the max rates limit the motion
         elif feed is not None and feed <= 0.0:
             feed = MIN_FEED
+        limits = self.geometry.limits()
+        cut = self.geometry.switch_crossing(start, end)
         try:
-            block = motion.joint_block(start, end, feed, self.geometry.limits())
+            if cut is None:
+                return [motion.joint_block(start, end, feed, limits)], None, end
+            to_switch = motion.joint_block(start, cut, feed, limits)
+            beyond = motion.joint_block(cut, end, feed, limits)
         except ValueError:
             raise Refusal(c.TEXT_UNREACHABLE) from None
-        return [block], (block if cut is not None else None), end
+        blocks = [to_switch] if beyond.length == 0.0 else [to_switch, beyond]
+        return blocks, to_switch, end
 
     def path_move(
         self,

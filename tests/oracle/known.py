@@ -10,10 +10,6 @@ of listing it. The full transcripts: run with ``MIROBOT_ORACLE_REPORT=FILE``.
 from __future__ import annotations
 
 KNOWN_DIFFERENCES: dict[str, str] = {
-    "test_diff_motion::test_hard_limit": (
-        "J1 driven to 165 with $20=0: the oracle stops at 160.515 (the harness's switch just past "
-        "160, then the stop), ours at 160.004"
-    ),
     "test_diff_motion::test_move[cart-g1-fk-digit]": (
         "forward kinematics rounding: after M20 G90 G1 X199 Y3 Z167 the oracle prints Z "
         "166.975, ours 166.976 (last digit: the firmware's float32 FK is 2.1e-5 below the exact "

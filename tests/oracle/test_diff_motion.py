@@ -128,10 +128,19 @@ def test_unreachable(pair: Pair, program: str) -> None:
     pair.check()
 
 
-def test_hard_limit(pair: Pair) -> None:
-    """Soft limits off, J1 driven past the oracle harness's range-end switch (just outside
-    160 degrees; placement is the harness's assumption), then what the alarm allows."""
-    pair.lines("$20=0", "M50", "M21 G90 X165 F2000")
+@pytest.mark.parametrize(
+    "move",
+    [
+        "M21 G90 X165 F2000",  # J1 past 160.5: stops at 160.515
+        "M21 G90 X165 Y75 F2000",  # J2 closes first (70.502), J1 where its steps are then
+        "M21 G90 G0 Z65",  # J3 at its high end, rapid
+    ],
+)
+def test_hard_limit(pair: Pair, move: str) -> None:
+    """Soft limits off, driven past the oracle harness's range-end switches (0.5 degrees
+    outside the factory ranges; placement is the harness's assumption), then what the alarm
+    allows."""
+    pair.lines("$20=0", "M50", move)
     pair.send("G4 P0\n", Until(text=b"[Reset to continue]\r\n"))  # the alarm, no ok
     for line in ("M21 G90 X0\n", "$X\n", "?"):  # the oracle takes nothing but % now
         pair.send(line, Until(quiet=0.3))

@@ -914,13 +914,25 @@ def test_soft_limits_need_homing_enabled() -> None:
     assert send(fw, "$20=1\n") == ["error: Homing not enabled"]
 
 
+J1_AT_SWITCH = 9106 / 56.73
+"""Where J1 stops on its switch: the first whole step past 160.5 degrees (oracle: 160.515 at
+the classic 56.73 steps/degree)."""
+
+
+def j1_at_switch(fw: Firmware) -> float:
+    per = fw.settings[104]
+    return (math.floor(160.5 * per) + 1) / per
+
+
 @pytest.mark.parametrize("profile", PROFILES)
 def test_hard_limit(profile: str) -> None:
     fw = boot(profile, unlocked=True)
     assert send(fw, "$20=0\n") == ["ok"]
     prefix = INFO_M21 if profile == "2021" else []
     assert send(fw, "M21 G90 G1 X170 F1200\n") == [*prefix, "ok"]
-    t_switch = trapezoid(160.0, 20.0, 50.0)  # the arm stops on the switch at 160 degrees
+    # the J1 switch closes on the first motor step past 160.5 (oracle: 160.515), which the arm
+    # reaches at its cruise speed (20 deg/s after 0.4 s of acceleration at 50 deg/s^2)
+    t_switch = 0.4 + (j1_at_switch(fw) - 4.0) / 20.0
     assert send(fw, "", t_switch - 0.01) == []
     assert status(fw).state == "Run"
     # oracle: the closed switches as 8 binary digits (bit 4: J1), then the text
@@ -932,7 +944,20 @@ def test_hard_limit(profile: str) -> None:
     assert out[0] == "" and out[-1] == "['$H'|'$X' to unlock]"
     st_ = status(fw)
     assert st_.state == "Alarm"
-    assert st_.joints[0] == stepped(160.0)  # stopped on the switch
+    assert st_.joints[0] == pytest.approx(j1_at_switch(fw), abs=5e-4)  # stopped on the switch
+
+
+def test_first_switch_stops_every_axis_on_its_step() -> None:
+    """Oracle: ``M21 G90 X165 Y75``: J2's switch closes first (bit 5) at 70.502; J1 has made
+    the steps of GRBL's line up to that step event (155.086); leaving a closed switch is no
+    alarm."""
+    fw = boot("classic", unlocked=True)
+    send(fw, "$20=0\nM21 G90 X165 Y75 F2000\n")
+    assert send(fw, "", 10.0) == ["00100000ALARM: Hard limit", "[Reset to continue]"]
+    send(fw, "%")
+    assert status(fw).joints[:3] == (155.086, 70.502, 0.0)
+    assert send(fw, "$X\nM21 G90 X150 Y60\n", math.inf)[-1] == "ok"
+    assert status(fw).state == "Idle"
 
 
 def test_hard_limit_off_lets_the_arm_pass() -> None:
@@ -956,7 +981,7 @@ def test_cartesian_moves_run_into_the_switches(profile: str) -> None:
     out = send(fw, f"G1 X{x:.3f} Y{y:.3f} F3000\n", math.inf)
     assert out == ["ok", "00010000ALARM: Hard limit", "[Reset to continue]"]
     send(fw, "%")
-    assert status(fw).joints[0] == stepped(160.0)
+    assert status(fw).joints[0] == stepped(J1_AT_SWITCH)
 
 
 def test_trigger_hard_limit_fault_injection() -> None:
