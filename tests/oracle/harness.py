@@ -638,12 +638,20 @@ def replay(recording: OracleRecording, settle: float = 1.0) -> ReplayResult:
             for line in lines_of(fw.read_output()):
                 ours.append((fw.now, line))
 
+    expected = {True: 0, False: 0}  # replies owed to earlier writes: statuses, ok/error
+
+    def seen(status: bool) -> int:
+        return sum(1 for _t, line in ours if (is_status(line) if status else is_terminal(line)))
+
     def latency(data: bytes) -> float:
+        """Seconds from writing ``data`` now until our model begins its timing reply (on a
+        copy, counting past the replies still owed to earlier writes)."""
         probe = copy.deepcopy(fw)
         start = probe.now
         probe.receive(data)
-        wanted = is_status if data.endswith(b"?") else is_terminal
-        need = 1 if data.endswith(b"?") else line_ends(data)
+        status = data.endswith(b"?")
+        wanted = is_status if status else is_terminal
+        need = expected[status] - seen(status) + (1 if status else line_ends(data))
         got = 0
         while True:
             got += sum(map(wanted, lines_of(probe.read_output())))
@@ -655,8 +663,14 @@ def replay(recording: OracleRecording, settle: float = 1.0) -> ReplayResult:
             probe.advance(max(deadline - probe.now, 0.0))
 
     for sent, reply in zip(recording.sent, replies, strict=True):
-        run_to(max(reply - t0 - latency(sent.data), fw.now))
+        for _ in range(8):  # our latency shrinks as the write waits (a parse ends meanwhile)
+            target = reply - t0 - latency(sent.data)
+            if target <= fw.now + 1e-7:
+                break
+            run_to(target)
         fw.receive(sent.data)
+        status = sent.data.endswith(b"?")
+        expected[status] += 1 if status else line_ends(sent.data)
     run_to(max(starts[-1] - t0, fw.now) + settle)
     result = ReplayResult(lines[banner_end + 1 :], [line for _t, line in ours])
     _compare(result, [at for at, _line in ours], timeline)
