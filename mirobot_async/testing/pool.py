@@ -61,14 +61,18 @@ class EmulatorPool:
     :meth:`lend` (blocking) and :meth:`lend_async` are context managers lending a process for
     the duration of a block; :meth:`acquire` and :meth:`release` are the same in two calls.
     :meth:`close` stops every process the pool knows (idle or lent). ``max_idle`` 0 turns the
-    pooling off: every borrower gets a new process, stopped on its return.
+    pooling off: every borrower gets a new process, stopped on its return. With
+    ``start_spares``, lending the last idle process of a link starts another in the background,
+    so that the next borrower does not wait for a start when this one kills or closes its own.
     """
 
-    def __init__(self, max_idle: int = DEFAULT_MAX_IDLE) -> None:
+    def __init__(self, max_idle: int = DEFAULT_MAX_IDLE, *, start_spares: bool = True) -> None:
         self.max_idle = max_idle
+        self.start_spares = start_spares
         self._lock = threading.Lock()
         self._idle: dict[str, list[SyncEmulatorProcess]] = {}
         self._links: dict[SyncEmulatorProcess, str | None] = {}  # every process not stopped
+        self._coming: dict[str, Future[None]] = {}  # a spare being started, per link
         self._closed = False
         self._executor = ThreadPoolExecutor(max_workers=4, thread_name_prefix="mirobot-emulator")
         self.started = 0
@@ -97,36 +101,79 @@ class EmulatorPool:
         emulator_args(firmware, time_scale, extra_args)  # bad settings: MirobotUsageError now
         link = default_link() if listen is None else listen
         pooled = self._pooled(link, extra_args) and not fresh
-        while pooled:
-            with self._lock:
-                idle = self._idle.get(link)
-                emulator = idle.pop() if idle else None
-            if emulator is None:
-                break
-            try:
-                emulator.renew(firmware, time_scale, extra_args=extra_args)
-            except (EmulatorError, MirobotTimeoutError) as exc:
-                _log.debug("emulator %d not renewed (%s): starting a new one", emulator.pid, exc)
-                self._keep_or_stop(emulator, link)  # refused these settings, or dead
-                break  # a new process gives the borrower the same answer (or error) as before
-            self.renewed += 1
-            return emulator
+        try:
+            while pooled:
+                with self._lock:
+                    idle = self._idle.get(link)
+                    emulator = idle.pop() if idle else None
+                    coming = self._coming.get(link) if emulator is None else None
+                if emulator is None:
+                    if coming is None:
+                        break
+                    with contextlib.suppress(Exception):  # it comes to the idle list
+                        coming.result()
+                    with self._lock:  # (a spare cancelled by close() never ran to say so)
+                        if self._coming.get(link) is coming:
+                            del self._coming[link]
+                    continue
+                try:
+                    emulator.renew(firmware, time_scale, extra_args=extra_args)
+                except MirobotTimeoutError as exc:
+                    _log.warning("emulator %d does not answer renew (%s)", emulator.pid, exc)
+                    self._stop(emulator)
+                    continue
+                except EmulatorError as exc:  # refused these settings (unchanged), or dead
+                    _log.debug("emulator %d not renewed (%s): starting one", emulator.pid, exc)
+                    self._keep_or_stop(emulator, link)
+                    break  # a new process gives the borrower the same answer (or error)
+                self.renewed += 1
+                return emulator
+            return self._start(firmware, time_scale, extra_args, link, pooled, startup_timeout)
+        finally:
+            if pooled:
+                self._start_spare(link)
+
+    def _start(
+        self,
+        firmware: str,
+        time_scale: float,
+        extra_args: Sequence[str],
+        link: str,
+        pooled: bool,
+        startup_timeout: float = STARTUP_TIMEOUT,
+    ) -> SyncEmulatorProcess:
         extra = (*extra_args, EXIT_ON_EOF) if pooled else tuple(extra_args)
         emulator = SyncEmulatorProcess(
-            firmware,
-            time_scale,
-            extra_args=extra,
-            startup_timeout=startup_timeout,
-            listen=link,
+            firmware, time_scale, extra_args=extra, startup_timeout=startup_timeout, listen=link
         )
-        self.started += 1
         with self._lock:
+            self.started += 1
             self._links[emulator] = link if pooled else None
             closed = self._closed
         if closed:
             self._stop(emulator)
             raise EmulatorError("the emulator pool is closed")
         return emulator
+
+    def _start_spare(self, link: str) -> None:
+        """Start a process for the next borrower in the background (while this one's test
+        runs) if no idle one is left for ``link`` and none is being started."""
+        with self._lock:
+            if not self.start_spares or self._closed or self._idle.get(link):
+                return
+            if link in self._coming:
+                return
+            self._coming[link] = self._executor.submit(self._make_spare, link)
+
+    def _make_spare(self, link: str) -> None:
+        try:
+            spare = self._start(DEFAULT_FIRMWARE, DEFAULT_TIME_SCALE, (), link, True)
+            self._keep_or_stop(spare, link)  # idle before it stops "coming": no gap to race
+        except Exception as exc:  # the borrower that needs one starts it and sees why
+            _log.debug("no spare emulator for %s: %s", link, exc)
+        finally:
+            with self._lock:
+                self._coming.pop(link, None)
 
     def release(self, emulator: SyncEmulatorProcess) -> None:
         """Take back what :meth:`acquire` lent: keep it for the next borrower if it is still

@@ -200,7 +200,7 @@ def test_exit_on_stdin_eof_answers_what_was_read_then_exits() -> None:
 
 
 def test_the_pool_lends_one_process_renewed_for_each_borrower() -> None:
-    with EmulatorPool() as pool:
+    with EmulatorPool(start_spares=False) as pool:
         with pool.lend("2021", 0.0) as first:
             pid = first.pid
             first.control("drop-ok 5")
@@ -216,7 +216,7 @@ def test_the_pool_lends_one_process_renewed_for_each_borrower() -> None:
 
 @pytest.mark.parametrize("how", ["kill", "stop", "close"])
 def test_the_pool_does_not_reuse_a_killed_stopped_or_closed_process(how: str) -> None:
-    with EmulatorPool() as pool:
+    with EmulatorPool(start_spares=False) as pool:
         with pool.lend() as first:
             if how == "kill":
                 first.kill()
@@ -231,7 +231,7 @@ def test_the_pool_does_not_reuse_a_killed_stopped_or_closed_process(how: str) ->
 
 
 def test_fresh_fixed_ports_and_a_size_of_zero_are_not_pooled() -> None:
-    with EmulatorPool() as pool:
+    with EmulatorPool(start_spares=False) as pool:
         with pool.lend(fresh=True) as fresh:
             assert "--exit-on-stdin-eof" not in fresh.command
         with pool.lend(extra_args=["--listen", "127.0.0.1:0"]) as listening:
@@ -245,6 +245,18 @@ def test_fresh_fixed_ports_and_a_size_of_zero_are_not_pooled() -> None:
         with unpooled.lend() as two:
             assert two.pid != one.pid
     assert process_gone(one.pid)
+
+
+def test_a_spare_started_meanwhile_replaces_a_killed_process() -> None:
+    with EmulatorPool() as pool:
+        with pool.lend() as first:
+            first.kill()
+        with pool.lend("classic") as second:  # the spare, renewed: no start waited for
+            assert second.pid != first.pid
+            assert pool.renewed == 1
+            assert stats(second)["bytes_in"] == 0
+        pids = [first.pid, second.pid]
+    wait_for(lambda: all(process_gone(pid) for pid in pids))
 
 
 def test_the_pool_serves_asyncio_tests_on_their_own_event_loops() -> None:
@@ -263,7 +275,7 @@ def test_the_pool_serves_asyncio_tests_on_their_own_event_loops() -> None:
             returned.kill()  # it may be serving someone else now
         return returned.pid, str(status.state.value)
 
-    with EmulatorPool() as pool:
+    with EmulatorPool(start_spares=False) as pool:
         first = asyncio.run(borrow(pool, "2021"))
         second = asyncio.run(borrow(pool, "classic"))
     assert first[0] == second[0]
