@@ -33,6 +33,9 @@ from mirobot_async.testing import EmulatorProcess
 pytestmark = [pytest.mark.timeout(60), pytest.mark.usefixtures("no_leftover_tasks")]
 
 SLOW_MOVES = [f"M21 G90 G1 X{10 + (i % 2) * 10} F600" for i in range(60)]  # ~1 s each
+# A lost reply is found by a liveness check: after this long without progress (the client's
+# default is 1 s), not before the reply grace (0.5 s, kept) after the line was written.
+QUICK_LIVENESS = 0.1
 
 
 async def wait_for(predicate: object, timeout: float = 10.0) -> None:  # noqa: ASYNC109
@@ -50,6 +53,7 @@ async def test_dropped_ok_times_out_naming_the_line_and_later_calls_work(
     emu: EmulatorProcess, ready_arm: Mirobot
 ) -> None:
     arm = ready_arm
+    arm.liveness_interval = QUICK_LIVENESS
     await emu.control("drop-ok")
     start = time.monotonic()
     with pytest.raises(MirobotTimeoutError) as info:
@@ -67,6 +71,7 @@ async def test_a_lost_reply_whose_caller_left_costs_one_call_then_all_is_in_step
     emu: EmulatorProcess, ready_arm: Mirobot
 ) -> None:
     arm = ready_arm
+    arm.liveness_interval = QUICK_LIVENESS
     await emu.control("drop-ok")
     first = asyncio.create_task(arm.send("M3 S1"))
     await wait_for(lambda: arm.pending_count == 1)
@@ -114,7 +119,7 @@ async def test_ignored_status_request_is_retried_within_the_timeout(
     assert time.monotonic() - start < 1.0
     await emu.control("ignore-status 100")
     with pytest.raises(MirobotTimeoutError, match="status"):
-        await arm.status(timeout=0.6)
+        await arm.status(timeout=0.3)  # asked again after 0.25 s, ignored again
 
 
 async def test_stall_delays_but_loses_nothing(emu: EmulatorProcess, ready_arm: Mirobot) -> None:
@@ -130,9 +135,9 @@ async def test_a_robot_that_stops_answering_status_fails_the_wait(
     emu: EmulatorProcess, ready_arm: Mirobot
 ) -> None:
     arm = ready_arm
-    arm.liveness_interval = 0.2
-    arm.status_timeout = 0.4
-    await emu.control("stall 1.5")
+    arm.liveness_interval = QUICK_LIVENESS
+    arm.status_timeout = 0.3
+    await emu.control("stall 1.0")  # outlasts the check (~0.4 s) with a margin for a busy box
     with pytest.raises(MirobotTimeoutError, match="status reply") as info:
         await arm.send("M3 S12")
     assert info.value.waited_for.startswith("a status reply")
@@ -187,14 +192,24 @@ async def test_hard_limit_fails_pending_calls_and_nothing_is_sent_until_reset(
 # ---- resets -------------------------------------------------------------------------------------
 
 
-@pytest.mark.mirobot_emulator(time_scale=1)
+@pytest.mark.mirobot_emulator(time_scale=10)  # real time from the full planner on
 @pytest.mark.parametrize("how", ["reset()", "spontaneous"])
 async def test_reset_mid_stream(emu: EmulatorProcess, ready_arm: Mirobot, how: str) -> None:
     arm = ready_arm
+    # after a spontaneous reset the lines in doubt are settled at the next liveness check
+    arm.liveness_interval = QUICK_LIVENESS
     progress: list[LineResult] = []
     stream = asyncio.ensure_future(arm.stream(SLOW_MOVES, on_progress=progress.append))
     # the planner (18 blocks) is full and lines wait in the robot's receive buffer
     await wait_for(lambda: len(progress) >= 18 and arm.pending_count >= 4)
+    await emu.control("time-scale 1")
+    # A line is written only when a block ends (~1 s apart). Reset only once every written line
+    # has wholly reached the robot (a "?" written after it was answered): a line cut in two by
+    # a spontaneous reset would run its tail as a line of its own (an empty line gets "ok").
+    written = -1
+    while written != arm.stats.lines_sent:
+        written = arm.stats.lines_sent
+        await arm.status(fresh=True)
     waiting = arm.pending_count
     if how == "reset()":
         await arm.reset()
@@ -214,7 +229,8 @@ async def test_reset_mid_stream(emu: EmulatorProcess, ready_arm: Mirobot, how: s
     sent = arm.stats.lines_sent
     await wait_for(lambda: arm.stats.resets >= 1 and not arm.pending_count)
     assert arm.stats.lines_sent == sent  # nothing resent silently
-    # usable again after unlocking (a reset relocks the axes)
+    # usable again after unlocking (a reset relocks the axes); no longer in real time
+    await emu.control("time-scale 50")
     await arm.unlock()
     report = await arm.move_joints(j1=5, speed=3000)
     assert report is not None and abs(report.joints[0] - 5) < 0.05
