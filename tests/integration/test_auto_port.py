@@ -20,7 +20,7 @@ from serial.tools.list_ports_common import ListPortInfo
 from mirobot_async import Mirobot, MirobotConnectionError
 from mirobot_async.cli import main
 from mirobot_async.ports import AUTO_PORTS_ENV, find_mirobot
-from mirobot_async.testing import SyncEmulatorProcess, run_emulator
+from mirobot_async.testing import EmulatorPool, SyncEmulatorProcess
 
 PROBE = 0.5  # seconds a probe of a port that never answers a status takes
 STATUS = (
@@ -98,10 +98,14 @@ def fake_mirobot(chunk: bytes) -> bytes:
 
 
 @pytest.fixture(scope="module")
-def emulators() -> Iterator[tuple[SyncEmulatorProcess, SyncEmulatorProcess]]:
-    """A pty emulator and a TCP one (shared: probing changes nothing on them)."""
+def emulators(
+    mirobot_emulator_pool: EmulatorPool,
+) -> Iterator[tuple[SyncEmulatorProcess, SyncEmulatorProcess]]:
+    """A pty emulator and a TCP one (shared: probing changes nothing on them), lent by the
+    session's pool of emulator processes."""
     listen = "pty" if os.name == "posix" else "tcp"
-    with run_emulator("classic", listen=listen) as first, run_emulator("2021", listen="tcp") as tcp:
+    pool = mirobot_emulator_pool
+    with pool.lend("classic", listen=listen) as first, pool.lend("2021", listen="tcp") as tcp:
         yield first, tcp
 
 

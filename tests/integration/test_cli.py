@@ -9,7 +9,9 @@ README's first command, the example scripts) runs as subprocesses (``mirobot``, 
 Every subcommand runs twice: against the embedded virtual Mirobot (no ``--port``: the command
 starts and stops its own emulator) and against an emulator started separately (``--port``): one
 started by ``python -m mirobot_async emulator`` (the ``emulator`` subcommand) for the whole module,
-and one classic-profile emulator from :class:`mirobot_async.testing.SyncEmulatorProcess`.
+and one classic-profile emulator lent by the session's pool of emulator processes (the
+plugin's ``mirobot_emulator_pool``: a process renewed as a new one would be), as are the
+emulators of single tests.
 Error paths check the exit status and that the error is one line without a traceback.
 Waits are conditions with deadlines; every process is stopped and reaped.
 """
@@ -36,7 +38,7 @@ import serial
 
 from mirobot_async.cli import main
 from mirobot_async.plotting import read_trace
-from mirobot_async.testing import SyncEmulatorProcess
+from mirobot_async.testing import EmulatorPool, SyncEmulatorProcess
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -245,13 +247,10 @@ def port() -> Iterator[str]:
 
 
 @pytest.fixture(scope="module")
-def classic_port() -> Iterator[str]:
-    """A classic-profile emulator started with the testing helper (time scale 0)."""
-    emulator = SyncEmulatorProcess(firmware="classic", time_scale=0)
-    try:
+def classic_port(mirobot_emulator_pool: EmulatorPool) -> Iterator[str]:
+    """A classic-profile emulator from the testing helper's pool (time scale 0)."""
+    with mirobot_emulator_pool.lend("classic", 0) as emulator:
         yield emulator.url
-    finally:
-        emulator.stop()
 
 
 # --------------------------------------------------------------------------------------------
@@ -464,12 +463,12 @@ def test_run_stops_at_a_refused_line(cli: Cli, tmp_path: Path) -> None:
 
 
 def test_run_and_move_on_a_locked_arm_send_nothing_and_say_so_once(
-    cli: Cli, tmp_path: Path
+    cli: Cli, tmp_path: Path, mirobot_emulator_pool: EmulatorPool
 ) -> None:
     """Pre-flight: one line, exit 1, and not a byte of the program on the wire."""
     program = tmp_path / "p.gcode"
     program.write_text("M21 G90 G0 X10\nG0 X20\nG0 X30\n")
-    with SyncEmulatorProcess(time_scale=0) as emulator:  # powers on locked (Alarm)
+    with mirobot_emulator_pool.lend(time_scale=0) as emulator:  # powers on locked (Alarm)
         for argv in (["run", str(program)], ["move", "joints", "j1=10"]):
             before = emulator_stats(emulator)
             proc = cli(*argv, "--port", emulator.url)  # a real port: no implicit homing
@@ -482,10 +481,12 @@ def test_run_and_move_on_a_locked_arm_send_nothing_and_say_so_once(
             assert sent == after["status_requests_in"] - before["status_requests_in"]  # only "?"
 
 
-def test_run_checks_the_whole_program_before_sending_anything(cli: Cli, tmp_path: Path) -> None:
+def test_run_checks_the_whole_program_before_sending_anything(
+    cli: Cli, tmp_path: Path, mirobot_emulator_pool: EmulatorPool
+) -> None:
     program = tmp_path / "bad.gcode"
     program.write_text("M21 G90\nG0 X10\nM3 S2000 ; not a PWM value\nG0 X20\n")
-    with SyncEmulatorProcess(time_scale=0) as emulator:
+    with mirobot_emulator_pool.lend(time_scale=0) as emulator:
         before = emulator_stats(emulator)
         proc = cli("run", str(program), "--port", emulator.url, "--home")
         after = emulator_stats(emulator)
@@ -583,10 +584,12 @@ def test_monitor_samples_to_csv_on_a_port(cli: Cli, port: str, tmp_path: Path) -
     assert len(rows) == 1 + 3 + 2  # appended, one header
 
 
-def test_monitor_waits_for_an_arm_that_stops_answering(tmp_path: Path) -> None:
+def test_monitor_waits_for_an_arm_that_stops_answering(
+    tmp_path: Path, mirobot_emulator_pool: EmulatorPool
+) -> None:
     """The firmware answers no ``?`` while it searches its homing switches: monitor waits."""
     trace = tmp_path / "m.csv"
-    with SyncEmulatorProcess(time_scale=0) as emulator:
+    with mirobot_emulator_pool.lend(time_scale=0) as emulator:
         proc = spawn("monitor", "--port", emulator.url, "--interval", "0.05", "--csv", str(trace))
         try:
             wait_for(lambda: trace.exists() and len(read_csv(trace)) >= 3, 20, "two samples")
@@ -785,10 +788,11 @@ def test_example_scripts_run_as_written() -> None:
         assert scripts[name] in out, f"{name}: {out}"
 
 
-def test_link_lost_while_monitoring_exits_1_with_one_line(tmp_path: Path) -> None:
+def test_link_lost_while_monitoring_exits_1_with_one_line(
+    tmp_path: Path, mirobot_emulator_pool: EmulatorPool
+) -> None:
     trace = tmp_path / "m.csv"
-    emulator = SyncEmulatorProcess(time_scale=0)
-    try:
+    with mirobot_emulator_pool.lend(time_scale=0) as emulator:  # killed: stopped, not kept
         proc = spawn("monitor", "--port", emulator.url, "--interval", "0.05", "--csv", str(trace))
         try:
             wait_for(lambda: trace.exists() and len(read_csv(trace)) >= 3, 20, "two samples")
@@ -796,8 +800,6 @@ def test_link_lost_while_monitoring_exits_1_with_one_line(tmp_path: Path) -> Non
             out, err = proc.communicate(timeout=20)
         finally:
             kill_group(proc)
-    finally:
-        emulator.stop()
     assert proc.returncode == 1
     assert "Traceback" not in err and "never retrieved" not in err, err
     errors = [line for line in err.splitlines() if line.startswith("mirobot: error: ")]

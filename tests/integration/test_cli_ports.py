@@ -14,7 +14,7 @@ from collections.abc import Callable, Iterator
 import pytest
 
 from mirobot_async.cli import main
-from mirobot_async.testing import SyncEmulatorProcess
+from mirobot_async.testing import EmulatorPool, SyncEmulatorProcess
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -77,10 +77,13 @@ def garbage_port() -> Iterator[str]:
         os.close(master)
 
 
-def test_ports_probes_emulators_and_a_garbage_port(garbage_port: str, mirobot: Cli) -> None:
+def test_ports_probes_emulators_and_a_garbage_port(
+    garbage_port: str, mirobot: Cli, mirobot_emulator_pool: EmulatorPool
+) -> None:
+    pool = mirobot_emulator_pool  # processes renewed as new ones would be
     with (
-        SyncEmulatorProcess(time_scale=0) as quiet,
-        SyncEmulatorProcess("classic", time_scale=0, extra_args=["--reset-on-open"]) as booting,
+        pool.lend(time_scale=0) as quiet,
+        pool.lend("classic", time_scale=0, extra_args=["--reset-on-open"]) as booting,
     ):
         started = time.monotonic()
         devices = [quiet.url, booting.url, garbage_port]

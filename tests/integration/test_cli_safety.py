@@ -24,7 +24,7 @@ import serial
 
 from mirobot_async.cli import main
 from mirobot_async.replies import State, StatusReport, parse_status
-from mirobot_async.testing import SyncEmulatorProcess
+from mirobot_async.testing import EmulatorPool, SyncEmulatorProcess
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -156,10 +156,14 @@ def moving_rows(trace: Path) -> int:
     [(signal.SIGINT, "hold", State.HOLD), (signal.SIGTERM, "reset", State.ALARM)],
 )
 def test_a_signal_stops_the_moving_arm_at_once(
-    tmp_path: Path, sig: signal.Signals, mode: str, expected_state: State
+    tmp_path: Path,
+    sig: signal.Signals,
+    mode: str,
+    expected_state: State,
+    mirobot_emulator_pool: EmulatorPool,
 ) -> None:
     trace = tmp_path / "t.csv"
-    with SyncEmulatorProcess(time_scale=1) as emulator:  # dance takes ~20 s at this speed
+    with mirobot_emulator_pool.lend(time_scale=1) as emulator:  # dance: ~20 s at this speed
         argv = ["run", str(EXAMPLES / "dance.gcode"), "--port", emulator.url, "--unlock"]
         proc = spawn(*argv, "--trace", str(trace), "--on-interrupt", mode)
         try:
@@ -193,9 +197,11 @@ def test_a_signal_stops_the_moving_arm_at_once(
     assert any("accepted by the arm" in line or "not sent" in line for line in lines), err
 
 
-def test_ctrl_c_while_homing_stops_it_with_a_soft_reset() -> None:
+def test_ctrl_c_while_homing_stops_it_with_a_soft_reset(
+    mirobot_emulator_pool: EmulatorPool,
+) -> None:
     """GRBL checks only for a soft reset while it homes: Ctrl-C sends % (not !) there."""
-    with SyncEmulatorProcess(time_scale=1) as emulator:  # homing takes seconds at this speed
+    with mirobot_emulator_pool.lend(time_scale=1) as emulator:  # homing: seconds at this speed
         before = stats(emulator)
         proc = spawn("home", "--port", emulator.url)
         try:
@@ -215,8 +221,10 @@ def test_ctrl_c_while_homing_stops_it_with_a_soft_reset() -> None:
     assert len({report.joints for report in reports}) == 1  # no further motion
 
 
-def test_a_held_arm_is_refused_by_the_pre_flight_check(cli: Cli) -> None:
-    with SyncEmulatorProcess(time_scale=1) as emulator:
+def test_a_held_arm_is_refused_by_the_pre_flight_check(
+    cli: Cli, mirobot_emulator_pool: EmulatorPool
+) -> None:
+    with mirobot_emulator_pool.lend(time_scale=1) as emulator:
         program = ["M21 G90", "G0 X100"]
         assert cli("unlock", "--port", emulator.url).returncode == 0
         moving = spawn("move", "joints", "j1=100", "--port", emulator.url, "--speed", "300")

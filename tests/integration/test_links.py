@@ -20,7 +20,7 @@ from typing import Any
 import pytest
 
 from mirobot_async import Mirobot, MirobotError, State
-from mirobot_async.testing import EmulatorProcess, SyncEmulatorProcess, start_emulator
+from mirobot_async.testing import EmulatorPool, EmulatorProcess, SyncEmulatorProcess, start_emulator
 
 LINKS = ("pty", "tcp") if os.name == "posix" else ("tcp",)
 HALF_STEP = 0.05  # degrees: the emulator reports whole motor steps
@@ -34,10 +34,13 @@ def link(request: pytest.FixtureRequest) -> str:
 
 
 @pytest.fixture
-async def emulator(link: str) -> AsyncIterator[EmulatorProcess]:
-    """A classic-profile emulator on ``link`` (classic: wait=True moves settle on whole steps)."""
-    async with await EmulatorProcess.start("classic", 0.0, listen=link) as started:
-        yield started
+async def emulator(
+    link: str, mirobot_emulator_pool: EmulatorPool
+) -> AsyncIterator[EmulatorProcess]:
+    """A classic-profile emulator on ``link`` (classic: wait=True moves settle on whole steps),
+    from the session's pool of emulator processes (renewed as a new process would be)."""
+    async with mirobot_emulator_pool.lend_async("classic", 0.0, listen=link) as lent:
+        yield lent
 
 
 def test_url_names_the_link(emulator: EmulatorProcess, link: str) -> None:
@@ -93,9 +96,14 @@ async def test_reset_reprints_the_banner(emulator: EmulatorProcess) -> None:
         assert (await arm.status()).state is State.IDLE
 
 
-async def test_lost_link_fails_pending_calls_promptly(link: str) -> None:
-    emulator = await EmulatorProcess.start("classic", 1.0, listen=link)  # the dwell lasts 20 s
-    async with emulator, Mirobot.connect(emulator.url) as arm:
+async def test_lost_link_fails_pending_calls_promptly(
+    link: str, mirobot_emulator_pool: EmulatorPool
+) -> None:
+    pool = mirobot_emulator_pool  # the killed process is stopped, not kept
+    async with (
+        pool.lend_async("classic", 1.0, listen=link) as emulator,  # the dwell lasts 20 s
+        Mirobot.connect(emulator.url) as arm,
+    ):
         await arm.unlock()
         dwell = asyncio.create_task(arm.send("G4 P20", timeout=30))
         async with asyncio.timeout(5):

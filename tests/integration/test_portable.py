@@ -16,7 +16,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from mirobot_async.testing import SyncEmulatorProcess, run_emulator
+from mirobot_async.testing import EmulatorPool, SyncEmulatorProcess
 
 _CRIPPLE = """
 import os, sys
@@ -80,9 +80,10 @@ def crippled(script: str, *args: str) -> subprocess.CompletedProcess[str]:
 
 
 @pytest.fixture(scope="module")
-def tcp_emulator() -> Iterator[SyncEmulatorProcess]:
-    """A classic-profile emulator on a loopback TCP port (shared: every check reads its state)."""
-    with run_emulator("classic", 0.0, listen="tcp") as emulator:
+def tcp_emulator(mirobot_emulator_pool: EmulatorPool) -> Iterator[SyncEmulatorProcess]:
+    """A classic-profile emulator on a loopback TCP port (shared: every check reads its state),
+    lent by the session's pool of emulator processes."""
+    with mirobot_emulator_pool.lend("classic", 0.0, listen="tcp") as emulator:
         yield emulator
 
 

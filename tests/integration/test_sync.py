@@ -18,7 +18,7 @@ import pytest
 from mirobot_async import LineResult, MirobotLinkLostError, State
 from mirobot_async.sync import Mirobot
 from mirobot_async.sync.loop import LOOP_THREAD_NAME
-from mirobot_async.testing import SyncEmulatorProcess, run_emulator
+from mirobot_async.testing import EmulatorPool, SyncEmulatorProcess
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -28,9 +28,10 @@ def loop_threads() -> list[threading.Thread]:
 
 
 @pytest.fixture(scope="module")
-def emulator() -> Iterator[SyncEmulatorProcess]:
-    """One instant-motion emulator shared by the tests whose arm state does not matter."""
-    with run_emulator("2021", 0.0) as emu:
+def emulator(mirobot_emulator_pool: EmulatorPool) -> Iterator[SyncEmulatorProcess]:
+    """One instant-motion emulator shared by the tests whose arm state does not matter (from
+    the session's pool of emulator processes, as are the others here)."""
+    with mirobot_emulator_pool.lend("2021", 0.0) as emu:
         yield emu
 
 
@@ -64,10 +65,12 @@ SCRIPT = """
 
 
 @pytest.mark.parametrize("profile", ["2021", "classic"])
-def test_a_plain_script_drives_the_arm(tmp_path: Path, profile: str) -> None:
+def test_a_plain_script_drives_the_arm(
+    tmp_path: Path, profile: str, mirobot_emulator_pool: EmulatorPool
+) -> None:
     script = tmp_path / "script.py"
     script.write_text(textwrap.dedent(SCRIPT))
-    with run_emulator(profile, 0.0) as emu:
+    with mirobot_emulator_pool.lend(profile, 0.0) as emu:
         done = subprocess.run(
             [sys.executable, str(script), emu.url],
             capture_output=True,
@@ -151,9 +154,9 @@ def test_errors_are_the_asyncio_errors(arm: Mirobot) -> None:
     assert arm.closed
 
 
-def test_an_interrupt_during_a_stream_stops_sending() -> None:
+def test_an_interrupt_during_a_stream_stops_sending(mirobot_emulator_pool: EmulatorPool) -> None:
     # Real-time motion, so the robot's buffer holds the stream back and lines remain unsent.
-    with run_emulator("2021", 1.0) as emu, Mirobot.connect(emu.url) as arm:
+    with mirobot_emulator_pool.lend("2021", 1.0) as emu, Mirobot.connect(emu.url) as arm:
         arm.unlock()
         lines = [f"M21 G91 G01 X{1 if i % 2 else -1} F200" for i in range(60)]
         seen: list[LineResult] = []
@@ -188,10 +191,12 @@ CTRL_C_SCRIPT = """
 """
 
 
-def test_ctrl_c_in_a_script_interrupts_a_blocking_call(tmp_path: Path) -> None:
+def test_ctrl_c_in_a_script_interrupts_a_blocking_call(
+    tmp_path: Path, mirobot_emulator_pool: EmulatorPool
+) -> None:
     script = tmp_path / "ctrl_c.py"
     script.write_text(textwrap.dedent(CTRL_C_SCRIPT))
-    with run_emulator("2021", 1.0) as emu:
+    with mirobot_emulator_pool.lend("2021", 1.0) as emu:
         process = subprocess.Popen(
             [sys.executable, str(script), emu.url], stdout=subprocess.PIPE, text=True
         )
