@@ -481,6 +481,15 @@ ORACLE_TX_BYTE = 93.5e-6
 """Simulated seconds per byte the oracle's UART sends (measured on its ``-l`` log: the banner's
 ``D1: 78\\r\\n`` lines end 0.748 ms apart, an ``ok\\r\\n`` 0.374 ms after the line before)."""
 
+ORACLE_REPORT_DELAY = 1.6e-3
+"""Simulated seconds from a status report's sampling to its first byte on the wire, at most
+(measured: after ``M50\n?`` the status line ends 17.98 ms after the ``ok`` line, 1.62 ms more
+than its 175 bytes take)."""
+
+ANCHORED_STATUS = b"\n    ?"
+"""An empty line, then ``?`` 0.5 ms later (four filtered spaces): the oracle prints the ``ok``
+first and samples its report right after it (see :meth:`OracleRecording.poll`)."""
+
 REPLAY_STEPS_PER_UNIT = (56.73, 113.33, 64.0, 16.0, 22.22, 11.11, 200.0)
 """``$100..$106`` at power-on in JOINT order (J1..J6, rail): the status angles back to steps."""
 
@@ -534,22 +543,36 @@ class OracleRecording:
             self.device.read_quiet(until.quiet)
         self.device.take()
 
-    def poll(self, interval: float, done: Callable[[bytes], bool], timeout: float = 60.0) -> None:
+    def poll(
+        self,
+        interval: float,
+        done: Callable[[bytes], bool],
+        timeout: float = 60.0,
+        *,
+        anchored: bool = True,
+    ) -> None:
         """``?`` every ``interval`` wall seconds (each after the previous status) until
-        ``done(everything received since the poll began)``."""
+        ``done(everything received since the poll began)``.
+
+        ``anchored``: each ``?`` follows an empty line (``\\n?``), whose ``ok`` times it: the
+        oracle samples its report right after that ``ok``, while the status line itself ends
+        16-28 ms later, the more the faster the arm moves (its stepper interrupts slow the
+        report down: 1.6 ms beyond the line's bytes at rest, 11.2 ms at 1890 steps/s). Not
+        while held: lines wait until ``~`` there."""
         start = len(self.device.received)
         deadline = time.monotonic() + timeout
         while not done(bytes(self.device.received[start:])):
             if time.monotonic() > deadline:
                 raise HarnessError(f"oracle: poll did not end: {self.device.pending()!r}")
             before = self.device.received.count(b">")
-            self.write(b"?")
-            if not self.device.read_until(
-                lambda _d, n=before: self.device.received.count(b">") > n, 5.0
-            ):
+            self.write(ANCHORED_STATUS if anchored else b"?")
+            if not self.device.read_until(lambda _d: self._statuses() > before, 5.0):  # noqa: B023
                 raise HarnessError("oracle: no status within 5 s")
             self.device.read_quiet(interval)
         self.device.take()
+
+    def _statuses(self) -> int:
+        return self.device.received.count(b">")
 
     def close(self) -> None:
         self.device.close()
@@ -568,7 +591,7 @@ class ReplayResult:
     """Per differing status line: the largest difference of an axis, in motor steps."""
     time_shifts: list[float] = field(default_factory=list)
     """Per differing status line: seconds by which our model reaches the oracle's step counts
-    later (positive) or earlier than the oracle's sampling instant (nearest within 0.2 s)."""
+    later (positive) or earlier than the oracle's sampling instant (nearest within 0.1 s)."""
 
 
 def status_steps(line: bytes) -> tuple[int, ...] | None:
@@ -581,10 +604,28 @@ def status_steps(line: bytes) -> tuple[int, ...] | None:
     return tuple(round(q * s) for q, s in zip(joints, REPLAY_STEPS_PER_UNIT, strict=True))
 
 
-def _reply_times(recording: OracleRecording) -> tuple[list[bytes], list[float], list[float]]:
-    """The oracle's lines, the simulated instant each began to be sent, and one instant per
-    write: when its timing reply began (status for a chunk ending ``?``, else its last
-    ok/error)."""
+def _claim(lines: list[bytes], claimed: set[int], start: int, wanted: Callable[[bytes], bool],
+           count: int, what: bytes) -> list[int]:
+    found = []
+    for i in range(start, len(lines)):
+        if i not in claimed and wanted(lines[i]):
+            found.append(i)
+            if len(found) == count:
+                break
+    if len(found) < count:
+        raise HarnessError(f"no reply to {what!r} in the oracle's transcript")
+    claimed.update(found)
+    return found
+
+
+def _reply_times(
+    recording: OracleRecording,
+) -> tuple[list[bytes], list[float], list[tuple[float, bool]]]:
+    """The oracle's lines, the simulated instant each began to be sent, and per write: when
+    its timing reply began and whether that reply is a status (else its last ok/error).
+
+    A write ending ``?`` with a line end (``\\n?``) is timed by its ``ok`` unless the oracle
+    printed the status first (it read the ``?`` before the line): then by the status."""
     log = oracle_log(recording.workdir)
     lines = lines_of(bytes(recording.device.received))
     if len(log) < len(lines):
@@ -593,18 +634,14 @@ def _reply_times(recording: OracleRecording) -> tuple[list[bytes], list[float], 
     claimed: set[int] = set()
     replies = []
     for sent in recording.sent:
-        wanted = is_status if sent.data.endswith(b"?") else is_terminal
-        count = 1 if sent.data.endswith(b"?") else line_ends(sent.data)
-        found = []
-        for i in range(sent.anchor, len(lines)):
-            if i not in claimed and wanted(lines[i]):
-                found.append(i)
-                if len(found) == count:
-                    break
-        if len(found) < count:
-            raise HarnessError(f"no reply to {sent.data!r} in the oracle's transcript")
-        claimed.update(found)
-        replies.append(starts[found[-1]])
+        data, anchor = sent.data, sent.anchor
+        ends = line_ends(data)
+        terminals = _claim(lines, claimed, anchor, is_terminal, ends, data) if ends else []
+        status = _claim(lines, claimed, anchor, is_status, 1, data) if data.endswith(b"?") else []
+        if status and (not terminals or status[0] < terminals[-1]):
+            replies.append((starts[status[0]] - ORACLE_REPORT_DELAY, True))
+        else:
+            replies.append((starts[terminals[-1]], False))
     return lines, starts, replies
 
 
@@ -643,13 +680,12 @@ def replay(recording: OracleRecording, settle: float = 1.0) -> ReplayResult:
     def seen(status: bool) -> int:
         return sum(1 for _t, line in ours if (is_status(line) if status else is_terminal(line)))
 
-    def latency(data: bytes) -> float:
+    def latency(data: bytes, status: bool) -> float:
         """Seconds from writing ``data`` now until our model begins its timing reply (on a
         copy, counting past the replies still owed to earlier writes)."""
         probe = copy.deepcopy(fw)
         start = probe.now
         probe.receive(data)
-        status = data.endswith(b"?")
         wanted = is_status if status else is_terminal
         need = expected[status] - seen(status) + (1 if status else line_ends(data))
         got = 0
@@ -662,15 +698,24 @@ def replay(recording: OracleRecording, settle: float = 1.0) -> ReplayResult:
                 return 0.0
             probe.advance(max(deadline - probe.now, 0.0))
 
-    for sent, reply in zip(recording.sent, replies, strict=True):
+    def run_until_printed(count: int) -> None:
+        """Causality: the host wrote after it had read ``count`` lines; so must ours."""
+        while len(ours) < count:
+            deadline = fw.next_deadline()
+            if deadline is None:
+                return
+            run_to(max(deadline, fw.now + 1e-6))
+
+    for sent, (reply, by_status) in zip(recording.sent, replies, strict=True):
+        run_until_printed(sent.anchor - banner_end - 1)
         for _ in range(8):  # our latency shrinks as the write waits (a parse ends meanwhile)
-            target = reply - t0 - latency(sent.data)
+            target = reply - t0 - latency(sent.data, by_status)
             if target <= fw.now + 1e-7:
                 break
             run_to(target)
         fw.receive(sent.data)
-        status = sent.data.endswith(b"?")
-        expected[status] += 1 if status else line_ends(sent.data)
+        expected[True] += sent.data.endswith(b"?")
+        expected[False] += line_ends(sent.data)
     run_to(max(starts[-1] - t0, fw.now) + settle)
     result = ReplayResult(lines[banner_end + 1 :], [line for _t, line in ours])
     _compare(result, [at for at, _line in ours], timeline)
@@ -702,7 +747,7 @@ def _compare(
         near = [
             (max(abs(x - y) for x, y in zip(a, s, strict=True)), abs(t - at), t - at)
             for t, s in timeline
-            if abs(t - at) <= 0.2
+            if abs(t - at) <= 0.1
         ]
         if near:
             result.time_shifts.append(min(near)[2])

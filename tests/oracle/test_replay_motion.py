@@ -19,28 +19,29 @@ import pytest
 from .harness import OracleRecording, ReplayResult, is_status, lines_of, replay
 
 MAX_STEPS: dict[str, int] = {
-    "joint": 35,
-    "cart-g0": 40,
-    "cart-g1": 30,
-    "stream": 8,
-    "hold-resume": 80,
+    "joint": 8,
+    "cart-g0": 8,
+    "cart-g1": 8,
+    "stream": 12,
+    "hold-resume": 40,
 }
 """Largest per-axis difference of a status during motion, in motor steps, per program.
-Measured (two runs each): joint 27, Cartesian G0 32, G1 22, stream 5, feed hold 58 (ours
-stops 25-30 ms of travel short of the oracle's hold)."""
+Measured with anchored polls (several runs each): joint, Cartesian G0 and G1 at most 4
+(ours 1-2 ms ahead); stream 1-2, except 8 at the first status after the planner was full
+(the oracle acknowledges a line waiting for a planner slot 40-66 ms before the block's
+motion ends, ours at its end); feed hold 5-35 (ours keeps the planned motion 55 ms before it
+brakes; replays fit 42-48 ms best)."""
 
-MAX_SHIFT: dict[str, float] = {
-    "joint": 0.020,
-    "cart-g0": 0.022,
-    "cart-g1": 0.020,
-    "stream": 0.040,
-    "hold-resume": 0.250,
+MAX_SHIFT: dict[str, float | None] = {
+    "joint": 0.012,
+    "cart-g0": 0.012,
+    "cart-g1": 0.012,
+    "stream": None,
+    "hold-resume": None,
 }
-"""Largest time shift of a status during motion, seconds, per program. Measured: ours runs
-ahead through a move's acceleration (the oracle accelerates ~3.5 % slower and decelerates
-~2.5 % faster than the ideal trapezoid; the ends agree within ~3 ms): joint 14.4 ms,
-Cartesian G0 16.5 ms, G1 13.5 ms; stream 9 ms (one 31 ms outlier where both stand still at
-a block end); a hold stands still apart, so there the nearest instant is meaningless."""
+"""Largest time shift of a status during motion, seconds (measured: 0.3-2.4 ms, ours ahead);
+None where positions repeat (a zig-zag stream) or stand still apart (a hold), so the nearest
+instant means nothing there."""
 
 
 def at_rest(data: bytes) -> bool:
@@ -82,9 +83,9 @@ def hold_and_resume(rec: OracleRecording) -> None:
     while the hold still decelerates: it then stays in Hold)."""
     rec.send("M21 G90 X60 Y30 F1000\n")
     rec.poll(0.02, lambda data: sum(map(is_status, lines_of(data))) >= 4)
-    rec.send("!?")
-    rec.poll(0.02, held_still)
-    rec.send("~?")
+    rec.send("\n    !?")  # the empty line's ok times the ! (as in an anchored poll)
+    rec.poll(0.02, held_still, anchored=False)
+    rec.send("\n    ~?")  # the empty line waits for the ~, then its ok times it
     rec.poll(0.02, at_rest)
 
 
@@ -131,4 +132,6 @@ def test_replay(recording: OracleRecording, program: str) -> None:
             assert oracle_status == our_status, report
     assert theirs[-1] == ours[-1], report
     assert max(result.step_differences, default=0) <= MAX_STEPS[program], report
-    assert max(map(abs, result.time_shifts), default=0.0) <= MAX_SHIFT[program], report
+    bound = MAX_SHIFT[program]
+    if bound is not None:
+        assert max(map(abs, result.time_shifts), default=0.0) <= bound, report
