@@ -45,6 +45,13 @@ What it models
   ``input_held_max``, ``output_held``, ``output_held_max`` (bytes now and at most); and the
   firmware's ``rx_lost`` (bytes its receive ring lost). Tests use them to check what a client
   really sent.
+- **Renewal.** The control command ``renew ARGS...`` (ARGS: this command line's options but
+  ``--listen``, ``--link`` and ``--exit-on-stdin-eof``, shell-quoted) makes the server what a
+  new process started with ARGS would be: a new port (a new pty, or a new socket on the same
+  ``--listen`` address; a connected client and every byte in flight both ways are dropped), a
+  freshly powered-on firmware model, the faults of ARGS only, counters at zero. Answered
+  ``ack renew ARGS url=ADDRESS``. Test fixtures use it to reuse one process for many tests
+  (:class:`mirobot_async.testing.EmulatorPool`).
 - **Ends of motion.** The control command ``motion-ends`` is answered ``ack motion-ends T ...``
   with the ``time.monotonic()`` instants (oldest first, the last 64) at which the firmware's
   planner went from busy to empty, mapped from simulated to wall time exactly.

@@ -26,11 +26,19 @@ enough)::
         async with Mirobot.connect(mirobot_emulator) as arm:
             ...
 
-The ``mirobot_emulator`` fixture yields the port URL of an emulator started for the test;
+The ``mirobot_emulator`` fixture yields the port URL of an emulator for the test;
 ``mirobot_emulator_process`` yields its :class:`SyncEmulatorProcess` handle (``.url``,
-``.control(cmd)``, ``.kill()``). The settings come from the
-``mirobot_emulator(firmware=..., time_scale=..., extra_args=..., listen=...)`` marker, else from
-the command line options ``--mirobot-firmware`` (default ``2021``), ``--mirobot-time-scale``
+``.control(cmd)``, ``.kill()``). The emulator is exactly what a process started for the test
+would be, but usually it is not a new one: the session-scoped ``mirobot_emulator_pool``
+(:class:`EmulatorPool`, one per pytest-xdist worker) keeps processes between tests and
+*renews* one for each test (the emulator's ``renew`` control command: a new port, a fresh
+power-on, only the test's faults armed, counters at zero), which takes milliseconds instead of
+a process start. A process the test killed, stopped or closed (``close`` fault) is not reused;
+all are stopped at the end of the session, and the pooled ones exit by themselves if pytest
+dies. ``--mirobot-pool-size 0`` (or the marker's ``fresh=True``) gives a new process every
+time. :meth:`EmulatorProcess.renew` and :meth:`SyncEmulatorProcess.renew` renew a handle of
+your own. The settings come from the ``mirobot_emulator(firmware=..., time_scale=...,
+extra_args=..., listen=..., fresh=...)`` marker, else from the command line options ``--mirobot-firmware`` (default ``2021``), ``--mirobot-time-scale``
 (default ``0``: every motion completes at once) and ``--mirobot-link`` (``pty``, ``tcp`` or
 ``both``: every test using the fixtures runs once per link; default ``$MIROBOT_TEST_LINK``, else
 ``pty`` where ptys exist). The ``mirobot_link`` fixture names the test's link. The fixtures are
