@@ -117,7 +117,7 @@ async def test_socket_url_and_end_of_file() -> None:
 
 async def test_connect_to_something_that_is_not_a_robot_times_out_clearly() -> None:
     with pytest.raises(MirobotConnectionError, match="no Mirobot answered"):
-        await Mirobot.connect("loop://", timeout=0.5)
+        await Mirobot.connect("loop://", timeout=0.2)
 
 
 async def test_await_form_and_idempotent_close(emu: EmulatorProcess) -> None:
@@ -374,7 +374,7 @@ async def test_refusals(ready_arm: Mirobot) -> None:
     assert_joints(report, (20, 0, 0, 0, 0, 0))
 
 
-@pytest.mark.mirobot_emulator(time_scale=20)
+@pytest.mark.mirobot_emulator(time_scale=100)  # homing and moves take time, but little
 async def test_home_then_moves(arm: Mirobot, profile: str) -> None:
     homed = await arm.home()
     assert homed.state is State.IDLE
@@ -446,7 +446,9 @@ async def test_wait_true_detects_completion_promptly(ready_arm: Mirobot) -> None
 
 
 @pytest.mark.mirobot_emulator(time_scale=1)
-async def test_wait_false_then_wait_idle_hold_and_resume(ready_arm: Mirobot) -> None:
+async def test_wait_false_then_wait_idle_hold_and_resume(
+    emu: EmulatorProcess, ready_arm: Mirobot
+) -> None:
     arm = ready_arm
     assert await arm.move_joints(j1=20, speed=600, wait=False) is None  # ~2 s of motion
     # wait until it is really moving (condition, not sleep)
@@ -473,6 +475,7 @@ async def test_wait_false_then_wait_idle_hold_and_resume(ready_arm: Mirobot) -> 
     assert 0 < frozen < 20
     for _ in range(5):  # and stays there
         assert (await arm.status()).joints[0] == pytest.approx(frozen, abs=0.05)
+    await emu.control("time-scale 20")  # the rest of the move needs no real time
     await arm.resume()
     report = await arm.wait_idle(timeout=10)
     assert report.state is State.IDLE

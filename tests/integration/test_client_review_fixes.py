@@ -90,18 +90,18 @@ async def test_a_late_status_reply_is_not_credited_to_a_newer_request(
 ) -> None:
     """Every reply answers the oldest "?": a fresh waiter never gets a report older than itself.
 
-    The emulator holds every output line 0.9 s, and "?" is asked again every 0.2 s: replies to
-    the "?" of 0, 0.2, 0.4... arrive at 0.9, 1.1, 1.3... The pump is switched on at 0.5, and a
-    waiter for a fresh report starts then: it must see the pump on (a "?" of 0.6 or later).
+    The emulator holds every output line 0.45 s, and "?" is asked again every 0.1 s: replies to
+    the "?" of 0, 0.1, 0.2... arrive at 0.45, 0.55, 0.65... The pump is switched on at 0.25, and
+    a waiter for a fresh report starts then: it must see the pump on (a "?" of 0.3 or later).
     """
     arm = ready_arm
     await arm.set_pump(0)
-    arm.status_retry_interval = 0.2
+    arm.status_retry_interval = 0.1
     arm.liveness_interval = 10.0
-    await emu.control("delay 900")
+    await emu.control("delay 450")
     try:
         first = asyncio.create_task(arm.status())
-        await asyncio.sleep(0.5)
+        await asyncio.sleep(0.25)
         pump = asyncio.create_task(arm.set_pump(500))
         await asyncio.sleep(0)  # the line is written
         report = await arm.status(fresh=True, timeout=5.0)
