@@ -38,10 +38,11 @@ all are stopped at the end of the session, and the pooled ones exit by themselve
 dies. ``--mirobot-pool-size 0`` (or the marker's ``fresh=True``) gives a new process every
 time. :meth:`EmulatorProcess.renew` and :meth:`SyncEmulatorProcess.renew` renew a handle of
 your own. The settings come from the ``mirobot_emulator(firmware=..., time_scale=...,
-extra_args=..., listen=..., fresh=...)`` marker, else from the command line options ``--mirobot-firmware`` (default ``2021``), ``--mirobot-time-scale``
-(default ``0``: every motion completes at once) and ``--mirobot-link`` (``pty``, ``tcp`` or
-``both``: every test using the fixtures runs once per link; default ``$MIROBOT_TEST_LINK``, else
-``pty`` where ptys exist). The ``mirobot_link`` fixture names the test's link. The fixtures are
+extra_args=..., listen=..., fresh=...)`` marker, else from the command line options
+``--mirobot-firmware`` (default ``2021``), ``--mirobot-time-scale`` (default ``0``: every
+motion completes at once) and ``--mirobot-link`` (``pty``, ``tcp`` or ``both``: every test
+using the fixtures runs once per link; default ``$MIROBOT_TEST_LINK``, else ``pty`` where ptys
+exist). The ``mirobot_link`` fixture names the test's link. The fixtures are
 synchronous (the emulator is a separate process), so they work in any test style: plain,
 pytest-asyncio (any mode), anyio or trio.
 
