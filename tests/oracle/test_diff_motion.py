@@ -6,6 +6,7 @@ from __future__ import annotations
 import pytest
 
 from .harness import Pair, Until
+from .per_side import status_on_reply
 
 MOVE = "M21 G90 X10 Y10 Z10 A10 B10 C10 F2000"
 
@@ -67,8 +68,9 @@ MOVES: dict[str, list[str]] = {
 @pytest.mark.parametrize("program", MOVES)
 def test_move(pair: Pair, program: str) -> None:
     pair.lines("M50")
-    pair.lines(*MOVES[program])
-    pair.status(moving=True)
+    *first, last = MOVES[program]
+    pair.lines(*first)
+    status_on_reply(pair, (last + "\n").encode(), note="last line")  # ``?`` during the motion
     pair.settle()
     pair.status()
     pair.send("$G\n")
