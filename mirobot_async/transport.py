@@ -208,13 +208,45 @@ class _PolledSerialTransport(asyncio.Transport):
 
 
 class _SocketSerial(protocol_socket.Serial):
-    """pyserial's ``socket://`` port with a close that releases the socket, at once.
+    """pyserial's ``socket://`` port, mended for pyserial-asyncio (``implementation="original"``;
+    the fast one uses asyncio's own socket transport for ``socket://``).
 
-    pyserial 3.5 skips ``close()`` of the socket when ``shutdown()`` fails (it does once the
-    peer has reset the connection: a leaked socket, a ``ResourceWarning``), then sleeps 0.3 s
-    "for quick reconnects", on the event loop when pyserial-asyncio closes it. Used for
-    ``socket://`` with ``implementation="original"`` (the fast one uses asyncio's own socket).
+    * pyserial 3.5's ``read`` drops the bytes it has already received when the end of the
+      stream follows them in the same call (a server's last words before it closes, such as
+      "port busy"): a non-blocking read here returns them, and the end comes with the next.
+    * Its ``open`` discards what the server sent at once (a flush meant for a serial port's
+      stale input; a new connection has none): the server's first words are kept.
+    * Its ``close`` skips closing the socket when ``shutdown()`` fails (it does once the peer
+      has reset the connection: a leaked socket, a ``ResourceWarning``), then sleeps 0.3 s "for
+      quick reconnects", on the event loop when pyserial-asyncio closes it.
     """
+
+    _opening = False
+
+    def open(self) -> None:
+        self._opening = True
+        try:
+            super().open()
+        finally:
+            self._opening = False
+
+    def reset_input_buffer(self) -> None:
+        if not self._opening:
+            super().reset_input_buffer()
+
+    def read(self, size: int = 1) -> bytes:
+        sock: socket.socket | None = getattr(self, "_socket", None)
+        if sock is None or self.timeout != 0:
+            return super().read(size)  # closed (pyserial raises), or a blocking read
+        try:
+            data = sock.recv(size)  # the socket is non-blocking (pyserial's open sets it)
+        except (BlockingIOError, InterruptedError):
+            return b""
+        except OSError as exc:
+            raise serial.SerialException(f"read failed: {exc}") from exc
+        if not data:
+            raise serial.SerialException("socket disconnected")
+        return data
 
     def close(self) -> None:
         sock: socket.socket | None = getattr(self, "_socket", None)

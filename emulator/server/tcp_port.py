@@ -1,10 +1,10 @@
 """The emulator's serial port as a TCP socket: ``socket://HOST:PORT`` for pyserial and our client.
 
 Portable (plain sockets, no pty, no ``fcntl``/``termios``). One client at a time, as on a serial
-port: a second connection while one is served gets one line saying the port is busy, then the
-end of the stream (FIN, not a reset: what it sent meanwhile is read and dropped, so that the
-line is not lost to a reset); it is closed when its client closes it or after
-:data:`REFUSED_LINGER_S`. A connection is an open of the port; it takes effect
+port: a second connection while one is served gets one line saying the port is busy (when its
+open is over, as below), then the end of the stream (FIN, not a reset: what it sent meanwhile
+is read and dropped, so that the line is not lost to a reset); it is closed when its client
+closes it or after :data:`REFUSED_LINGER_S`. A connection is an open of the port; it takes effect
 (``--reset-on-open`` resets the firmware then) at the client's first byte or
 :data:`~.port.OPEN_SETTLE_S` after it connected, so that pyserial's open-time flush does not
 swallow the banner. When the client goes away the robot keeps its state, and output meanwhile
@@ -21,6 +21,7 @@ import selectors
 import socket
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 from .port import OPEN_SETTLE_S, READ_CHUNK, Arrival, Port
@@ -29,8 +30,17 @@ __all__ = ["BUSY_MESSAGE", "REFUSED_LINGER_S", "TcpPort", "socket_url"]
 
 BUSY_MESSAGE = b"mirobot-emulator: port busy: another client is connected\r\n"
 REFUSED_LINGER_S = 2.0
-"""A refused connection is closed by us this long after the busy line if its client has not
+"""A refused connection is closed by us this long after it connected if its client has not
 closed it first (closing at once while its bytes are unread would reset it: the line lost)."""
+
+
+@dataclass(slots=True)
+class _Refusal:
+    """A second client being told the port is busy."""
+
+    tell_at: float  # when the busy line goes out, unless the client sends a byte first
+    close_at: float  # when the connection is closed anyway
+    told: bool = False
 
 
 def socket_url(host: str, port: int) -> str:
@@ -49,7 +59,7 @@ class TcpPort(Port):
         self._listener: socket.socket | None = None
         self._conn: socket.socket | None = None
         self._open_since: float | None = None  # connected; the open not yet in effect
-        self._refused: dict[socket.socket, float] = {}  # told busy -> when to close it anyway
+        self._refused: dict[socket.socket, _Refusal] = {}
         self.refused = 0
         """Connections refused because a client was already connected."""
 
@@ -102,6 +112,7 @@ class TcpPort(Port):
         if fileobj is self._listener:
             return self._accept()
         if fileobj in self._refused:
+            self._tell_busy(fileobj)  # it has sent a byte (or closed): its open is over
             self._drain_refused(fileobj)
             return Arrival()
         if fileobj is self._conn and events & selectors.EVENT_READ and room > 0:
@@ -128,33 +139,42 @@ class TcpPort(Port):
         return Arrival()
 
     def poll(self, now: float) -> Arrival:
-        for conn, until in list(self._refused.items()):
-            if now >= until:
+        for conn, refusal in list(self._refused.items()):
+            if now >= refusal.close_at:
                 self._close_refused(conn)
+            elif now >= refusal.tell_at:
+                self._tell_busy(conn)
         if self._open_since is not None and now >= self._open_since + OPEN_SETTLE_S:
             self._open_since = None
             return Arrival(opened=1)
         return Arrival()
 
     def next_time(self) -> float | None:
-        times = list(self._refused.values())
+        times = [r.close_at if r.told else r.tell_at for r in self._refused.values()]
         if self._open_since is not None:
             times.append(self._open_since + OPEN_SETTLE_S)
         return min(times) if times else None
 
     def _refuse(self, conn: socket.socket, peer: Any) -> None:
-        """Tell a second client the port is busy and end its stream (closed later: see
-        :meth:`_drain_refused`)."""
+        """A second client: told the port is busy once its open is over (as an open takes
+        effect: pyserial flushes its input while opening), its stream then ended; closed when
+        it closes (see :meth:`_drain_refused`) or after :data:`REFUSED_LINGER_S`."""
         self.refused += 1
         self._log(f"refused a connection from {_peer_text(peer)}: another client is connected")
+        conn.setblocking(False)
+        now = time.monotonic()
+        self._refused[conn] = _Refusal(now + OPEN_SETTLE_S, now + REFUSED_LINGER_S)
+
+    def _tell_busy(self, conn: socket.socket) -> None:
+        refusal = self._refused.get(conn)
+        if refusal is None or refusal.told:
+            return
+        refusal.told = True
         try:
-            conn.setblocking(False)
             conn.send(BUSY_MESSAGE)  # a short line into an empty buffer: taken whole
             conn.shutdown(socket.SHUT_WR)
         except OSError:
-            conn.close()
-            return
-        self._refused[conn] = time.monotonic() + REFUSED_LINGER_S
+            self._close_refused(conn)
 
     def _drain_refused(self, conn: socket.socket) -> None:
         """Drop what a refused client sent; close once it has closed (or failed)."""

@@ -15,9 +15,12 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import gc
 import os
 import shutil
 import socket
+import struct
+import warnings
 from collections.abc import AsyncIterator, Awaitable, Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,6 +30,7 @@ import pytest
 
 from mirobot_async import Mirobot, MirobotConnectionError, MirobotError
 from mirobot_async.testing import EmulatorProcess
+from mirobot_async.transport import SerialLink
 
 pytestmark = [
     pytest.mark.timeout(60),
@@ -49,6 +53,9 @@ MOVES_FIRMWARE = "classic"
 LINK_CUT_LIMIT = 1.0  # seconds from the cut to every pending call failing (issue 14)
 STREAM_LIMIT = 15.0  # seconds for 10,000 lines (~1.5 s on an idle machine, ~6 s under load)
 START_TIMEOUT = 5.0
+# A second client is told the arm is in use, quoting the server (issue 14: "as a busy serial
+# port would be"); the message says so whether it comes from the open or the lost link.
+BUSY_WORDS = r"it is in use by another program \(could not lock it: the server says '.+'\)"
 
 
 def free_port() -> int:
@@ -318,7 +325,7 @@ async def test_arm_unplugged_behind_ser2net_fails_pending_calls_promptly(
 async def test_second_client_through_ser2net_is_refused(remote: RemoteFactory) -> None:
     _, server = await remote("socket")
     async with Mirobot.connect(server.url) as arm:
-        with pytest.raises(MirobotConnectionError):
+        with pytest.raises(MirobotConnectionError, match=BUSY_WORDS):
             await Mirobot.connect(server.url, timeout=1.0)
         assert (await arm.status()).state.value in ("Idle", "Alarm")
 
@@ -345,11 +352,48 @@ async def test_tcp_emulator_stream(tcp_emulator: EmulatorProcess) -> None:
     await check_stream(tcp_emulator.url, 10_000)
 
 
-async def test_tcp_emulator_refuses_a_second_client(tcp_emulator: EmulatorProcess) -> None:
+@pytest.mark.parametrize("implementation", ["fast", "original"])
+async def test_tcp_emulator_refuses_a_second_client(
+    tcp_emulator: EmulatorProcess, implementation: Any
+) -> None:
+    """The second client is told the arm is in use, in the emulator's words, at once."""
     async with Mirobot.connect(tcp_emulator.url) as arm:
-        with pytest.raises(MirobotConnectionError):
-            await Mirobot.connect(tcp_emulator.url, timeout=1.0)
+        start = asyncio.get_running_loop().time()
+        with pytest.raises(MirobotConnectionError, match=BUSY_WORDS):
+            await Mirobot.connect(tcp_emulator.url, timeout=5.0, implementation=implementation)
+        assert asyncio.get_running_loop().time() - start < 1.0
         assert (await arm.status()).state.value in ("Idle", "Alarm")
+
+
+async def test_original_implementation_releases_a_socket_the_peer_reset() -> None:
+    """pyserial's socket:// close leaks the socket once the peer has reset the connection
+    (its ``shutdown`` fails, its ``close`` is skipped): the link closes it, no ResourceWarning."""
+
+    async def on_accept(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        await reader.read(1)  # the client's first byte (after pyserial's open-time flush)
+        conn = writer.get_extra_info("socket")
+        conn.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+        writer.transport.abort()  # with linger 0: the client sees a reset, not a FIN
+
+    server = await asyncio.start_server(on_accept, "127.0.0.1", 0)
+    async with server:
+        url = f"socket://127.0.0.1:{server.sockets[0].getsockname()[1]}"
+        lost: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", ResourceWarning)
+            link = await SerialLink.open(
+                url,
+                on_data=lambda data: None,
+                on_lost=lambda exc: lost.done() or lost.set_result(None),  # (exc holds the port)
+                implementation="original",
+            )
+            link.write(b"?")  # answered by a reset
+            await asyncio.wait_for(lost, 5)
+            await link.close()
+            del link
+            gc.collect()
+        leaked = [w for w in caught if issubclass(w.category, ResourceWarning)]
+        assert leaked == [], [str(w.message) for w in leaked]
 
 
 @pytest.mark.parametrize("tcp_emulator", [("2021", 1.0)], indirect=True)
