@@ -86,16 +86,17 @@ def test_ports_probes_emulators_and_a_garbage_port(
         pool.lend("classic", time_scale=0, extra_args=["--reset-on-open"]) as booting,
     ):
         started = time.monotonic()
-        devices = [quiet.url, booting.url, garbage_port]
+        devices = [quiet.url, booting.url, garbage_port]  # renewed on their return: new URLs
         proc = mirobot("ports", *devices, "--timeout", "1.5")
         took = time.monotonic() - started
         quiet_stats, booting_stats = stats(quiet), stats(booting)
+    quiet_url, booting_url = devices[:2]
     assert proc.returncode == 0, proc.stderr  # a Mirobot answered
     rows = proc.stdout.splitlines()
     assert rows[0].split() == ["DEVICE", "VID:PID", "DESCRIPTION", "VERDICT"]
     verdicts = {row.split()[0]: row for row in rows[1:]}
-    assert verdicts[quiet.url].endswith("Mirobot (Alarm), firmware 2021")
-    assert verdicts[booting.url].endswith("Mirobot (Idle), firmware classic (20191228_2)")
+    assert verdicts[quiet_url].endswith("Mirobot (Alarm), firmware 2021")
+    assert verdicts[booting_url].endswith("Mirobot (Idle), firmware classic (20191228_2)")
     assert verdicts[garbage_port].endswith(
         "not a Mirobot (answers something else: no status reply to ?)"
     )

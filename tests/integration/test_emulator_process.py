@@ -201,7 +201,9 @@ def renewed(processes: dict[str, Emulator]) -> Iterator[Callable[..., Emulator]]
             at = args.index("--listen")
             assert args[at : at + 2] == LISTEN, args  # what a renewal keeps: a free port
             args, link = args[:at] + args[at + 2 :], "tcp"
-        if link not in processes or processes[link].proc.poll() is not None:
+        if link in processes and processes[link].proc.poll() is not None:
+            processes.pop(link).close()  # ended by a failed test: reaped, pipes closed
+        if link not in processes:
             processes[link] = Emulator(*TRANSPORTS[link])
         emu = processes[link]
         emu.renew(*args)

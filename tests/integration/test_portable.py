@@ -103,7 +103,8 @@ def test_client_imports_and_talks_over_tcp(tcp_emulator: SyncEmulatorProcess) ->
 
 
 def test_cli_talks_over_tcp(tcp_emulator: SyncEmulatorProcess) -> None:
-    proc = crippled(_CLI, "move", "joints", "j2=5", "--port", tcp_emulator.url)
+    # --unlock: the shared arm may not have been unlocked by the client test (another worker)
+    proc = crippled(_CLI, "move", "joints", "j2=5", "--unlock", "--port", tcp_emulator.url)
     assert proc.returncode == 0, proc.stderr
     proc = crippled(_CLI, "status", "--port", tcp_emulator.url)
     assert proc.returncode == 0, proc.stderr
