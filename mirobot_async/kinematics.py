@@ -2,20 +2,14 @@
 
 Pure math (``math`` and numpy): no I/O, no asyncio. This is the only module of ``mirobot_async``
 the emulator imports, so its choices (notably the firmware IK branch) define what the virtual arm
-reports.
+reports. Angles in degrees, lengths in mm; Craig's modified DH (``T = RotX(alpha) TransX(a)
+RotZ(theta) TransZ(d)``, table of PROTOCOL 8.1); the flange point is the origin of frame 6, a
+tool offset ``(tx, ty, tz)`` is in the flange frame. A pose is ``(x, y, z, rx, ry, rz)``, roll,
+pitch, yaw about the *fixed* world axes, ``R = Rz(rz) Ry(ry) Rx(rx)`` (PROTOCOL 8.2).
 
-Conventions:
-
-- Joint angles ``q1..q6`` and orientations are in degrees, lengths in mm.
-- Geometry is Craig's modified DH (``T = RotX(alpha) TransX(a) RotZ(theta) TransZ(d)``) with the
-  table of PROTOCOL 8.1; the flange point is the origin of frame 6, a tool offset ``(tx, ty, tz)``
-  is expressed in the flange frame (``T06 * Trans(tx, ty, tz)``).
-- A pose is ``(x, y, z, rx, ry, rz)``: roll, pitch, yaw about the *fixed* world axes,
-  ``R = Rz(rz) Ry(ry) Rx(rx)`` (PROTOCOL 8.2).
-
-Errors: :class:`Unreachable` (no solution for theta3: outside the workspace) and
-:class:`OutOfLimits` (solutions exist, none within the joint ranges). Both derive from
-:class:`~mirobot_async.errors.MirobotUsageError` and hence from ``ValueError``.
+Errors, all :class:`~mirobot_async.errors.MirobotUsageError` (hence ``ValueError``):
+:class:`Unreachable` (no theta3: outside the workspace), :class:`OutOfLimits` (no solution
+within the joint ranges), :class:`BehindShoulder` (the firmware would go to another pose).
 """
 
 from __future__ import annotations
@@ -31,15 +25,18 @@ import numpy.typing as npt
 from .errors import MirobotUsageError
 
 __all__ = [
+    "BEHIND_SHOULDER_TOL",
     "DH",
     "DH_2021",
     "DH_CLASSIC",
     "JOINT_LIMITS",
+    "BehindShoulder",
     "Joints",
     "Limits",
     "OutOfLimits",
     "Pose",
     "Unreachable",
+    "firmware_pose",
     "forward",
     "forward_many",
     "in_limits",
@@ -60,13 +57,9 @@ Limits: TypeAlias = Sequence[tuple[float, float]]
 FloatArray: TypeAlias = npt.NDArray[np.float64]
 
 JOINT_LIMITS: tuple[tuple[float, float], ...] = (
-    (-100.0, 160.0),
-    (-30.0, 70.0),
-    (-170.0, 60.0),
-    (-350.0, 350.0),
-    (-205.0, 36.0),
-    (-360.0, 360.0),
-)
+    (-100.0, 160.0), (-30.0, 70.0), (-170.0, 60.0),
+    (-350.0, 350.0), (-205.0, 36.0), (-360.0, 360.0),
+)  # fmt: skip
 """Factory joint ranges J1..J6 in degrees (PROTOCOL section 7, settings ``$130..$146``)."""
 
 _DEG = math.pi / 180.0
@@ -81,6 +74,8 @@ LIMIT_TOL = 1e-6
 _REACH_EPS = 1e-12
 #: Solutions closer than this (degrees, every joint) are duplicates (singular branches coincide).
 _DUP_TOL = 1e-9
+#: How far (mm) a wrist centre may lie behind the shoulder before the mirrored pose counts.
+BEHIND_SHOULDER_TOL = 1e-6
 
 
 class Unreachable(MirobotUsageError):
@@ -89,6 +84,17 @@ class Unreachable(MirobotUsageError):
 
 class OutOfLimits(MirobotUsageError):
     """The pose has IK solutions, but none (of the requested branch) is within the joint limits."""
+
+
+class BehindShoulder(MirobotUsageError):
+    """The firmware does not go to this pose: its wrist centre lies behind the shoulder (within
+    ``A1`` of the base axis); it solves the pose mirrored in front of the shoulder and the arm
+    goes there (oracle: ``X1 Y5 Z182 A0 B0 C0`` ends at X 11.551 Y 57.749). ``actual``: that pose.
+    """
+
+    def __init__(self, message: str, actual: Pose) -> None:
+        super().__init__(message)
+        self.actual = actual
 
 
 @dataclass(frozen=True, slots=True)
@@ -471,7 +477,15 @@ def inverse(
     Raises :class:`Unreachable` when no solution exists, :class:`OutOfLimits` when none is in range.
     """
     if branch == "firmware":
-        solution = _solve(pose, dh, tool)[0][0]
+        solution = _solve(pose, dh, tool)[0][0]  # Unreachable first: mirroring keeps the reach
+        actual = firmware_pose(pose, dh, tool)
+        if actual is not None:
+            raise BehindShoulder(
+                f"pose {_fmt(pose)}: its wrist centre lies behind the shoulder (within "
+                f"A1 = {dh.a1:g} mm of the base axis); the firmware solves it as the mirrored "
+                f"pose {_fmt(actual)} and the arm would go there instead",
+                actual,
+            )
         if limits is not None and not in_limits(solution, limits):
             bad = _first_violation(solution, limits)
             raise OutOfLimits(
@@ -503,6 +517,27 @@ def inverse(
     if best is None:
         raise OutOfLimits(f"pose {_fmt(pose)}: every IK solution has one angle out of limit")
     return best
+
+
+def firmware_pose(
+    pose: Sequence[float], dh: DH = DH_2021, tool: Sequence[float] = (0.0, 0.0, 0.0)
+) -> Pose | None:
+    """The pose the arm goes to when asked for ``pose`` if that is another one (the wrist centre
+    mirrored in front of the shoulder, same azimuth and orientation: :class:`BehindShoulder`),
+    else None (the usual case)."""
+    if len(pose) != 6:
+        raise MirobotUsageError(f"a pose needs 6 numbers (x, y, z, rx, ry, rz), got {len(pose)}")
+    x, y, z, rx, ry, rz = _check_vector(pose, "pose")
+    tx, ty, tz = _check_vector(tool, "tool offset")
+    (r00, r01, r02), (r10, r11, r12), _ = _rpy_rows(rx, ry, rz)
+    wx = x - (r00 * tx + r01 * ty + r02 * tz) - dh.l * r02
+    wy = y - (r10 * tx + r11 * ty + r12 * tz) - dh.l * r12
+    rho = math.hypot(wx, wy)
+    if rho >= dh.a1 - BEHIND_SHOULDER_TOL:
+        return None
+    ux, uy = (wx / rho, wy / rho) if rho > 1e-12 else (1.0, 0.0)  # on the axis: J1 = 0
+    shift = 2.0 * (dh.a1 - rho)  # from rho to the mirrored distance 2 * A1 - rho
+    return (x + ux * shift, y + uy * shift, z, rx, ry, rz)
 
 
 def _first_violation(joints: Sequence[float], limits: Limits) -> int:

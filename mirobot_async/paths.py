@@ -17,7 +17,7 @@ from typing import Final, TypeAlias
 import numpy as np
 import numpy.typing as npt
 
-from mirobot_async.kinematics import DH, JOINT_LIMITS, Joints, Pose
+from mirobot_async.kinematics import BEHIND_SHOULDER_TOL, DH, JOINT_LIMITS, Joints, Pose
 
 __all__ = [
     "MAX_JOINT_PATH_SAMPLES",
@@ -198,7 +198,8 @@ def firmware_ik_rows(poses: FloatArray, dh: DH, tool: Sequence[float]) -> FloatA
     h = wz - dh.d1
     r = rho - dh.a1
     cos_phi = (r * r + h * h - a2 * a2 - k * k) / (2.0 * a2 * k)
-    good = (np.abs(cos_phi) <= 1.0 + _REACH_EPS) & (rho > 1e-12)
+    # a wrist centre behind the shoulder: the firmware goes elsewhere (kinematics.BehindShoulder)
+    good = (np.abs(cos_phi) <= 1.0 + _REACH_EPS) & (r >= -BEHIND_SHOULDER_TOL)
     phi = np.arccos(np.clip(cos_phi, -1.0, 1.0))
     q3 = phi - beta
     q2 = np.arctan2(r, h) - np.arctan2(k * np.sin(phi), a2 + k * np.cos(phi))

@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 
 from mirobot_async.envelope import Envelope, LineCheck, MotionModes, update_modes
 from mirobot_async.errors import MirobotUsageError
-from mirobot_async.kinematics import DH, DH_2021, JOINT_LIMITS, Unreachable, inverse
+from mirobot_async.kinematics import DH, DH_2021, DH_CLASSIC, JOINT_LIMITS, Unreachable, inverse
 
 Array = npt.NDArray[np.float64]
 HOME = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
@@ -818,3 +818,15 @@ def test_program_end_resets_distance_and_motion_modes() -> None:
     moved = env.check_line("X5 M2", HOME, None, replace(modes, inches=False))
     assert moved.joints == (5.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     assert moved.modes == MotionModes(False, False, 1)
+
+
+def test_a_pose_behind_the_shoulder_is_refused_with_where_the_arm_would_go() -> None:
+    # oracle (classic): M20 G90 G0 X1 Y5 Z182 A0 B0 C0 with $20=0 ends at X 11.551 Y 57.749: the
+    # firmware solves a wrist centre behind the shoulder as its mirror in front of it
+    env = Envelope(dh=DH_CLASSIC)
+    with pytest.raises(MirobotUsageError, match=r"behind the shoulder.*\(11\.55\d, 57\.7\d\d"):
+        env.check_pose((1.0, 5.0, 182.0, 0.0, 0.0, 0.0))
+    # a straight line that passes within A1 of the base axis is refused too
+    with pytest.raises(MirobotUsageError, match="unreachable"):
+        env.check_linear_path((150.0, 0.0, 182.0, 0.0, 0.0, 0.0), (1.0, 5.0, 182.0, 0.0, 0.0, 0.0))
+    env.check_pose((150.0, 5.0, 182.0, 0.0, 0.0, 0.0))  # in front of the shoulder: fine

@@ -21,8 +21,10 @@ from mirobot_async.kinematics import (
     DH_2021,
     DH_CLASSIC,
     JOINT_LIMITS,
+    BehindShoulder,
     OutOfLimits,
     Unreachable,
+    firmware_pose,
     forward,
     forward_many,
     in_limits,
@@ -172,6 +174,15 @@ def elbow_stretched(q: Sequence[float], dh: DH, margin: float = 0.01) -> bool:
 def test_fk_ik_round_trip_firmware(q: tuple[float, ...], dh: DH) -> None:
     assume(not wrist_singular(q))
     pose = forward(q, dh)
+    mirrored = firmware_pose(pose, dh)
+    if mirrored is not None:  # wrist centre behind the shoulder: the arm goes to another pose
+        with pytest.raises(BehindShoulder) as info:
+            inverse(pose, dh)
+        assert info.value.actual == mirrored
+        assert firmware_pose(mirrored, dh) is None  # mirrored in front of the shoulder
+        arm = forward(inverse(mirrored, dh), dh)
+        assert_pose_close(arm, mirrored, 1e-6, 180.0)
+        return
     sol = inverse(pose, dh)
     assert -90.0 <= sol[4] <= 90.0
     back = forward(sol, dh)
@@ -390,8 +401,13 @@ def test_line_reachable() -> None:
     assert not line_reachable(near_home, (400.0, 0.0, 230.0, 0.0, 0.0, 0.0), DH_2021)
     # Through the base axis to the back: J1 would have to reach 180 (limit 160).
     assert not line_reachable(near_home, (-198.0, 0.0, 230.0, 0.0, 0.0, 0.0), DH_2021)
-    # Without limits the same line only fails where it is truly unreachable (it is not).
-    assert line_reachable(near_home, (-198.0, 0.0, 230.0, 0.0, 0.0, 0.0), DH_2021, limits=None)
+    # Without limits it still fails: it passes within A1 of the base axis, where the firmware
+    # solves every point as its mirror in front of the shoulder (BehindShoulder).
+    assert not line_reachable(near_home, (-198.0, 0.0, 230.0, 0.0, 0.0, 0.0), DH_2021, limits=None)
+    # A line that stays in front of the shoulder, across J1 = 0.
+    assert line_reachable(
+        (150.0, -150.0, 230.0, 0.0, 0.0, 0.0), (150.0, 150.0, 230.0, 0.0, 0.0, 0.0), DH_2021
+    )
     # Classic geometry and a tool offset are honoured.
     home_classic = forward((0,) * 6, DH_CLASSIC)
     end = (home_classic[0] - 20, 10.0, home_classic[2] - 20, 0.0, 0.0, 0.0)
