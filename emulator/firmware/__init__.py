@@ -98,8 +98,9 @@ ASSUMED points implemented (each in one constant or function, named here)
   horizontal distance from the shoulder without its sign, so a wrist centre behind the shoulder
   (within ``A1`` = 32 mm of the base axis) is solved as if mirrored in front of it: J2 and the
   wrist differ from the textbook branch and the arm goes elsewhere (``X1 Y5 Z182 A0 B0 C0``:
-  J2 -78.77, pose X 11.55 Y 57.75; ``$20=1`` names ``Y``). Our client's
-  ``kinematics.inverse(branch="firmware")`` does not model this.
+  J2 -78.77, pose X 11.55 Y 57.75; ``$20=1`` names ``Y``). The client's own reading,
+  ``kinematics.firmware_pose``, makes ``inverse(branch="firmware")`` refuse such poses
+  (``BehindShoulder``), so its envelope never lets one through.
 * ``MoveBuilder.linear_lines``: classic ``M20 G1`` is one joint-space block, F in deg/min along
   the joint vector (oracle); on 2021 with ``$35=1`` it is a straight line. Straight lines,
   ``G2``/``G3`` arcs and ``G05`` are checked sample by sample (every 2 mm / 2 degrees) before
