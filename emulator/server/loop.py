@@ -37,6 +37,7 @@ from .port import Arrival, Port
 
 __all__ = ["EmulatorServer"]
 
+LANDING_TIMEOUT_S = 0.2  # the power-on output reaches a pty's input queue in microseconds
 MAX_LOGGED_ERRORS = 5  # tracebacks of firmware-model exceptions written to the log
 # Where a signal handler cannot interrupt select() (Windows), the loop wakes this often to see
 # a stop requested from one.
@@ -74,6 +75,16 @@ def _make_link(link: str, target: str) -> None:
     tmp = f"{link}.{os.getpid()}.tmp"
     os.symlink(target, tmp)
     os.replace(tmp, link)  # atomic, replaces a stale link from an earlier run
+
+
+def _wait_until_landed(port: Port, written: int) -> None:
+    """Wait (briefly) until the ``written`` bytes are in the port for the client to read (a pty
+    moves them there asynchronously), so that a client opening it afterwards flushes them all."""
+    deadline = time.monotonic() + LANDING_TIMEOUT_S
+    while (unread := port.unread()) is not None and unread < written:
+        if time.monotonic() >= deadline:
+            return
+        time.sleep(0.0001)
 
 
 def _unregister(selector: selectors.BaseSelector, fileobjs: Iterable[Any]) -> None:
@@ -202,6 +213,7 @@ class EmulatorServer:
         self._start = time.monotonic()
         self.output.power_on(self.sim.firmware.read_output())
         self.output.write_to(self.port)
+        _wait_until_landed(self.port, self.output.bytes_out)
         for command in link_commands(self.options.faults):  # from now on, not the banner
             self._apply(command, self._start)
         if self.options.reset_on_open and not getattr(self.port, "sees_opens", True):
