@@ -217,3 +217,43 @@ def test_refused_targets_that_still_move_the_parser() -> None:
 def test_m3_m20_m50_take_the_group_of_the_word_before_them(line: str, reply: str) -> None:
     fw = unlocked()
     assert lines(fw, line + "\n") == [reply]
+
+
+# Status numbers as the AVR prints them: float32 angle = steps / steps-per-degree, then GRBL's
+# float32 scaling (x100, x10, +0.5, truncated). Each pair is (steps, steps per unit, what the
+# oracle printed); double-precision rounding prints the last digit one lower for all of them.
+FLOAT32_PRINTS = [
+    (-1443, 22.22, "-64.942"),
+    (318, 56.73, "5.606"),
+    (4346, 56.73, "76.609"),
+    (5326, 113.33, "46.996"),
+    (944, 11.11, "84.969"),
+    (7051, 56.73, "124.291"),
+]
+
+
+@pytest.mark.parametrize(("steps", "per_unit", "printed"), FLOAT32_PRINTS)
+def test_status_angle_printed_in_float32(steps: int, per_unit: float, printed: str) -> None:
+    from mirobot_emulator.firmware.float32 import print_float, step_angle
+    from mirobot_emulator.settings import grbl_float
+
+    assert print_float(step_angle(steps, per_unit)) == printed
+    assert grbl_float(steps / per_unit) != printed  # the double-precision print differs
+
+
+def test_float32_print_keeps_grbl_format() -> None:
+    from mirobot_emulator.firmware.float32 import print_float
+
+    assert [print_float(v) for v in (0.0, -0.0, -0.0001, 202.0, -10.307, 0.0005)] == [
+        "0.000", "0.000", "-0.000", "202.000", "-10.307", "0.001",
+    ]  # fmt: skip
+
+
+def test_status_after_moves_prints_float32_angles() -> None:
+    """The oracle printed J5 = ``-64.942`` at -1443 steps (22.22 per degree), where ``M21 G90
+    B-64.94`` ends; the double-precision print would be ``-64.941``."""
+    fw = Firmware("classic")
+    lines(fw, "M50\n")
+    lines(fw, "M21 G90 B-64.94 F2000\n", 5.0)
+    (status,) = lines(fw, "?")
+    assert status.startswith("<Idle,Angle(ABCDXYZ):0.000,-64.942,0.000,0.000,")
