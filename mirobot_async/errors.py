@@ -13,6 +13,7 @@ command involved and quotes the firmware's own words.
     ├── MirobotProtocolError                     garbled or unexpected bytes from the robot
     ├── MirobotTimeoutError (also TimeoutError)  a reply or condition did not come in time
     ├── MirobotResetError                        the robot reset while commands were pending
+    ├── MirobotOutcomeUnknownError               a reset cut a line: whether it ran is unknown
     └── MirobotCommandError                      the firmware refused a line (error: / Error, Ennn)
         ├── MotionRefusedError                   "ok but dropped": locked, soft limit, unreachable
         └── MirobotAlarmError                    the robot is in Alarm (hard limit, abort, ...)
@@ -28,6 +29,7 @@ __all__ = [
     "MirobotConnectionError",
     "MirobotError",
     "MirobotLinkLostError",
+    "MirobotOutcomeUnknownError",
     "MirobotProtocolError",
     "MirobotResetError",
     "MirobotTimeoutError",
@@ -102,6 +104,25 @@ class MirobotResetError(MirobotError):
         if detail:
             msg += f" ({detail})"
         super().__init__(msg)
+
+
+class MirobotOutcomeUnknownError(MirobotError):
+    """A reset caught this line on its way to the robot; whether it ran is unknown.
+
+    The robot answered it after its reset, but that reply may be for the line's tail alone: a
+    reset wipes the bytes the robot had received, and the rest of a line cut there is read as a
+    line of its own. The client cannot tell the two apart, so it does not guess; ``reply`` is
+    what the robot answered. Check the arm (its status) before going on.
+    """
+
+    def __init__(self, command: str | bytes | None, reply: str) -> None:
+        self.command = _quote_command(command) or None
+        self.reply = reply
+        super().__init__(
+            f"{self.command!r}: the robot reset while this line was on its way; it answered "
+            f"{reply!r} after the reset, but that may be for the line's tail alone (the reset "
+            "wiped what had arrived): whether the line ran is unknown"
+        )
 
 
 class MirobotCommandError(MirobotError):

@@ -18,6 +18,7 @@ __all__ = [
     "DoubtResolved",
     "Event",
     "LineAcknowledged",
+    "LineOutcomeUnknown",
     "LineRejected",
     "PendingLine",
     "ProtocolViolation",
@@ -70,6 +71,16 @@ class LineRejected:
 
 
 @dataclass(frozen=True, slots=True)
+class LineOutcomeUnknown:
+    """The first line in doubt that was answered after a reset: ``reply`` (its
+    :class:`LineAcknowledged` or :class:`LineRejected`) may be for the line's tail alone (the
+    reset cut it on its way), so whether it ran is unknown."""
+
+    line: PendingLine
+    reply: LineAcknowledged | LineRejected
+
+
+@dataclass(frozen=True, slots=True)
 class StatusReceived:
     """A well-formed ``<...>`` status report; ``raw`` is the line as printed."""
 
@@ -118,7 +129,8 @@ class ResetDetected:
 @dataclass(frozen=True, slots=True)
 class DoubtResolved:
     """The lines in doubt after a reset are settled: ``not_run`` were lost with the robot's
-    buffer; the others ran and their :class:`LineAcknowledged` / :class:`LineRejected` events
+    buffer; the first answered one may have been cut by the reset (:class:`LineOutcomeUnknown`),
+    the others ran and their :class:`LineAcknowledged` / :class:`LineRejected` events
     follow this one (emitted once every line in doubt got a reply, or by
     :meth:`MirobotConnection.resolve_doubt` when the host knows no more replies can come)."""
 
@@ -152,6 +164,7 @@ class ConnectionClosed:
 Event = (
     LineAcknowledged
     | LineRejected
+    | LineOutcomeUnknown
     | StatusReceived
     | StatusCorrupted
     | AlarmRaised

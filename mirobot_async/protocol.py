@@ -41,6 +41,7 @@ from mirobot_async.events import (
     DoubtResolved,
     Event,
     LineAcknowledged,
+    LineOutcomeUnknown,
     LineRejected,
     PendingLine,
     ProtocolViolation,
@@ -58,6 +59,8 @@ from mirobot_async.replies import (
     parse_status,
 )
 
+FinalReply = LineAcknowledged | LineRejected  # a line's final reply
+
 __all__ = [
     "AlarmRaised",
     "BannerReceived",
@@ -65,6 +68,7 @@ __all__ = [
     "DoubtResolved",
     "Event",
     "LineAcknowledged",
+    "LineOutcomeUnknown",
     "LineRejected",
     "MirobotConnection",
     "PendingLine",
@@ -144,7 +148,7 @@ class MirobotConnection:
         self._banner: list[str] | None = None  # lines of a banner being collected
         self._reset_mark: int | None = None  # first line id written after a requested "%"
         self._in_doubt: list[PendingLine] = []  # lines that may have run after a reset
-        self._doubt_replies: list[Callable[[PendingLine], Event]] = []  # replies seen for them
+        self._doubt_replies: list[Callable[[PendingLine], FinalReply]] = []  # replies seen for them
 
     # ---- introspection ----
 
@@ -441,7 +445,7 @@ class MirobotConnection:
         """True while lines in doubt may still get replies."""
         return len(self._doubt_replies) < len(self._in_doubt)
 
-    def _doubt_reply(self, make: Callable[[PendingLine], Event]) -> None:
+    def _doubt_reply(self, make: Callable[[PendingLine], FinalReply]) -> None:
         self._doubt_replies.append(make)
         if not self._doubt_open():
             self._settle_doubt()
@@ -452,7 +456,10 @@ class MirobotConnection:
         self._bytes_in_flight -= sum(len(line.wire) for line in lines)
         ran = len(lines) - len(replies)
         self._events.append(DoubtResolved(tuple(lines[:ran])))
-        self._events.extend(make(line) for line, make in zip(lines[ran:], replies, strict=True))
+        answered = [make(line) for line, make in zip(lines[ran:], replies, strict=True)]
+        if answered:  # the first may have been cut by the reset: its reply may be its tail's
+            self._events.append(LineOutcomeUnknown(answered[0].line, answered.pop(0)))
+        self._events.extend(answered)
 
     def _reset(self) -> None:
         """The robot reset: lines written before it are lost; later ones may run (in doubt)."""

@@ -23,6 +23,7 @@ from mirobot_async.protocol import (
     DoubtResolved,
     Event,
     LineAcknowledged,
+    LineOutcomeUnknown,
     LineRejected,
     ProtocolViolation,
     ResetDetected,
@@ -109,6 +110,8 @@ class EventRouter:
             self._lines.on_reset(event)
         elif isinstance(event, DoubtResolved):
             self._lines.on_doubt_resolved(event)
+        elif isinstance(event, LineOutcomeUnknown):
+            self._lines.on_outcome_unknown(event)
         elif isinstance(event, BannerReceived):
             self._condition.on_banner(event.lines)
             self._poller.on_banner()

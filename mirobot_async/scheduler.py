@@ -23,6 +23,7 @@ from mirobot_async.deadline import clip, within
 from mirobot_async.errors import (
     MirobotAlarmError,
     MirobotCommandError,
+    MirobotOutcomeUnknownError,
     MirobotResetError,
     MirobotTimeoutError,
     MotionRefusedError,
@@ -34,6 +35,7 @@ from mirobot_async.protocol import (
     DoubtResolved,
     Event,
     LineAcknowledged,
+    LineOutcomeUnknown,
     LineRejected,
     PendingLine,
     ResetDetected,
@@ -122,6 +124,13 @@ def outcome_output(slot: Slot) -> tuple[str, ...]:
     return result.output
 
 
+def outcome_unknown(command: str, reply: LineAcknowledged | LineRejected) -> BaseException:
+    """The error of a line a reset may have cut, quoting what the robot answered after it."""
+    if isinstance(reply, LineRejected):
+        return MirobotOutcomeUnknownError(command, reply.text)
+    return MirobotOutcomeUnknownError(command, " / ".join((*reply.output, "ok")))
+
+
 class LineScheduler:
     """Slots, pacing and liveness of the lines of one connection."""
 
@@ -173,12 +182,9 @@ class LineScheduler:
                 stats.lines_refused += 1
         else:
             stats.lines_rejected += 1
-        slot = self.slots.pop(event.line.id, None)
-        if self._barrier == event.line.id:
-            self._barrier = None
+        slot = self._take(event.line.id)
         if slot is None:
             return
-        slot.reply_epoch = self._condition.reset_epoch
         self._poller.on_line_reply(slot.sent_at)
         if slot.tracked is not None:
             if isinstance(event, LineRejected):
@@ -202,32 +208,40 @@ class LineScheduler:
             if slot is not None:
                 slot.tracked = None  # the prediction it was written under is void
         if event.in_doubt:
-            _log.info(
-                "the robot reset: %d line(s) written since may run after it; waiting for their "
-                "replies",
-                len(event.in_doubt),
-            )
-        if failed:
-            # Every caller still waiting gets MirobotResetError: say it loudly only if some
-            # line has nobody left to tell.
+            _log.info("the robot reset: %d line(s) may run after it", len(event.in_doubt))
+        if failed:  # loudly only if some line has nobody left to tell (else each caller hears)
             unseen = any((slot := self.slots.get(p.id)) is None or slot.fut.done() for p in failed)
             (_log.warning if unseen else _log.info)(
-                "the robot reset: %d pending line(s) were not run", len(failed)
+                "the robot reset: %d line(s) not run", len(failed)
             )
         for pending in failed:
-            slot = self.slots.pop(pending.id, None)
-            if slot is not None and not slot.fut.done():
+            if (slot := self.slots.pop(pending.id, None)) and not slot.fut.done():
                 slot.settle(MirobotResetError(slot.command))
 
     def on_banner(self) -> None:
         """A banner ended: lines may be written again (once no line is in doubt)."""
 
+    def on_outcome_unknown(self, event: LineOutcomeUnknown) -> None:
+        """The first line answered after a reset may have been cut by it: its caller gets
+        :class:`MirobotOutcomeUnknownError` with the robot's reply, never the reply as its own."""
+        slot = self._take(event.line.id)
+        if slot is not None and not slot.fut.done():
+            _log.warning("a reset cut %r on its way: did it run? unknown", slot.command)
+            slot.settle(outcome_unknown(slot.command, event.reply))
+
+    def _take(self, line_id: int) -> Slot | None:
+        """The slot of a line the robot answered, off the books (and off the barrier)."""
+        slot = self.slots.pop(line_id, None)
+        if self._barrier == line_id:
+            self._barrier = None
+        if slot is not None:
+            slot.reply_epoch = self._condition.reset_epoch
+        return slot
+
     def on_doubt_resolved(self, event: DoubtResolved) -> None:
         """Lines in doubt after a reset that did not run: they fail with MirobotResetError."""
         for pending in event.not_run:
-            slot = self.slots.pop(pending.id, None)
-            if self._barrier == pending.id:
-                self._barrier = None
+            slot = self._take(pending.id)
             if slot is not None and not slot.fut.done():
                 slot.settle(MirobotResetError(slot.command, "it was lost with the robot's buffer"))
 
