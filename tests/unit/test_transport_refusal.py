@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import pytest
 
 from mirobot_async.errors import MirobotConnectionError
 from mirobot_async.transport import refusal_error
+from mirobot_async.wire import ClientStats, Wire
 
 URL = "socket://127.0.0.1:4000"
 
@@ -50,3 +53,29 @@ def test_only_network_links_have_a_server_to_refuse(url: str) -> None:
 
 def test_rfc2217_is_a_network_link() -> None:
     assert refusal_error("rfc2217://host:2217", b"Port already in use\r\n") is not None
+
+
+async def test_the_wire_keeps_a_transport_s_refusal_and_still_reports_the_loss() -> None:
+    """``Wire.refusal``: what the client raises for a connect whose link a server refused."""
+    seen: list[BaseException | None] = []
+    refused = MirobotConnectionError("could not open 'socket://h:1': it is in use")
+    callbacks: dict[str, Any] = {}
+
+    class Opened:
+        def write(self, data: bytes) -> None: ...
+        def abort(self) -> None: ...
+        async def close(self) -> None: ...
+
+    # the TransportOpener signature names its timeout
+    async def opener(url: str, *, on_data: Any, on_lost: Any, timeout: float) -> Opened:  # noqa: ASYNC109
+        callbacks["lost"] = on_lost
+        return Opened()
+
+    wire = Wire(ClientStats())
+    await wire.open("socket://h:1", opener, on_data=lambda d: None, on_lost=seen.append, timeout=1)
+    assert wire.refusal is None
+    callbacks["lost"](None)  # a plain end of file is no refusal
+    assert wire.refusal is None
+    callbacks["lost"](refused)
+    assert wire.refusal is refused
+    assert seen == [None, refused]
