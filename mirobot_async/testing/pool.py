@@ -63,10 +63,12 @@ class EmulatorPool:
     :meth:`close` stops every process the pool knows (idle or lent). ``max_idle`` 0 turns the
     pooling off: every borrower gets a new process, stopped on its return. With
     ``start_spares``, lending the last idle process of a link starts another in the background,
-    so that the next borrower does not wait for a start when this one kills or closes its own.
+    so that the next borrower does not wait for a start when this one kills or closes its own;
+    off by default: the start then competes for the CPU with the borrower's test, which can
+    upset timing-sensitive tests on a loaded machine.
     """
 
-    def __init__(self, max_idle: int = DEFAULT_MAX_IDLE, *, start_spares: bool = True) -> None:
+    def __init__(self, max_idle: int = DEFAULT_MAX_IDLE, *, start_spares: bool = False) -> None:
         self.max_idle = max_idle
         self.start_spares = start_spares
         self._lock = threading.Lock()

@@ -248,7 +248,7 @@ def test_fresh_fixed_ports_and_a_size_of_zero_are_not_pooled() -> None:
 
 
 def test_a_spare_started_meanwhile_replaces_a_killed_process() -> None:
-    with EmulatorPool() as pool:
+    with EmulatorPool(start_spares=True) as pool:
         with pool.lend() as first:
             first.kill()
         with pool.lend("classic") as second:  # the spare, renewed: no start waited for
