@@ -82,6 +82,27 @@ async def wire_settled(emu: EmulatorProcess, arm: Mirobot, timeout: float = 5.0)
         await asyncio.sleep(0.005)
 
 
+async def output_mark(emu: EmulatorProcess, arm: Mirobot) -> tuple[int, int]:
+    """What the emulator has written and the client received so far (on a quiet link)."""
+    return (await emulator_stats(emu))["bytes_out"], arm.stats.bytes_received
+
+
+async def wire_quiet(
+    emu: EmulatorProcess, arm: Mirobot, mark: tuple[int, int], timeout: float = 10.0
+) -> dict[str, int]:
+    """:func:`wire_settled`, and every byte the emulator wrote since ``mark`` has reached the
+    client (a report to a "?" still in flight may follow the last reply); its stats."""
+    deadline = time.monotonic() + timeout
+    while True:
+        stats = await wire_settled(emu, arm)
+        written = stats["bytes_out"] - mark[0]
+        if stats["output_held"] == 0 and arm.stats.bytes_received - mark[1] >= written:
+            return stats
+        if time.monotonic() > deadline:
+            raise AssertionError(f"the emulator wrote {written} bytes, the client got {arm.stats}")
+        await asyncio.sleep(0.005)
+
+
 Spawn = Callable[[Awaitable[Any]], "asyncio.Task[Any]"]
 
 
@@ -232,6 +253,7 @@ async def test_status_corrupted_at_random_while_streaming(
     emu: EmulatorProcess, ready_arm: Mirobot, spawn: Spawn
 ) -> None:
     arm = ready_arm
+    mark = await output_mark(emu, arm)
     reports: list[StatusReport] = []
     task = spawn(monitor(arm, reports, interval=0.0))
     try:
@@ -243,7 +265,7 @@ async def test_status_corrupted_at_random_while_streaming(
     assert arm.corrupted_status_count > 0
     final = await arm.status()
     assert final.pump_pwm == 999
-    stats = await wire_settled(emu, arm)
+    stats = await wire_quiet(emu, arm, mark)  # (a retried "?" may still be answered)
     # every corrupted line the robot printed was seen as such, none was taken for a report
     assert stats["corrupted_status"] == arm.corrupted_status_count
     assert stats["status_lines"] == arm.stats.status_reports + arm.stats.status_corrupted
@@ -607,23 +629,16 @@ async def test_single_byte_reads_change_nothing(
     # open dropped all of it depends on timing, so count the bytes of the session alone. The
     # connect probe's report came after it: nothing of it is still on its way.
     before = await emulator_stats(emu)
-    received_before = arm.stats.bytes_received
+    mark = await output_mark(emu, arm)
     expected = await baseline(profile, spawn)
     transcript = await mixed_session(arm, spawn, poll_interval=1.0)
     assert transcript == expected
     assert len(transcript) == 20 + 10 + 1 + 1 + 4 + 2 + 1  # errors, summary, reports, $I, $$...
-    # Output may still be on its way (the report to a liveness "?" asked during a slow "$$"
-    # follows its reply): compare once the client has received all the emulator wrote.
-    deadline = time.monotonic() + 10
-    while True:
-        stats = await wire_settled(emu, arm)
-        received = arm.stats.bytes_received - received_before
-        if stats["output_held"] == 0 and stats["bytes_out"] - before["bytes_out"] == received:
-            break
-        assert time.monotonic() < deadline, (stats, received)
-        await asyncio.sleep(0.005)
-    # every byte the client received was written on its own
-    assert stats["split_writes"] - before["split_writes"] >= received > 4_000  # 1000 oks at least
+    # (the report to a liveness "?" asked during a slow "$$" follows its reply)
+    stats = await wire_quiet(emu, arm, mark)
+    # every byte written to the client in the session was written on its own, and it got them
+    written = stats["bytes_out"] - before["bytes_out"]
+    assert stats["split_writes"] - before["split_writes"] == written > 4_000  # 1000 oks at least
 
 
 @pytest.mark.mirobot_emulator(extra_args=("--fault", "delay:20"))
