@@ -7,7 +7,9 @@ after one normalisation only: :mod:`tests.oracle.allowlist` (texts of the field 
 differ from the source revision, each cited). Status lines taken while the arm moves are the one
 other exception, because two processes cannot be sampled at the same simulated instant: in
 exchanges marked ``moving=True`` the numbers inside status lines are compared by format, not by
-value (state word, field names and digit counts stay exact).
+value (state word, field names and digit counts stay exact). For byte-exact statuses during
+motion, :func:`replay` feeds the writes of an :class:`OracleRecording` into our pure firmware
+model at the oracle's own simulated instants (tests/oracle/test_replay_motion.py).
 
 The oracle is located by ``MIROBOT_ORACLE_SOURCE`` (default ``../shared/firmware-oracle`` next to
 the repository) and its build by ``MIROBOT_ORACLE_DIR`` (default
