@@ -175,7 +175,7 @@ def test_renew_refuses_what_only_a_new_process_or_nothing_can_be() -> None:
 
 def test_a_server_with_a_link_is_not_renewed(tmp_path: os.PathLike[str]) -> None:
     link = os.path.join(tmp_path, "ttyMIROBOT")
-    with SyncEmulatorProcess("2021", 0.0, extra_args=["--link", link]) as emulator:
+    with SyncEmulatorProcess("2021", 0.0, extra_args=["--link", link], listen="pty") as emulator:
         with pytest.raises(EmulatorError, match="link"):
             emulator.renew()
         assert os.path.realpath(link) == os.path.realpath(emulator.url)
