@@ -198,9 +198,7 @@ class StatusPoller:
         newest_fresh = max(w.not_before for w in waiting)
         asks = self._asks
         depth = max(w.depth for w in waiting)
-        pipelining = (
-            depth > 1 and newest_fresh == -math.inf and not self._wire.conn.pending_count
-        )
+        pipelining = depth > 1 and newest_fresh == -math.inf and not self._wire.conn.pending_count
         if pipelining:
             # A completion wait: one "?" every pipeline_gap, at most ``depth`` in flight (those
             # older than retry_interval were ignored), so the reports follow each other.

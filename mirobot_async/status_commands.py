@@ -98,18 +98,21 @@ class StatusCommands(ClientParts):
                     return report
 
     async def resume(self, *, timeout: float | None = STATUS_TIMEOUT) -> StatusReport:
-        """Cycle start (``~``): resume after :meth:`hold`; returns the next status report.
+        """Cycle start (``~``): resume after :meth:`hold`; returns the first status not ``Hold``.
 
-        Raises :class:`MirobotTimeoutError` after ``timeout`` seconds (default
-        :data:`STATUS_TIMEOUT`) without a status. Cancelling only stops waiting for the status.
+        The firmware drops a ``~`` that arrives while a hold is still braking (oracle: the arm
+        stays in ``Hold``), so ``~`` is sent again after each status still in ``Hold``. Raises
+        :class:`MirobotTimeoutError` after ``timeout`` seconds (default :data:`STATUS_TIMEOUT`)
+        if the arm stays in ``Hold``. Cancelling only stops waiting (and resending).
         """
-        check_timeout(timeout)
+        deadline = deadline_after(self._running_loop(), timeout)
         self._condition.check_sendable("~", motion=False)
-        self._wire.write_realtime(self._wire.conn.cycle_start())
-        report, _ = await self._poller.fetch(
-            fresh=True, timeout=timeout, what="a status report after resuming"
-        )
-        return report
+        async with within(deadline, "the robot to leave Hold", timeout, command="~"):
+            while True:
+                self._wire.write_realtime(self._wire.conn.cycle_start())
+                report, _ = await self._poller.fetch(fresh=True, timeout=None)
+                if report.state is not State.HOLD:
+                    return report
 
     async def reset(self, *, timeout: float | None = RESET_TIMEOUT) -> tuple[str, ...]:
         """Soft reset (``%``): stop at once, clear the robot's buffers, await its banner.

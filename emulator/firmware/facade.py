@@ -379,6 +379,8 @@ class Firmware:
         elif byte == 0x40:  # @ (oracle: lines wait until ~; motion and the state go on)
             m.suspended = True
         elif byte == 0x7E and (m.hold or m.suspended):  # ~
+            if m.hold and m.planner.speed > 0.0:
+                return  # oracle: a ~ while the hold still decelerates is dropped (stays Hold)
             m.suspended = False
             if m.hold:
                 m.hold = False

@@ -47,7 +47,9 @@ class Machine:
         self.settings: dict[int, float] = cfg.default_settings(profile)
         self.geometry = Geometry(profile, self.settings)
         self.moves = MoveBuilder(self.geometry, self.settings)
-        self.planner = Planner(motion.ZERO, deferred_start=True)
+        self.planner = Planner(
+            motion.ZERO, deferred_start=True, start_latency=motion.CYCLE_START_LATENCY
+        )
         self.modal = ModalState()
         self.work = WorkOffsets()
         self.rx = LineBuffer()

@@ -47,11 +47,16 @@ START_TOLERANCE: Final = 1e-6
 HOLDABLE_KINDS: Final = frozenset({"move", "line", "arc", "dwell"})
 """Blocks a feed hold acts on (homing ignores it)."""
 
-HOLD_LATENCY: Final = 0.055
+HOLD_LATENCY: Final = 0.045
 """Seconds a feed hold keeps the planned motion before it decelerates: GRBL's stepper has
-already prepared that much (its segment buffer). Measured on the oracle: a hold sent at
-cruise speed stops 55-70 ms of travel further than braking at once would (host latency
-included); ASSUMED 55 ms."""
+already prepared that much (its segment buffer). Oracle, replayed at its own simulated
+instants (tests/oracle/test_replay_motion.py): 42-48 ms fit best (the host latency included
+in an earlier wall-clock measurement gave 55-70 ms)."""
+
+CYCLE_START_LATENCY: Final = 0.00175
+"""Seconds from GRBL's auto cycle start to the first step: its stepper prepares the first
+segments and wakes up (oracle, replayed at its own simulated instants: single moves agree
+within one motor step with 1.5-2 ms, against 4 steps ahead without)."""
 
 REVERSAL_COS: Final = 0.999999
 """GRBL's cut-offs: a junction this close to a reversal stops; this close to straight is
@@ -104,6 +109,7 @@ class Planner:
         *,
         deferred_start: bool = False,
         hold_latency: float = HOLD_LATENCY,
+        start_latency: float = 0.0,
     ) -> None:
         """``deferred_start``: blocks pushed onto an empty planner wait (state ``idle``) until
         :meth:`cycle_start`, as GRBL's auto cycle start does (see :meth:`cycle_start`); without
@@ -112,6 +118,8 @@ class Planner:
             raise ValueError(f"hold_latency must be finite and >= 0: {hold_latency}")
         self._position = finite_vec7(position, "position")
         self._hold_latency = hold_latency
+        self._start_latency = start_latency
+        self._delay = 0.0  # left of the start latency: the running block waits that long
         self._deferred = deferred_start
         self._started = True
         self._queue: deque[Block] = deque()
@@ -208,7 +216,7 @@ class Planner:
         """
         if not self._queue or not self._started:
             return None
-        left = max(self._profile.duration - self._t, 0.0)
+        left = max(self._profile.duration - self._t, 0.0) + self._delay
         if self._held and left <= SNAP_SECONDS:
             return 0.0 if self._profile.s_end >= self._queue[0].length else None
         return left
@@ -219,7 +227,7 @@ class Planner:
             return 0.0
         if self._held:
             return math.inf
-        total = [max(self._profile.duration - self._t, 0.0)]
+        total = [max(self._profile.duration - self._t, 0.0) + self._delay]
         entry = self._entry
         for i in range(1, len(self._queue)):
             block = self._queue[i]
@@ -266,6 +274,13 @@ class Planner:
         if not dt >= 0.0:
             raise ValueError(f"dt must be >= 0, got {dt}")
         remaining = dt
+        if self._delay > 0.0 and self._queue and self._started:
+            wait = min(self._delay, remaining)
+            self._delay -= wait
+            self.clock += wait
+            remaining -= wait
+            if self._delay > 0.0:
+                return
         while self._queue and self._started:
             profile = self._profile
             left = profile.duration - self._t
@@ -290,6 +305,7 @@ class Planner:
         """
         if self.running is None or self._held or self._queue[0].kind not in HOLDABLE_KINDS:
             return
+        self._delay = 0.0
         block = self._queue[0]
         profile, t = self._profile, self._t
         s = profile.s_at(t)
@@ -328,6 +344,7 @@ class Planner:
         if self._started or not self._queue:
             return
         self._started = True
+        self._delay = 0.0 if self._queue[0].timed else self._start_latency
         self._replan(0.0, 0.0)
 
     def abort(self) -> None:
@@ -341,6 +358,7 @@ class Planner:
         self._held = False
         self._tail_direction = None
         self._ran_out_at = None
+        self._delay = 0.0
 
     def set_position(self, p: Vec7) -> None:
         """Redefine the current position (only while idle; ``RuntimeError`` otherwise)."""

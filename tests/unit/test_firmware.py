@@ -40,6 +40,12 @@ POSE_TOLERANCE = 0.1
 """The status pose is the FK of those whole-step angles: within this of the commanded pose."""
 
 
+MOVING_TOLERANCE = 0.15
+"""Off-line distance (mm) and orientation (deg) of a status sampled during a straight line: the
+FK of whole-step angles taken at any instant of the stepping (each axis steps at its own
+instants)."""
+
+
 def stepped(expected: object) -> object:
     """``expected`` angle(s) as a status reports them, up to the motor-step rounding."""
     return pytest.approx(expected, abs=STEP_TOLERANCE)
@@ -566,9 +572,9 @@ def test_cartesian_line_stays_on_its_line() -> None:
         v = [c - a for a, c in zip(p0[:3], st_.pose[:3], strict=True)]
         t = sum(a * b for a, b in zip(v, d, strict=True)) / norm
         off = math.sqrt(max(sum(a * a for a in v) - t * t, 0.0))
-        assert off <= POSE_TOLERANCE, st_
+        assert off <= MOVING_TOLERANCE, st_
         assert -0.001 <= t <= norm + 0.001
-        assert st_.pose[3:] == posed((0.0, 0.0, 0.0))
+        assert st_.pose[3:] == pytest.approx((0.0, 0.0, 0.0), abs=MOVING_TOLERANCE)
     assert samples[-1].pose[:3] == posed(p1)
 
 

@@ -21,6 +21,7 @@ from mirobot_emulator.motion import (
     junction_speed_sqr,
     path_blocks,
 )
+from mirobot_emulator.motion.planner import HOLD_LATENCY
 from mirobot_emulator.settings import default_settings
 
 CLASSIC = AxisLimits.from_settings(default_settings("classic"))
@@ -228,7 +229,7 @@ def test_hold_brakes_across_block_ends_after_the_latency_and_resumes() -> None:
     assert planner.state == "hold"
     stopped = planner.position[0]
     # latency at cruise speed, then v^2 / (2 a): several 3-degree blocks further
-    assert stopped - here == pytest.approx(0.055 * v + v * v / 100.0, rel=1e-6)
+    assert stopped - here == pytest.approx(HOLD_LATENCY * v + v * v / 100.0, rel=1e-6)
     assert planner.free > Planner.CAPACITY - 16
     planner.resume()
     assert planner.state == "run"
