@@ -292,8 +292,11 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
         try:
             if probe:
                 await self._probe(timeout)
-        except BaseException:
+        except BaseException as err:
             await self.close()
+            refusal = self._wire.refusal  # a network server accepted, then said it is busy
+            if refusal is not None and isinstance(err, MirobotConnectionError):
+                raise refusal from err
             raise
         _log.debug("connected to %s", url)
         return self

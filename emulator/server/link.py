@@ -40,7 +40,7 @@ SPLIT_POLL_S = 0.0001
 SPLIT_READ_WAIT_S = 0.002  # wait this long for the client to read a byte just written, ...
 SPLIT_RETRY_S = 0.001  # ... else look again this much later (from the loop)
 SPLIT_BUDGET_S = 0.005  # write bytes for at most this long, then serve input again
-SPLIT_GAP_S = 0.0002  # a port that cannot tell what was read (TCP): this long between bytes
+SPLIT_GAP_S = 0.00005  # a port that cannot tell what was read (TCP): this long between bytes
 
 _OUTPUT_LINES = re.compile(rb"[^\n]*\n")  # output lines, each with its ending
 

@@ -131,7 +131,7 @@ def realtime_bytes(before: dict[str, int], after: dict[str, int], kind: str) -> 
 def statuses_over_the_port(url: str, count: int, gap: float) -> list[StatusReport]:
     """``count`` status reports read by opening the port ourselves (the CLI has exited)."""
     reports = []
-    with serial.Serial(url, timeout=0.05, exclusive=True) as link:
+    with serial.serial_for_url(url, timeout=0.05, exclusive=True) as link:
         for _ in range(count):
             link.write(b"?")
             data = b""
