@@ -227,7 +227,11 @@ def test_tcp_split_bytes_writes_one_byte_at_a_time() -> None:
                 lambda d: d.endswith(b"ok\r\n") and d.count(b"\n") > 20,
                 timeout=20,
             )
-        assert robot.server.split_writes == len(data)  # one byte per write
+        # one byte per write (the server's thread counts a write after it; wait for the last)
+        deadline = time.monotonic() + 5
+        while robot.server.split_writes < len(data) and time.monotonic() < deadline:
+            time.sleep(0.001)
+        assert robot.server.split_writes == len(data)
         # TCP cannot tell what the client read: reads coalesce bytes that arrive while the
         # reader is busy (here it shares the GIL with the server), but stay short on average
         # (unsplit, the whole dump comes in one or two reads).
