@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import asyncio
 import math
-from collections.abc import Coroutine
+from collections.abc import Coroutine, Iterator
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
@@ -45,9 +45,21 @@ from mirobot_async.kinematics import (
     in_limits,
     inverse,
 )
-from mirobot_async.testing import EmulatorProcess
+from mirobot_async.testing import EmulatorPool, SyncEmulatorProcess
 
 pytestmark = pytest.mark.timeout(120)
+
+_POOL: list[EmulatorPool] = []  # the session's pool while a test of this module runs
+
+
+@pytest.fixture(autouse=True)
+def _emulator_pool(mirobot_emulator_pool: EmulatorPool) -> Iterator[None]:
+    """Each example borrows a renewed emulator from the session's pool (milliseconds, not a
+    process start); the state machine cannot take fixtures, so it finds the pool here."""
+    _POOL.append(mirobot_emulator_pool)
+    yield
+    _POOL.remove(mirobot_emulator_pool)
+
 
 T = TypeVar("T")
 TIME_SCALE = 50.0
@@ -118,7 +130,7 @@ class ClientMachine(RuleBasedStateMachine):
     def __init__(self) -> None:
         super().__init__()
         self.runner = asyncio.Runner()
-        self.emu: EmulatorProcess | None = None
+        self.emu: SyncEmulatorProcess | None = None
         self.arm: Mirobot | None = None
         self.model = Model("2021")
 
@@ -129,29 +141,26 @@ class ClientMachine(RuleBasedStateMachine):
         async def close() -> None:
             if self.arm is not None:
                 await self.arm.close()
-            if self.emu is not None:
-                await self.emu.stop()
 
         try:
             self.run(close())
         finally:
             self.runner.close()
+            if self.emu is not None:
+                _POOL[-1].release(self.emu)
 
     @initialize(profile=st.sampled_from(["2021", "classic"]))
     def start(self, profile: str) -> None:
         note(f"profile {profile}")
         self.model = Model(profile)
 
-        async def start() -> tuple[EmulatorProcess, Mirobot]:
-            emu = await EmulatorProcess.start(profile, TIME_SCALE)
-            try:
-                arm = await Mirobot.connect(emu.url)
-            except BaseException:
-                await emu.stop()
-                raise
-            return emu, arm
+        self.emu = _POOL[-1].acquire(profile, TIME_SCALE)
+        url = self.emu.url
 
-        self.emu, self.arm = self.run(start())
+        async def connect() -> Mirobot:
+            return await Mirobot.connect(url)
+
+        self.arm = self.run(connect())
 
     # ---- helpers ----
 
@@ -388,7 +397,7 @@ class ClientMachine(RuleBasedStateMachine):
     @rule()
     def hard_limit(self) -> None:
         assert self.emu is not None
-        self.run(self.emu.control("hard-limit"))
+        self.emu.control("hard-limit")
 
         async def wait_for_alarm() -> None:
             async with asyncio.timeout(5):
