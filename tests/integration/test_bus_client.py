@@ -6,6 +6,8 @@ and, for its controller features, by the vendor's ``wlkatapython``."""
 from __future__ import annotations
 
 import asyncio
+import importlib.util
+import os
 import subprocess
 import sys
 import textwrap
@@ -331,6 +333,9 @@ async def test_connect_one_arm_by_address(fast_bus: BusEmulator) -> None:
 
 
 def test_wlkatapython_drives_the_bus_emulator(own_fast_bus: BusEmulator) -> None:
+    required = os.environ.get("MIROBOT_REQUIRE_THIRD_PARTY")
+    if required and not importlib.util.find_spec("Mirobot_robot"):
+        pytest.fail("MIROBOT_REQUIRE_THIRD_PARTY=1, wlkatapython missing: pip install wlkatapython")
     uart = pytest.importorskip("Mirobot_robot.Mirobot_UART", reason="wlkatapython not installed")
     serial = pytest.importorskip("serial")
     port = serial.Serial(own_fast_bus.path, 38400, timeout=1)
