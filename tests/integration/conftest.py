@@ -20,12 +20,19 @@ Every test module of the client also checks that no task is left behind (``no_le
 from __future__ import annotations
 
 import asyncio
-from collections.abc import AsyncIterator
+import contextlib
+import io
+import signal
+import subprocess
+import sys
+from collections.abc import AsyncIterator, Callable, Iterator
+from pathlib import Path
 from typing import Any
 
 import pytest
 
 from mirobot_async import Mirobot
+from mirobot_async.cli import main
 from mirobot_async.testing import EmulatorPool, EmulatorProcess, WireSpy
 
 PROFILES = ("2021", "classic")
@@ -96,3 +103,39 @@ async def no_leftover_tasks() -> AsyncIterator[None]:
         for task in pending:
             task.cancel()
         assert not pending, f"tasks left behind: {pending}"
+
+
+Cli = Callable[..., subprocess.CompletedProcess[str]]
+
+
+@pytest.fixture
+def cli(capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> Iterator[Cli]:
+    """``mirobot ARGS`` as ``main(argv)`` in this process, to completion: its exit status and
+    what it wrote, captured at the file descriptors (an embedded emulator's or a child's output
+    is there too, as in a subprocess's pipes). Keywords: ``cwd`` (run from there), ``env``
+    (added to the environment), ``stdin`` (the text standard input holds; default empty).
+    ``main`` installs SIGINT/SIGTERM handlers while it runs: the test's are put back after."""
+    saved = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+
+    def run(
+        *args: str, cwd: Path | None = None, env: dict[str, str] | None = None, stdin: str = ""
+    ) -> subprocess.CompletedProcess[str]:
+        capfd.readouterr()  # only this command's output
+        with monkeypatch.context() as patch:
+            for name, value in (env or {}).items():
+                patch.setenv(name, value)
+            patch.setattr(sys, "stdin", io.TextIOWrapper(io.BytesIO(stdin.encode())))
+            with contextlib.chdir(cwd) if cwd is not None else contextlib.nullcontext():
+                try:
+                    status: object = main(list(args))
+                except SystemExit as exited:  # argparse: --help, usage errors
+                    status = 0 if exited.code is None else exited.code
+        out, err = capfd.readouterr()
+        assert isinstance(status, int), status
+        return subprocess.CompletedProcess(["mirobot", *args], status, out, err)
+
+    try:
+        yield run
+    finally:
+        for sig, handler in saved.items():
+            signal.signal(sig, handler)

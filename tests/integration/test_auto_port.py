@@ -7,7 +7,6 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
-import signal
 import socket
 import subprocess
 import threading
@@ -18,7 +17,6 @@ import serial.tools.list_ports
 from serial.tools.list_ports_common import ListPortInfo
 
 from mirobot_async import Mirobot, MirobotConnectionError
-from mirobot_async.cli import main
 from mirobot_async.ports import AUTO_PORTS_ENV, find_mirobot
 from mirobot_async.testing import EmulatorPool, SyncEmulatorProcess
 
@@ -176,48 +174,22 @@ async def test_connect_auto_without_a_mirobot_fails(monkeypatch: pytest.MonkeyPa
 Cli = Callable[..., subprocess.CompletedProcess[str]]
 
 
-@pytest.fixture
-def mirobot(capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> Iterator[Cli]:
-    """``mirobot ARGS`` with ``env`` added to the environment, as ``main(argv)`` in this process
-    (output captured at the file descriptors); its SIGINT/SIGTERM handlers are put back after."""
-    saved = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
-
-    def run(*args: str, env: dict[str, str]) -> subprocess.CompletedProcess[str]:
-        capfd.readouterr()  # only this command's output
-        with monkeypatch.context() as environment:
-            for name, value in env.items():
-                environment.setenv(name, value)
-            try:
-                status: object = main(list(args))
-            except SystemExit as exited:  # argparse: usage errors
-                status = 0 if exited.code is None else exited.code
-        out, err = capfd.readouterr()
-        assert isinstance(status, int), status
-        return subprocess.CompletedProcess(["mirobot", *args], status, out, err)
-
-    try:
-        yield run
-    finally:
-        for sig, handler in saved.items():
-            signal.signal(sig, handler)
-
-
 def test_cli_auto_and_mirobot_port_env(
-    emulators: tuple[SyncEmulatorProcess, SyncEmulatorProcess], mirobot: Cli
+    emulators: tuple[SyncEmulatorProcess, SyncEmulatorProcess], cli: Cli
 ) -> None:
     first, tcp = emulators
     one = {AUTO_PORTS_ENV: tcp.url}
-    proc = mirobot("status", "--auto", env=one)
+    proc = cli("status", "--auto", env=one)
     assert proc.returncode == 0, proc.stderr
     assert f"auto: using {tcp.url}" in proc.stderr
     assert "embedded" not in proc.stderr
-    proc = mirobot("status", env={**one, "MIROBOT_PORT": "auto"})
+    proc = cli("status", env={**one, "MIROBOT_PORT": "auto"})
     assert proc.returncode == 0, proc.stderr
     assert f"auto: using {tcp.url}" in proc.stderr
-    proc = mirobot("status", env={"MIROBOT_PORT": tcp.url})
+    proc = cli("status", env={"MIROBOT_PORT": tcp.url})
     assert proc.returncode == 0 and "embedded" not in proc.stderr, proc.stderr
     both = {AUTO_PORTS_ENV: f"{first.url}, {tcp.url}"}
-    proc = mirobot("status", "--auto", env=both)
+    proc = cli("status", "--auto", env=both)
     assert proc.returncode == 2, proc.stderr
     assert "2 Mirobots answer" in proc.stderr and "Traceback" not in proc.stderr
 

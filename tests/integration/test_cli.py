@@ -36,7 +36,6 @@ import psutil
 import pytest
 import serial
 
-from mirobot_async.cli import main
 from mirobot_async.plotting import read_trace
 from mirobot_async.testing import EmulatorPool, SyncEmulatorProcess
 
@@ -80,32 +79,6 @@ def mirobot(
 
 
 Cli = Callable[..., subprocess.CompletedProcess[str]]
-
-
-@pytest.fixture
-def cli(capfd: pytest.CaptureFixture[str]) -> Iterator[Cli]:
-    """``mirobot ARGS`` as ``main(argv)`` in this process, to completion: its exit status and
-    what it wrote. Captured at the file descriptors (``capfd``), so whatever an embedded
-    emulator or a child writes is there too, as it would be in the subprocess's pipes.
-    ``main`` installs SIGINT/SIGTERM handlers while it runs: this test's are put back after."""
-    saved = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
-
-    def run(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
-        capfd.readouterr()  # only this command's output
-        with contextlib.chdir(cwd) if cwd is not None else contextlib.nullcontext():
-            try:
-                status: object = main(list(args))
-            except SystemExit as exited:  # argparse: --help, usage errors
-                status = 0 if exited.code is None else exited.code
-        out, err = capfd.readouterr()
-        assert isinstance(status, int), status
-        return subprocess.CompletedProcess(["mirobot", *args], status, out, err)
-
-    try:
-        yield run
-    finally:
-        for sig, handler in saved.items():
-            signal.signal(sig, handler)
 
 
 def spawn(*args: str, cwd: Path | None = None) -> subprocess.Popen[str]:

@@ -5,7 +5,6 @@ The emulators' counters prove the probe sent nothing but ``?`` and ``$$``."""
 from __future__ import annotations
 
 import os
-import signal
 import subprocess
 import threading
 import time
@@ -13,7 +12,6 @@ from collections.abc import Callable, Iterator
 
 import pytest
 
-from mirobot_async.cli import main
 from mirobot_async.testing import EmulatorPool, SyncEmulatorProcess
 
 pytestmark = pytest.mark.timeout(60)
@@ -25,29 +23,6 @@ def stats(emulator: SyncEmulatorProcess) -> dict[str, int]:
 
 
 Cli = Callable[..., subprocess.CompletedProcess[str]]
-
-
-@pytest.fixture
-def mirobot(capfd: pytest.CaptureFixture[str]) -> Iterator[Cli]:
-    """``mirobot ARGS`` as ``main(argv)`` in this process (output captured at the file
-    descriptors); its SIGINT/SIGTERM handlers are put back after."""
-    saved = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
-
-    def run(*args: str) -> subprocess.CompletedProcess[str]:
-        capfd.readouterr()  # only this command's output
-        try:
-            status: object = main(list(args))
-        except SystemExit as exited:  # argparse: usage errors
-            status = 0 if exited.code is None else exited.code
-        out, err = capfd.readouterr()
-        assert isinstance(status, int), status
-        return subprocess.CompletedProcess(["mirobot", *args], status, out, err)
-
-    try:
-        yield run
-    finally:
-        for sig, handler in saved.items():
-            signal.signal(sig, handler)
 
 
 @pytest.fixture
@@ -78,7 +53,7 @@ def garbage_port() -> Iterator[str]:
 
 
 def test_ports_probes_emulators_and_a_garbage_port(
-    garbage_port: str, mirobot: Cli, mirobot_emulator_pool: EmulatorPool
+    garbage_port: str, cli: Cli, mirobot_emulator_pool: EmulatorPool
 ) -> None:
     pool = mirobot_emulator_pool  # processes renewed as new ones would be
     with (
@@ -87,7 +62,7 @@ def test_ports_probes_emulators_and_a_garbage_port(
     ):
         started = time.monotonic()
         devices = [quiet.url, booting.url, garbage_port]  # renewed on their return: new URLs
-        proc = mirobot("ports", *devices, "--timeout", "1.5")
+        proc = cli("ports", *devices, "--timeout", "1.5")
         took = time.monotonic() - started
         quiet_stats, booting_stats = stats(quiet), stats(booting)
     quiet_url, booting_url = devices[:2]
@@ -108,7 +83,7 @@ def test_ports_probes_emulators_and_a_garbage_port(
     assert booting_stats["bytes_in"] == booting_stats["status_requests_in"]
 
 
-def test_ports_with_nothing_to_probe_says_so_and_exits_1(mirobot: Cli) -> None:
-    proc = mirobot("ports", "/dev/null/nothing", "--timeout", "0.2")
+def test_ports_with_nothing_to_probe_says_so_and_exits_1(cli: Cli) -> None:
+    proc = cli("ports", "/dev/null/nothing", "--timeout", "0.2")
     assert proc.returncode == 1
     assert "cannot open" in proc.stdout

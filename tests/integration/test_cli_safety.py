@@ -10,19 +10,17 @@ process (the ``cli`` fixture).
 
 from __future__ import annotations
 
-import io
 import os
 import signal
 import subprocess
 import sys
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 import serial
 
-from mirobot_async.cli import main
 from mirobot_async.replies import State, StatusReport, parse_status
 from mirobot_async.testing import EmulatorPool, SyncEmulatorProcess
 
@@ -56,31 +54,6 @@ def mirobot(*args: str, stdin: str | None = None) -> subprocess.CompletedProcess
 
 
 Cli = Callable[..., subprocess.CompletedProcess[str]]
-
-
-@pytest.fixture
-def cli(capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> Iterator[Cli]:
-    """``mirobot ARGS`` as ``main(argv)`` in this process, to completion (``stdin``: the text
-    standard input holds); output captured at the file descriptors. ``main`` installs
-    SIGINT/SIGTERM handlers while it runs: this test's are put back after."""
-    saved = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
-
-    def run(*args: str, stdin: str = "") -> subprocess.CompletedProcess[str]:
-        monkeypatch.setattr(sys, "stdin", io.TextIOWrapper(io.BytesIO(stdin.encode())))
-        capfd.readouterr()  # only this command's output
-        try:
-            status: object = main(list(args))
-        except SystemExit as exited:  # argparse: usage errors
-            status = 0 if exited.code is None else exited.code
-        out, err = capfd.readouterr()
-        assert isinstance(status, int), status
-        return subprocess.CompletedProcess(["mirobot", *args], status, out, err)
-
-    try:
-        yield run
-    finally:
-        for sig, handler in saved.items():
-            signal.signal(sig, handler)
 
 
 def spawn(*args: str) -> subprocess.Popen[str]:

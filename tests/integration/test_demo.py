@@ -6,42 +6,13 @@ not the checkout, so that no relative path can find the examples by accident."""
 
 from __future__ import annotations
 
-import contextlib
-import signal
 import subprocess
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 
-import pytest
-
-from mirobot_async.cli import main
 from mirobot_async.cli.demo import example_files, find_example
 
 Cli = Callable[..., subprocess.CompletedProcess[str]]
-
-
-@pytest.fixture
-def mirobot(capfd: pytest.CaptureFixture[str]) -> Iterator[Cli]:
-    """``mirobot ARGS`` from ``cwd`` (not the checkout: no relative paths), as ``main(argv)``
-    in this process; its SIGINT/SIGTERM handlers are put back after."""
-    saved = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
-
-    def run(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
-        capfd.readouterr()  # only this command's output
-        with contextlib.chdir(cwd):
-            try:
-                status: object = main(list(args))
-            except SystemExit as exited:  # argparse: usage errors
-                status = 0 if exited.code is None else exited.code
-        out, err = capfd.readouterr()
-        assert isinstance(status, int), status
-        return subprocess.CompletedProcess(["mirobot", *args], status, out, err)
-
-    try:
-        yield run
-    finally:
-        for sig, handler in saved.items():
-            signal.signal(sig, handler)
 
 
 EXAMPLES = {"dance", "hello", "monitor_while_streaming", "pick_and_place", "square"}
@@ -57,29 +28,29 @@ def test_every_example_is_found() -> None:
     assert find_example("hello").name == "hello.py"
 
 
-def test_list_names_programs_and_scripts(mirobot: Cli, tmp_path: Path) -> None:
-    proc = mirobot("demo", "--list", cwd=tmp_path)
+def test_list_names_programs_and_scripts(cli: Cli, tmp_path: Path) -> None:
+    proc = cli("demo", "--list", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     names = {line.split()[0]: line.split()[1] for line in proc.stdout.splitlines()}
     assert names["pick_and_place"] == "program" and names["hello"] == "script"
 
 
-def test_demo_runs_the_default_program_on_the_embedded_arm(mirobot: Cli, tmp_path: Path) -> None:
-    proc = mirobot("demo", "--time-scale", "0", cwd=tmp_path)
+def test_demo_runs_the_default_program_on_the_embedded_arm(cli: Cli, tmp_path: Path) -> None:
+    proc = cli("demo", "--time-scale", "0", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     assert "pick_and_place.gcode" in proc.stderr
     assert "embedded virtual Mirobot" in proc.stderr
     assert proc.stdout.splitlines()[0].split() == ["state", "Idle"]
 
 
-def test_demo_runs_a_script(mirobot: Cli, tmp_path: Path) -> None:
-    proc = mirobot("demo", "hello", cwd=tmp_path)
+def test_demo_runs_a_script(cli: Cli, tmp_path: Path) -> None:
+    proc = cli("demo", "hello", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     assert "Idle: tool at x=200.0 y=0.0 z=150.0 mm" in proc.stdout
 
 
-def test_an_unknown_example_lists_the_others(mirobot: Cli, tmp_path: Path) -> None:
-    proc = mirobot("demo", "nope", cwd=tmp_path)
+def test_an_unknown_example_lists_the_others(cli: Cli, tmp_path: Path) -> None:
+    proc = cli("demo", "nope", cwd=tmp_path)
     assert proc.returncode == 2
     assert "no example called 'nope'" in proc.stderr and "square" in proc.stderr
     assert "Traceback" not in proc.stderr
