@@ -8,7 +8,9 @@ still sees a real sample. Stateful machines (``TestCase.settings``) are scaled t
 
 from __future__ import annotations
 
+import asyncio
 import os
+from collections.abc import AsyncIterator
 
 import pytest
 from hypothesis import HealthCheck, settings
@@ -68,3 +70,18 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
                 cls.settings = settings(  # type: ignore[union-attr]
                     machine_settings, max_examples=scaled_examples(machine_settings.max_examples)
                 )
+
+
+@pytest.fixture
+async def no_leftover_tasks() -> AsyncIterator[None]:
+    """Fail the test if it leaves a task running (after every other fixture is torn down)."""
+    before = asyncio.all_tasks()
+    yield
+    current = asyncio.current_task()
+    others = {t for t in asyncio.all_tasks() if t is not current and t not in before}
+    if others:
+        # Give tasks that are finishing (transport clean-up) a moment, then insist.
+        _, pending = await asyncio.wait(others, timeout=1.0)
+        for task in pending:
+            task.cancel()
+        assert not pending, f"tasks left behind: {pending}"

@@ -14,12 +14,12 @@
   transport watched by ``wire_spy`` (the public ``open_transport`` seam).
 * ``ready_arm``: ``arm`` unlocked (``$X`` + ``M50``), so motion works on both profiles.
 
-Every test module of the client also checks that no task is left behind (``no_leftover_tasks``).
+Every test module of the client also checks that no task is left behind (``no_leftover_tasks``,
+in tests/conftest.py).
 """
 
 from __future__ import annotations
 
-import asyncio
 import contextlib
 import io
 import signal
@@ -88,21 +88,6 @@ async def ready_arm(arm: Mirobot) -> Mirobot:
     """``arm`` with its axes unlocked (both profiles power on locked; 2021 also in Alarm)."""
     await arm.unlock()
     return arm
-
-
-@pytest.fixture
-async def no_leftover_tasks() -> AsyncIterator[None]:
-    """Fail the test if it leaves a task running (after every other fixture is torn down)."""
-    before = asyncio.all_tasks()
-    yield
-    current = asyncio.current_task()
-    others = {t for t in asyncio.all_tasks() if t is not current and t not in before}
-    if others:
-        # Give tasks that are finishing (transport clean-up) a moment, then insist.
-        _, pending = await asyncio.wait(others, timeout=1.0)
-        for task in pending:
-            task.cancel()
-        assert not pending, f"tasks left behind: {pending}"
 
 
 Cli = Callable[..., subprocess.CompletedProcess[str]]
