@@ -92,7 +92,8 @@ async def test_a_late_status_reply_is_not_credited_to_a_newer_request(
 
     The emulator holds every output line 0.45 s, and "?" is asked again every 0.1 s: replies to
     the "?" of 0, 0.1, 0.2... arrive at 0.45, 0.55, 0.65... The pump is switched on at 0.25, and
-    a waiter for a fresh report starts then: it must see the pump on (a "?" of 0.3 or later).
+    a waiter for a fresh report starts then (once three "?" are out): it must see the pump on (a
+    "?" of 0.3 or later).
     """
     arm = ready_arm
     await arm.set_pump(0)
@@ -100,8 +101,12 @@ async def test_a_late_status_reply_is_not_credited_to_a_newer_request(
     arm.liveness_interval = 10.0
     await emu.control("delay 450")
     try:
+        asked = arm.stats.status_requests
         first = asyncio.create_task(arm.status())
-        await asyncio.sleep(0.25)
+        async with asyncio.timeout(5):  # the "?" of 0, 0.1 and 0.2 s are out, none answered yet
+            while arm.stats.status_requests < asked + 3:  # noqa: ASYNC110 - bounded above
+                await asyncio.sleep(0.005)
+        assert not first.done()
         pump = asyncio.create_task(arm.set_pump(500))
         await asyncio.sleep(0)  # the line is written
         report = await arm.status(fresh=True, timeout=5.0)
