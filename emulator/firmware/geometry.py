@@ -46,26 +46,11 @@ def shoulder_mirrored_pose(
     ``A1`` from the base axis) without its sign: a wrist centre behind the shoulder is solved as
     if it were as far in front of it, on the same J1 azimuth, and the arm goes there (oracle:
     ``M20 G90 G0 X1 Y5 Z182 A0 B0 C0`` with ``$20=0`` ends at J2 -78.770, pose X 11.551 Y 57.749;
-    the textbook J2 is -102.326, which is why ``$20=1`` names ``Y`` there, not ``B``). The
-    returned pose has that mirrored wrist centre and the same orientation; ``pose`` itself when
-    the wrist centre is in front of the shoulder."""
-    x, y, z, rx, ry, rz = (float(v) for v in pose[:6])
-    sx, cx = math.sin(math.radians(rx)), math.cos(math.radians(rx))
-    sy = math.sin(math.radians(ry))
-    sz, cz = math.sin(math.radians(rz)), math.cos(math.radians(rz))
-    # z column of the orientation Rz Ry Rx (kin.rpy_to_matrix), cheap: this runs per IK
-    wx = x - dh.l * (cz * sy * cx + sz * sx)
-    wy = y - dh.l * (sz * sy * cx - cz * sx)
-    if any(tool):
-        rot = kin.rpy_to_matrix(rx, ry, rz)
-        wx -= float(rot[0] @ tool)
-        wy -= float(rot[1] @ tool)
-    rho = math.hypot(wx, wy)
-    if rho >= dh.a1:
-        return (x, y, z, rx, ry, rz)
-    ux, uy = (wx / rho, wy / rho) if rho > 1e-12 else (1.0, 0.0)  # on the axis: J1 = 0
-    shift = 2.0 * (dh.a1 - rho)  # from rho to the mirrored distance 2 * A1 - rho
-    return (x + ux * shift, y + uy * shift, z, rx, ry, rz)
+    the textbook J2 is -102.326, which is why ``$20=1`` names ``Y`` there, not ``B``). That
+    mirrored pose is :func:`mirobot_async.kinematics.firmware_pose`; ``pose`` itself when the
+    wrist centre is in front of the shoulder."""
+    mirrored = kin.firmware_pose(pose, dh, tool)
+    return tuple(float(v) for v in pose[:6]) if mirrored is None else mirrored
 
 
 _LIMIT_SETTINGS: Final = (11, *range(100, 107), *range(110, 117), *range(120, 127))
