@@ -472,6 +472,7 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
         check_envelope: bool = True,
         validate: bool = True,
         timeout: float | None = None,
+        wait: bool = False,
     ) -> Stream:
         """Stream G-code lines with GRBL character counting (the planner never starves).
 
@@ -499,6 +500,13 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
         :class:`~mirobot_async.validation.InvalidLineError`, and the stream stops there unless
         ``continue_on_error``. ``validate=False`` logs one WARNING when the stream starts.
 
+        With ``wait`` the stream ends only when the arm has finished the motion: ``G4 P0`` is
+        written right after the last line, and the firmware answers it once its planner is
+        empty, so the stream returns about one USB latency after the arm stops (a status poll
+        needs a whole report, ~16.5 ms of the robot's wire, and one in flight when it stops).
+        The dwell is not part of the result; it is not written after a failed line (unless
+        ``continue_on_error``) or a stop, and its error (an alarm, a reset) is raised.
+
         ``$`` lines are sent only when nothing else is in flight. ``timeout`` bounds the whole
         stream (``None``: no limit; each reply is liveness-checked). A lost link raises
         :class:`MirobotLinkLostError`. Cancelling stops sending; lines in flight are consumed and
@@ -508,5 +516,5 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
         if not validate:
             _log.warning("stream(validate=False): its lines are sent WITHOUT validation")
         return Stream(
-            parts, lines, on_progress, continue_on_error, timeout, check_envelope, validate
+            parts, lines, on_progress, continue_on_error, timeout, check_envelope, validate, wait
         )

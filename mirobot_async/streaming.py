@@ -43,6 +43,11 @@ __all__ = ["LineResult", "Stream", "StreamResult"]
 _END: Final = object()
 _FATAL = (MirobotResetError, MirobotAlarmError, MirobotTimeoutError)
 
+MOTION_BARRIER: Final = b"G4 P0\n"
+"""Written after a ``wait=True`` stream's last line: the firmware answers a dwell only once its
+planner is empty (GRBL's G4; oracle: the ``ok`` comes as the arm stops), so its ``ok`` is the end
+of the motion for 4 bytes of output, where a status report costs about 190."""
+
 
 @dataclass(frozen=True, slots=True)
 class LineResult:
@@ -118,6 +123,9 @@ class _StreamRun:
     done: bool = False  # the producer ended
     exhausted: bool = False  # the input ended
     reset_epoch: int = 0  # the robot's resets when the stream started: it stops at the next
+    alarm_epoch: int = 0  # the robot's alarms when the stream started
+    wait: bool = False  # end with the motion barrier (MOTION_BARRIER)
+    barrier: Slot | MirobotError | None = None  # its slot once written, or what kept it back
 
     def should_stop(self) -> bool:
         if self.condition.reset_epoch != self.reset_epoch:
@@ -197,9 +205,45 @@ class _StreamRun:
                     break
                 self.result.sent += 1
                 self._push(number, command, slot)
+            if self.wait and self.exhausted and not self.should_stop():
+                await self._write_barrier()
         finally:
             self.done = True
             self.wake.set()
+
+    async def _write_barrier(self) -> None:
+        """Write :data:`MOTION_BARRIER` right after the last line (no round trip in between)."""
+        command = MOTION_BARRIER.decode("ascii").strip()
+        try:
+            self.barrier = await self.scheduler.submit(
+                MOTION_BARRIER,
+                command,
+                deadline=self.deadline,
+                timeout=self.timeout,
+                motion=False,
+                what=f"{command!r} (the end of the stream's motion)",
+                warn_unchecked=False,
+                should_stop=self.should_stop,
+            )
+        except StreamStopped:
+            pass
+        except MirobotError as err:
+            self.barrier = err
+
+    async def await_barrier(self) -> None:
+        """Wait for the barrier's ``ok``: the robot's planner is empty (the motion ended)."""
+        barrier = self.barrier
+        if isinstance(barrier, MirobotError):
+            raise barrier
+        if barrier is None or self.stop:
+            return
+        await self.scheduler.await_slot(barrier, self.deadline, self.timeout)
+        # A reset answers a pending dwell (GRBL ends it): an ok after a reset is no end of motion.
+        condition = self.condition
+        if barrier.reply_epoch != self.reset_epoch or condition.reset_epoch != self.reset_epoch:
+            raise MirobotResetError(None, "before the stream's motion finished")
+        if condition.alarm_epoch != self.alarm_epoch:
+            raise MirobotAlarmError(barrier.command, condition.alarm or "the robot is in Alarm")
 
     async def _next(self) -> _Queued | None:
         while not self.queue:
@@ -240,6 +284,8 @@ class _StreamRun:
                 if error is not None:
                     raise error  # a lost link while sending, or a failing input iterator
             self.result.stopped = self.stop and not self.exhausted
+            if self.wait and not self.result.stopped:
+                await self.await_barrier()
         finally:
             self.stop = True
             if not producer.done():
@@ -252,6 +298,8 @@ class _StreamRun:
             for leftover in self.queue:
                 if isinstance(leftover.sent, Slot) and not leftover.sent.fut.done():
                     leftover.sent.fut.cancel()
+            if isinstance(self.barrier, Slot) and not self.barrier.fut.done():
+                self.barrier.fut.cancel()
 
 
 class Stream:
@@ -278,8 +326,10 @@ class Stream:
         timeout: float | None,
         check_envelope: bool = True,
         validate: bool = True,
+        wait: bool = False,
     ) -> None:
         self._parts = parts
+        self._wait = wait
         self._validate = validate
         self._lines = lines
         self._on_progress = on_progress
@@ -313,6 +363,8 @@ class Stream:
             self._validate,
             self.result,
             reset_epoch=condition.reset_epoch,
+            alarm_epoch=condition.alarm_epoch,
+            wait=self._wait,
         )
         producer = loop.create_task(run.produce(self._lines), name="mirobot-stream-producer")
         results = run.consume(producer)
