@@ -3,7 +3,8 @@
 Each program of :mod:`programs` runs on an emulator process at a real time scale, its link paced
 at 115200 baud with a USB latency timer, from each client in turn:
 
-* ``stream()``: ``await arm.stream(lines)`` then ``await arm.wait_idle()``;
+* ``stream()``: ``await arm.stream(lines, wait=True)`` (ends on the ``ok`` of a ``G4 P0``
+  written after the last line: the firmware answers it when its planner is empty);
 * the path call ``arm.move_path(poses, linear=True, speed=...)`` if the client has one;
 * a ``move_pose(wait=True)`` loop (``move_joints`` for joint steps, ``send`` for other lines);
 * plain pyserial: write a line, read until ``ok``, next line; then poll ``?`` every 50 ms until
@@ -165,9 +166,8 @@ async def status_consumer(arm: Mirobot, interval: float | None) -> AsyncIterator
 
 
 async def client_stream(arm: Mirobot, program: Program, returns: list[float]) -> None:
-    result = await arm.stream(program.lines)
+    result = await arm.stream(program.lines, wait=True)
     assert result.ok and result.acknowledged == len(program.lines), result
-    await arm.wait_idle()
 
 
 async def client_path(arm: Mirobot, program: Program, returns: list[float]) -> None:
@@ -290,34 +290,49 @@ TAIL_LINES = (
 )
 
 
+COMPLETIONS = ("stream(wait=True)", "stream() + wait_idle()")
+"""The two ways to wait for a stream's motion: the dwell barrier, or polling statuses."""
+
+
+async def _stream_tail(arm: Mirobot, ends: MotionEnds, completion: str) -> float | None:
+    start = time.monotonic()
+    if completion == "stream(wait=True)":
+        result = await arm.stream(TAIL_LINES, wait=True)
+    else:
+        result = await arm.stream(TAIL_LINES)
+        await arm.wait_idle()
+    assert result.ok, result
+    done = time.monotonic()
+    await ends.fetch()
+    inside = ends.between(start, done)
+    return done - inside[-1] if inside else None
+
+
 async def measure_latencies(emulator: EmulatorProcess, config: Item10Config) -> LatencyFigures:
-    """Tail of ``stream() + wait_idle()`` of two short joint moves, and ``send("G90")`` round
-    trips, each without and with a concurrent ``statuses(interval=0.1)`` consumer."""
+    """Tail of two short streamed joint moves (each completion of :data:`COMPLETIONS`), and
+    ``send("G90")`` round trips, each without and with a concurrent ``statuses(interval=0.1)``
+    consumer."""
     figures = LatencyFigures(load=_load())
     ends = MotionEnds(emulator)
     async with Mirobot.connect(emulator.url) as arm:
         await arm.send(TAIL_LINES[1])
         await arm.wait_idle()
-        for label, interval in (("no consumer", None), ("statuses(0.1 s)", STATUS_INTERVAL_S)):
-            tails: list[float] = []
+        for consumer, interval in (("no consumer", None), ("statuses(0.1 s)", STATUS_INTERVAL_S)):
             oks: list[float] = []
             async with status_consumer(arm, interval):
-                for _ in range(config.tail_reps):
-                    start = time.monotonic()
-                    result = await arm.stream(TAIL_LINES)
-                    assert result.ok, result
-                    await arm.wait_idle()
-                    done = time.monotonic()
-                    await ends.fetch()
-                    inside = ends.between(start, done)
-                    if inside:
-                        tails.append(done - inside[-1])
+                for completion in COMPLETIONS:
+                    tails: list[float] = []
+                    for _ in range(config.tail_reps):
+                        tail = await _stream_tail(arm, ends, completion)
+                        if tail is not None:
+                            tails.append(tail)
+                    figures.tails[f"{completion} | {consumer}"] = tails
                 for _ in range(config.ok_samples):
                     t = time.monotonic()
                     await arm.send("G90")
                     oks.append(time.monotonic() - t)
-            figures.tails[label] = tails
-            figures.oks[label] = oks
+            for completion in COMPLETIONS:
+                figures.oks[f"{completion} | {consumer}"] = oks
     return figures
 
 
@@ -402,9 +417,9 @@ def render_item10(config: Item10Config, runs: list[Run], lat: dict[int, LatencyF
     status_wire_ms = STATUS_REPORT_BYTES * 10 / WIRE_BAUD * 1e3
     out += [
         "",
-        "| USB latency | Statuses consumer | Tail p50 / p99 ms | ok round trip p50 / p99 ms "
-        "| Tail target ms | Load |",
-        "|---|---|---|---|---|---|",
+        "| USB latency | Completion | Statuses consumer | Tail p50 / p99 ms "
+        "| ok round trip p50 / p99 ms | Tail target ms | Load |",
+        "|---|---|---|---|---|---|---|",
     ]
     for latency, figures in lat.items():
         target = status_wire_ms + latency + 5
@@ -429,8 +444,9 @@ def render_item10(config: Item10Config, runs: list[Run], lat: dict[int, LatencyF
         "the emulator's own starvation counter (control query `starvations`), when its "
         "firmware model exposes one (minus the first block after the setup move).",
         "- Tail: the client's return minus the last end of motion. The wait loop also gives one "
-        "tail per move. Second table: tail of `stream()` + `wait_idle()` of two 0.75 deg joint "
-        f"moves ({config.tail_reps} runs) and `send('G90')` round trips ({config.ok_samples}), "
+        "tail per move. Second table: tail of two streamed 0.75 deg joint moves, ended by "
+        "`stream(wait=True)` (a `G4 P0` barrier) or by `stream()` + `wait_idle()` (status "
+        f"polling) ({config.tail_reps} runs each) and `send('G90')` round trips ({config.ok_samples}), "
         "without and with a concurrent `statuses(interval=0.1)` consumer; target: one status "
         "report's wire time (~190 B, 16.5 ms) + the USB latency + 5 ms (issue 12).",
         "- Load: the 1-minute load average when the run started (shared machine).",
