@@ -20,18 +20,19 @@ in tests/conftest.py).
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import io
 import signal
 import subprocess
 import sys
-from collections.abc import AsyncIterator, Callable, Iterator
+from collections.abc import AsyncIterator, Awaitable, Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
 
-from mirobot_async import Mirobot
+from mirobot_async import Mirobot, State
 from mirobot_async.cli import main
 from mirobot_async.testing import EmulatorPool, EmulatorProcess, WireSpy
 
@@ -81,6 +82,24 @@ async def arm(emu: EmulatorProcess, wire_spy: WireSpy) -> AsyncIterator[Mirobot]
     """A client connected to ``emu`` through ``wire_spy``."""
     async with Mirobot.connect(emu.url, open_transport=wire_spy.opener) as connected:
         yield connected
+
+
+StateWait = Callable[..., Awaitable[None]]
+
+
+async def _first_status(arm: Mirobot, state: State, limit: float = 5.0) -> None:
+    async with asyncio.timeout(limit):
+        async with contextlib.aclosing(arm.statuses(interval=0.0)) as reports:
+            async for report in reports:
+                if report.state is state:
+                    return
+
+
+@pytest.fixture
+def first_status() -> StateWait:
+    """``await first_status(arm, state, limit=5.0)``: returns once a status of ``arm`` (polled
+    back to back) shows ``state``; ``TimeoutError`` after ``limit`` seconds."""
+    return _first_status
 
 
 @pytest.fixture

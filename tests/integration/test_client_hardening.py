@@ -10,7 +10,7 @@ import asyncio
 import contextlib
 import statistics
 import time
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator, Awaitable, Callable
 
 import pytest
 
@@ -31,14 +31,6 @@ async def wait_until(condition: Callable[[], bool], limit: float = 5.0) -> None:
     async with asyncio.timeout(limit):
         while not condition():  # noqa: ASYNC110 - a condition of the client, not an event
             await asyncio.sleep(0.002)
-
-
-async def wait_for_state(arm: Mirobot, state: State, limit: float = 5.0) -> None:
-    async with asyncio.timeout(limit):
-        async with contextlib.aclosing(arm.statuses(interval=0.0)) as reports:
-            async for report in reports:
-                if report.state is state:
-                    return
 
 
 # ---- status accounting (13.7, 13.8, 17.2) ------------------------------------------------------
@@ -245,7 +237,7 @@ async def test_structured_moves_state_millimetres(ready_arm: Mirobot) -> None:
 
 @pytest.mark.mirobot_emulator(time_scale=1)
 async def test_hold_on_exit_holds_the_arm_when_the_block_fails(
-    ready_arm: Mirobot, wire_spy: WireSpy
+    ready_arm: Mirobot, wire_spy: WireSpy, first_status: Callable[..., Awaitable[None]]
 ) -> None:
     arm = ready_arm
     mark = wire_spy.mark()
@@ -253,13 +245,13 @@ async def test_hold_on_exit_holds_the_arm_when_the_block_fails(
         await arm.send("M3 S1")
     assert b"!" not in wire_spy.since(mark)  # a normal end sends nothing
     await arm.move_joints(j1=30, speed=600, wait=False)
-    await wait_for_state(arm, State.RUN)
+    await first_status(arm, State.RUN)
     with pytest.raises(RuntimeError, match="boom"):
         async with arm.hold_on_exit():
             raise RuntimeError("boom")
-    await wait_for_state(arm, State.HOLD, limit=0.5)
+    await first_status(arm, State.HOLD, limit=0.5)
     await arm.resume()
-    await wait_for_state(arm, State.RUN)
+    await first_status(arm, State.RUN)
 
     async def supervised() -> None:
         async with arm.hold_on_exit():
@@ -270,5 +262,5 @@ async def test_hold_on_exit_holds_the_arm_when_the_block_fails(
     task.cancel()
     with pytest.raises(asyncio.CancelledError):
         await task
-    await wait_for_state(arm, State.HOLD, limit=0.5)
+    await first_status(arm, State.HOLD, limit=0.5)
     await arm.reset()

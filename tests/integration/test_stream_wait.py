@@ -6,6 +6,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import time
+from collections.abc import Awaitable, Callable
 
 import pytest
 
@@ -22,15 +23,6 @@ async def motion_ends(emu: EmulatorProcess) -> list[float]:
     """The emulator's last ends of motion (``time.monotonic()`` instants)."""
     words = (await emu.control("motion-ends")).split()
     return [float(word) for word in words[2:]]
-
-
-async def first_status(arm: Mirobot, state: State, limit: float = 10.0) -> None:
-    """Return once a status shows ``state``; fail after ``limit`` seconds."""
-    async with asyncio.timeout(limit):
-        async with contextlib.aclosing(arm.statuses(interval=0.0)) as reports:
-            async for report in reports:
-                if report.state is state:
-                    return
 
 
 @pytest.mark.mirobot_emulator(time_scale=4)
@@ -95,11 +87,13 @@ async def test_stream_wait_continues_past_errors_when_asked_and_then_waits(
 
 
 @pytest.mark.mirobot_emulator(time_scale=1)
-async def test_a_reset_while_a_stream_waits_for_the_motion_fails_it(ready_arm: Mirobot) -> None:
+async def test_a_reset_while_a_stream_waits_for_the_motion_fails_it(
+    ready_arm: Mirobot, first_status: Callable[..., Awaitable[None]]
+) -> None:
     arm = ready_arm
     stream = asyncio.create_task(arm.stream(["M21 G90 G1 X60 F300"], wait=True).run())
     try:
-        await first_status(arm, State.RUN)
+        await first_status(arm, State.RUN, limit=10.0)
         assert not stream.done()
         await arm.reset()
         with pytest.raises(MirobotResetError):
@@ -113,12 +107,12 @@ async def test_a_reset_while_a_stream_waits_for_the_motion_fails_it(ready_arm: M
 
 @pytest.mark.mirobot_emulator(time_scale=1)
 async def test_a_hard_limit_while_a_stream_waits_for_the_motion_fails_it_at_once(
-    emu: EmulatorProcess, ready_arm: Mirobot
+    emu: EmulatorProcess, ready_arm: Mirobot, first_status: Callable[..., Awaitable[None]]
 ) -> None:
     arm = ready_arm
     stream = asyncio.create_task(arm.stream(["M21 G90 G1 X60 F300"], wait=True).run())
     try:
-        await first_status(arm, State.RUN)
+        await first_status(arm, State.RUN, limit=10.0)
         await emu.control("hard-limit")
         with pytest.raises(MirobotAlarmError, match="Hard limit"):
             await asyncio.wait_for(stream, 3.0)
