@@ -19,6 +19,7 @@ from .machine import Machine
 from .reports import banner, status_line
 from .scanner import read_float
 from .system import SystemCommands
+from .uart import Transmitter
 from .wire import BYTE_SECONDS, Wire
 
 DEFAULT_HOMING_SECONDS: Final = 10.0
@@ -96,6 +97,8 @@ class Firmware:
         self._reset_at = -math.inf
         self._status_after_boot = False
         """``?`` arrived during the boot: answered when it ends, before any line."""
+        self.uart = Transmitter()
+        """The firmware's transmitter; the server sets its ``byte_seconds`` (:mod:`.uart`)."""
         self.settings: dict[int, float] = self._m.settings
         self._gcode = GcodeExecutor(self._m)
         self._system = SystemCommands(self._m, self.reset, self._gcode.execute)
@@ -117,6 +120,7 @@ class Firmware:
         due = self._wire.take_due(self.now)
         if due:
             self._deliver(due)
+        self.uart.sync(self._m.printed, self.now)
 
     def _deliver(self, data: bytes) -> None:
         """Bytes that have arrived at the UART."""
@@ -163,7 +167,9 @@ class Firmware:
         end = self.now + dt
         self._service()
         zero_steps = 0
+        m, uart = self._m, self.uart
         while True:
+            uart.sync(m.printed, self.now)  # what the last events printed, printed then
             ttc = planner.time_to_next_change()
             step = ttc
             for at in (self._parse_until, self._wire.next_event(), self._boot_until):
@@ -258,8 +264,9 @@ class Firmware:
         m.reset_condition(interrupted=interrupted)
         m.parser_init(feed=200.0)
         m.emit_lines(banner(m))
-        self._run_startup_lines()
+        self._system.run_startup_lines()
         self._reset_at = self.now
+        self.uart.reset()
         self._status_after_boot = False
         self._boot_until = self.now + BOOT_SECONDS
         m.booting = True
@@ -272,19 +279,8 @@ class Firmware:
         if self._status_after_boot:
             self._status_after_boot = False
             if not m.critical:
-                m.emit(status_line(m))
+                self.uart.print_report(m, self.now)
         self._service()
-
-    def _run_startup_lines(self) -> None:
-        """After a reset out of Alarm, the stored ``$N0``/``$N1`` lines run, each printed with
-        its reply glued on (oracle: ``G91ok``)."""
-        m = self._m
-        if m.alarm:
-            return
-        for text in m.startup_lines:
-            if text:
-                m.out += text.encode("latin-1", "replace")
-                self._gcode.execute(text)
 
     def trigger_hard_limit(self, axis: int = 1) -> None:
         """Fault injection: a limit switch (``axis``, informative) closes now.
@@ -364,8 +360,8 @@ class Firmware:
                 m.status_deferred = True  # oracle: the homing search answers no ``?``
             elif m.parsing is not None:
                 self._status_after_parse = True  # GRBL answers between lines
-            else:
-                m.emit(status_line(m))
+            elif not self.uart.merges(self.now):  # else merged into the report being printed
+                self.uart.print_report(m, self.now)
         elif byte == 0x21:  # !
             running = m.planner.running
             if (
@@ -440,7 +436,7 @@ class Firmware:
         if self._status_after_parse:
             self._status_after_parse = False
             if not m.critical:
-                m.emit(status_line(m))
+                self.uart.print_report(m, self.now)
         self._service()
 
     def _execute_line(self, line: str) -> None:

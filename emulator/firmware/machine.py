@@ -54,6 +54,8 @@ class Machine:
         self.work = WorkOffsets()
         self.rx = LineBuffer()
         self.out = bytearray()
+        self.printed = 0
+        """Bytes printed since power-on (the transmitter's clock counts them, :mod:`.uart`)."""
         self.pending: Pending | None = None
         self.parsing: ReceivedLine | None = None
         """The line the parser is working on (see :mod:`.linecost`); its effects and reply
@@ -82,7 +84,9 @@ class Machine:
     # output ---------------------------------------------------------------------------------
 
     def emit(self, line: str) -> None:
-        self.out += line.encode("latin-1", "replace") + b"\r\n"
+        data = line.encode("latin-1", "replace") + b"\r\n"
+        self.out += data
+        self.printed += len(data)
 
     def emit_lines(self, lines: Sequence[str]) -> None:
         for line in lines:

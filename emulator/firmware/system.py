@@ -42,6 +42,19 @@ class SystemCommands:
         self.reset = reset
         self.run_gcode = run_gcode
 
+    def run_startup_lines(self) -> None:
+        """After a reset out of Alarm, the stored ``$N0``/``$N1`` lines run, each printed with
+        its reply glued on (oracle: ``G91ok``)."""
+        m = self.m
+        if m.alarm:
+            return
+        for text in m.startup_lines:
+            if text:
+                data = text.encode("latin-1", "replace")
+                m.out += data
+                m.printed += len(data)
+                self.run_gcode(text)
+
     def _idle_or_alarm(self) -> bool:
         return self.m.state in ("Idle", "Alarm")
 

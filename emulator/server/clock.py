@@ -18,6 +18,7 @@ from .options import FirmwareLike
 __all__ = ["MOTION_END_HISTORY", "Simulation"]
 
 MOTION_END_HISTORY = 64  # ends of motion answered to the ``motion-ends`` control command
+UART_BIT_TIMES_PER_BYTE = 10.77  # the oracle's UART: 93.5 us a byte at 115200 baud
 _LINE_PIECES = re.compile(rb"[^\r\n]*[\r\n]|[^\r\n]+")  # input cut after each line end
 
 
@@ -30,13 +31,29 @@ class Simulation:
     duration and the instant is when the loop ran it.
     """
 
-    def __init__(self, firmware: FirmwareLike, scale: float, wall: float) -> None:
+    def __init__(
+        self, firmware: FirmwareLike, scale: float, wall: float, baud: int | None = None
+    ) -> None:
         self.firmware = firmware
         self._scale = scale
+        self._baud = baud
         self._wall_anchor = wall
         self._sim_anchor = firmware.now
         self.motion_end_walls: deque[float] = deque(maxlen=MOTION_END_HISTORY)
         self._motion_ends_seen = 0
+        self._pace_uart()
+
+    def _pace_uart(self) -> None:
+        """Tell the firmware its transmitter's byte time when its output is paced at ``baud``
+        and time runs at least as fast as the wall clock (then a ``?`` that arrives while a
+        report is being printed is merged into it, as on the arm); else 0: every ``?`` is
+        answered (unpaced output leaves at once; below scale 1 a client reads a report later,
+        in simulated time, than the arm's output would let it). ``firmware.uart`` is optional."""
+        uart = getattr(self.firmware, "uart", None)
+        if uart is None:
+            return
+        paced = self._baud is not None and self._scale >= 1.0
+        uart.byte_seconds = UART_BIT_TIMES_PER_BYTE / self._baud if paced and self._baud else 0.0
 
     @property
     def scale(self) -> float:
@@ -49,6 +66,7 @@ class Simulation:
         self._sim_anchor = self.firmware.now
         self._wall_anchor = wall
         self._scale = scale
+        self._pace_uart()
 
     def sync(self, wall: float) -> None:
         """Run the firmware up to the simulated time of ``wall`` (scale 0: until idle)."""

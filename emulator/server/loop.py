@@ -197,7 +197,9 @@ class EmulatorServer:
         self.path = path
         if self.sim is None:
             firmware = self._factory()
-            self.sim = Simulation(firmware, self.options.time_scale, time.monotonic())
+            self.sim = Simulation(
+                firmware, self.options.time_scale, time.monotonic(), self.options.baud
+            )
         self._power_on()
         if self.options.link:
             _make_link(self.options.link, path)
@@ -242,7 +244,7 @@ class EmulatorServer:
         self.options, self._factory = options, factory
         self.port = _make_port(options, self._log)
         self.path = self.port.open()
-        self.sim = Simulation(firmware, options.time_scale, time.monotonic())
+        self.sim = Simulation(firmware, options.time_scale, time.monotonic(), options.baud)
         self._build_paths(options)
         self._power_on()
         return self.path
