@@ -105,6 +105,7 @@ class Firmware:
         self._m.reset_condition(interrupted=False)
         self._m.parser_init(feed=200.0)
         self._m.emit_lines(banner(self._m))
+        self.uart.sync(self._m.printed, self.now)  # the power-on banner is out before any host
 
     # ------------------------------------------------------------------------------------------
     # public API

@@ -86,6 +86,18 @@ class Simulation:
             fw.advance(math.inf)  # the firmware's "until nothing changes"; its clock stays finite
             self._collect_motion_ends(time.monotonic())
 
+    def deliver(self, data: bytes, crossed: float | None, wall: float) -> None:
+        """Run to ``wall`` with ``data`` fed on the way: at ``crossed`` (when its first byte
+        crossed a paced wire), however late the loop woke, so that a loaded machine does not
+        squeeze the gaps between paced bytes; else (unpaced) at ``wall``."""
+        if data and crossed is not None and crossed < wall:
+            self.sync(crossed)
+            self.feed(data)
+            self.sync(wall)
+        else:
+            self.sync(wall)
+            self.feed(data)
+
     def feed(self, data: bytes) -> None:
         """Bytes that reached the firmware; at scale 0 each line's motion ends before the next."""
         if not data:

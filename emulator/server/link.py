@@ -81,6 +81,11 @@ class InputPath:
         data = self._wire.pop(now)
         return self._filter.input_bytes(data) if data else data
 
+    @property
+    def crossed_at(self) -> float | None:
+        """When the first byte of the last :meth:`pop` crossed a paced wire (else None)."""
+        return self._wire.crossed_at
+
     def next_time(self) -> float | None:
         """When more bytes reach the firmware (None: nothing in transit)."""
         return self._wire.next_time()

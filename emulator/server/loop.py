@@ -394,8 +394,8 @@ class EmulatorServer:
             if not self.port.is_open:
                 return
         self._take(self.port.poll(now))
-        sim.sync(now)
-        sim.feed(self.input.pop(now))
+        data = self.input.pop(now)
+        sim.deliver(data, self.input.crossed_at, now)
         self.output.collect(sim.firmware.read_output(), now)
         self.output.release(now)
         self.output.write_to(self.port)

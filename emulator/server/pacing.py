@@ -38,6 +38,10 @@ class WirePacer:
         self._busy_until = -math.inf
         self._direct = bytearray()
         self._held = 0
+        self.crossed_at: float | None = None
+        """When the first byte of the last :meth:`pop` finished crossing (None: unpaced or
+        nothing popped), so that the firmware can get the bytes at their own instant rather
+        than when the loop woke up."""
 
     def __len__(self) -> int:
         return self._held
@@ -67,11 +71,14 @@ class WirePacer:
             self._held = 0
             return direct
         out = bytearray()
+        self.crossed_at = None
         while self._segments:
             seg = self._segments[0]
             ready = int((now - seg.start) / self._byte_time + 1e-6)
             if ready <= 0:
                 break
+            if self.crossed_at is None:
+                self.crossed_at = seg.start + self._byte_time
             take = min(ready, len(seg.data) - seg.offset)
             out += seg.data[seg.offset : seg.offset + take]
             if seg.offset + take >= len(seg.data):

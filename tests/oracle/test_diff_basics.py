@@ -104,15 +104,23 @@ def test_status_during_reboot(pair: Pair) -> None:
     pair.check()
 
 
-@pytest.mark.parametrize("gap", [0, 40, 110, 140, 200])
-def test_status_requests_merge_while_a_report_is_printed(tmp_path: Path, gap: int) -> None:
-    """Two ``?`` ``gap`` filtered bytes apart (about 0.1 ms each): one that arrives while the
-    first report is still being printed gets no report of its own (oracle: up to 12.5 ms for a
-    175-byte report). Ours merges with its link paced at the arm's 115200 baud in real time
+MERGE_PROBES = {
+    "0": b"??",
+    **{str(gap): b"?" + b" " * gap + b"?" for gap in (40, 110, 140, 200)},
+    **{f"reset-{gap}": b"%" + b" " * 10 + b"?" + b" " * gap + b"?" for gap in (300, 600)},
+}
+
+
+@pytest.mark.parametrize("probe", MERGE_PROBES.values(), ids=MERGE_PROBES.keys())
+def test_status_requests_merge_while_a_report_is_printed(tmp_path: Path, probe: bytes) -> None:
+    """Two ``?`` some filtered bytes apart (about 0.1 ms each): one that arrives while the first
+    report is still being printed gets no report of its own (oracle: up to 12.5 ms for a
+    175-byte report; after a ``%`` the banner is printed first: about 45 ms). Ours merges
+    with its link paced at the arm's 115200 baud in real time
     (at other time scales the paced wire stretches or shrinks the gap in simulated time)."""
     both = Pair.spawn(tmp_path, our_flags=("--baud", "115200"), time_scale=1.0).connect()
     try:
-        both.send(b"?" + b" " * gap + b"?", Until(statuses=1, quiet=0.3))
+        both.send(probe, Until(statuses=1, quiet=0.3))
         both.check()
     finally:
         both.close()

@@ -8,6 +8,7 @@ import copy
 import pytest
 from mirobot_emulator.firmware import Firmware
 from mirobot_emulator.firmware.uart import ORACLE_BYTE_SECONDS, Transmitter
+from mirobot_emulator.server.clock import Simulation
 
 
 def powered_on(profile: str = "classic") -> Firmware:
@@ -70,3 +71,41 @@ def test_a_soft_reset_ends_the_window() -> None:
     assert uart.merges(0.001)
     uart.reset()
     assert not uart.merges(0.001)
+
+
+def test_the_power_on_banner_does_not_hold_back_the_first_report() -> None:
+    """The banner was sent before any host opened the port (the server writes it at once):
+    right after power-on a report is not queued behind it."""
+    fw = Firmware("classic")
+    fw.read_output()
+    assert reports(fw, b"?" + b" " * 140 + b"?") == 2
+
+
+@pytest.mark.parametrize(("gap", "expected"), [(200, 1), (400, 1), (500, 2)])
+def test_a_report_during_the_reset_banner_waits_for_it(gap: int, expected: int) -> None:
+    """After ``%`` the banner keeps the transmitter busy: a ``?`` during the boot is answered
+    after it, and merges a later one for longer (oracle: ``%`` + 10 bytes + ``?`` + 400 bytes
+    + ``?`` one report, + 500 two)."""
+    fw = powered_on()
+    assert reports(fw, b"%" + b" " * 10 + b"?" + b" " * gap + b"?") == expected
+
+
+def test_paced_bytes_reach_the_firmware_at_their_own_instant_however_late_the_loop_woke() -> None:
+    """The server's loop woke 10 ms after the first ``?`` crossed the wire, the second crossed
+    14 ms after it: the firmware sees the 14 ms (two reports), not 5 ms (one)."""
+    fw = powered_on()
+    sim = Simulation(fw, 1.0, 0.0, baud=115200)
+    assert fw.uart.byte_seconds == pytest.approx(ORACLE_BYTE_SECONDS, rel=1e-3)
+    sim.deliver(b"?", 0.0, 0.010)
+    sim.deliver(b"?", 0.014, 0.015)
+    sim.sync(0.2)
+    assert fw.read_output().count(b"<") == 2
+
+
+@pytest.mark.parametrize(("scale", "baud"), [(0.0, 115200), (0.5, 115200), (1.0, None)])
+def test_the_transmitter_is_off_unless_paced_in_real_time_or_faster(
+    scale: float, baud: int | None
+) -> None:
+    fw = powered_on()
+    Simulation(fw, scale, 0.0, baud=baud)
+    assert fw.uart.byte_seconds == 0.0
