@@ -594,6 +594,10 @@ class ReplayResult:
     time_shifts: list[float] = field(default_factory=list)
     """Per differing status line: seconds by which our model reaches the oracle's step counts
     later (positive) or earlier than the oracle's sampling instant (nearest within 0.1 s)."""
+    path_distances: list[int] = field(default_factory=list)
+    """Per differing status line: how far (largest axis difference, motor steps) the oracle's
+    step counts are from the nearest point of our model's step path within 0.1 s: 0 when our
+    path passes exactly through them and only the sampling instant differs."""
 
 
 def status_steps(line: bytes) -> tuple[int, ...] | None:
@@ -606,8 +610,14 @@ def status_steps(line: bytes) -> tuple[int, ...] | None:
     return tuple(round(q * s) for q, s in zip(joints, REPLAY_STEPS_PER_UNIT, strict=True))
 
 
-def _claim(lines: list[bytes], claimed: set[int], start: int, wanted: Callable[[bytes], bool],
-           count: int, what: bytes) -> list[int]:
+def _claim(
+    lines: list[bytes],
+    claimed: set[int],
+    start: int,
+    wanted: Callable[[bytes], bool],
+    count: int,
+    what: bytes,
+) -> list[int]:
     found = []
     for i in range(start, len(lines)):
         if i not in claimed and wanted(lines[i]):
@@ -753,5 +763,6 @@ def _compare(
         ]
         if near:
             result.time_shifts.append(min(near)[2])
+            result.path_distances.append(min(near)[0])
     if len(theirs_all) != len(ours):
         result.differences.append(f"{len(theirs_all)} oracle statuses, {len(ours)} ours")

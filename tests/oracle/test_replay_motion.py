@@ -4,9 +4,13 @@ model at the oracle's own simulated instants (:func:`tests.oracle.harness.replay
 The two sides are sampled at the same simulated instant (within the oracle's UART timing), so
 every line can be compared exactly. What must be equal: every line that is not a status, every
 status at rest, the final status. Statuses while the arm moves are counted and their distance
-measured in motor steps and in milliseconds (how much earlier or later our model reaches the
-oracle's step counts); the bounds below are what our planner achieves today without GRBL's
-segment buffer and AMASS (see :mod:`mirobot_emulator.motion`), so a regression fails.
+measured in motor steps, in milliseconds (how much earlier or later our model reaches the
+oracle's step counts) and from our step path (whether our model passes through the oracle's
+step counts at all). Measured (2026-11-23, two runs each): the angles of 50-75 % of the statuses
+during single moves and streams are byte-equal, and 80-95 % lie exactly on our step path (the
+rest one step off it): what remains is the sampling instant, which the oracle's report takes
+2-12 ms to reach its first byte under the stepper interrupt's load, more than a step at speed.
+The bounds below are what our planner achieves today, so a regression fails.
 """
 
 from __future__ import annotations
@@ -40,6 +44,11 @@ RARE_OUTLIERS = 2
 G0/G1) is within ``TYPICAL_STEPS`` steps of the oracle (measured: all but the rare outlier),
 or all but ``RARE_OUTLIERS`` of them when a move has few statuses (a clean-clone CI run saw two
 of six 10-11 steps off, the oracle's reports sampled 5-7 ms late)."""
+
+ON_PATH_STEPS = 1
+ON_PATH_SHARE = 0.9
+"""At least this share of the statuses during motion of the single moves and the stream lie
+within ``ON_PATH_STEPS`` of our model's step path (measured: all of them)."""
 
 MAX_SHIFT: dict[str, float | None] = {
     "joint": 0.003,
@@ -120,7 +129,8 @@ def summary(result: ReplayResult) -> str:
     shifts = [round(s * 1000, 1) for s in result.time_shifts]
     return (
         f"{result.equal_statuses} statuses equal, {result.moving_statuses} during motion; "
-        f"steps off {result.step_differences}; ms off {shifts}\n" + "\n".join(result.differences)
+        f"steps off {result.step_differences}; ms off {shifts}; "
+        f"off our path {result.path_distances}\n" + "\n".join(result.differences)
     )
 
 
@@ -141,6 +151,9 @@ def test_replay(recording: OracleRecording, program: str) -> None:
             assert oracle_status == our_status, report
     assert theirs[-1] == ours[-1], report
     assert max(result.step_differences, default=0) <= MAX_STEPS[program], report
+    if program != "hold-resume":
+        off_path = sum(1 for d in result.path_distances if d > ON_PATH_STEPS)
+        assert off_path <= (1.0 - ON_PATH_SHARE) * result.moving_statuses, report
     bound = MAX_SHIFT[program]
     if bound is not None:
         far = sum(1 for d in result.step_differences if d > TYPICAL_STEPS)
