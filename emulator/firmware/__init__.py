@@ -31,6 +31,13 @@ What is modelled (checked against the oracle where it says so)
 * After a soft reset the banner takes ``BOOT_SECONDS`` (30 ms, oracle): lines received meanwhile
   wait, a ``?`` received meanwhile is answered first when it ends (before those lines), one
   within ``RESET_DEAF_SECONDS`` of the ``%`` is lost (oracle: the reset clears its flags).
+* A ``?`` that arrives while the previous report is still being printed gets none of its own
+  (oracle: 12.5 ms after a 175-byte report's ``?``, 15.1 ms for 193 bytes, ~45 ms after a
+  ``%`` whose banner goes first); modelled by :mod:`.uart` when the server paces the link at
+  the arm's baud rate at real time or faster (``Firmware.uart.byte_seconds``), else every ``?``
+  is answered. ASSUMED: the window does not grow while the arm moves (the oracle's does: 14-16
+  ms for a 175-byte report at 30 deg/s, whose first byte comes 2-12 ms after the ``?`` as the
+  stepper interrupt takes the processor).
 * Realtime bytes ``?`` ``!`` ``~`` ``%`` and ``@`` anywhere in the stream; ``@`` holds the
   parser (lines wait, motion and the state word go on) until ``~`` (oracle). ``0x18`` is an
   ordinary (dropped) byte.
