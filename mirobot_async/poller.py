@@ -37,7 +37,7 @@ from mirobot_async.errors import MirobotTimeoutError
 from mirobot_async.replies import StatusReport
 from mirobot_async.wire import Wire
 
-__all__ = ["ORDER_MARGIN", "StatusPoller"]
+__all__ = ["ORDER_MARGIN", "StatusPoller", "pipeline_gap"]
 
 _log = logging.getLogger("mirobot_async.client")
 
@@ -248,16 +248,11 @@ class StatusPoller:
         self._arm_timer(now + (self._pipeline_gap() if pipelining else self.retry_interval))
 
     def _pipeline_gap(self) -> float:
-        """:attr:`pipeline_gap`, or more for a long report: back-to-back reports come one
-        report's transmission apart, and a ``?`` sooner than that after the previous one would
-        reach the robot while it still prints that one's report, and be merged into it."""
+        """:func:`pipeline_gap` for the last report's length."""
         report = self.last_status
         if report is None:
             return self.pipeline_gap
-        length = len(report.to_line()) + 2
-        merged_until = length * MERGE_WINDOW_PER_BYTE - MERGE_WINDOW_OFFSET
-        sent_in = length * REPORT_BYTE_SECONDS
-        return max(self.pipeline_gap, max(merged_until, sent_in) + MERGE_MARGIN)
+        return pipeline_gap(len(report.to_line()) + 2, self.pipeline_gap)
 
     def _arm_timer(self, when: float) -> None:
         timer = self._timer
@@ -279,3 +274,13 @@ class StatusPoller:
     def _running_loop(self) -> asyncio.AbstractEventLoop:
         assert self._loop is not None
         return self._loop
+
+
+def pipeline_gap(report_length: int, minimum: float) -> float:
+    """Seconds between two pipelined ``?`` when reports are ``report_length`` bytes long (with
+    CR LF), at least ``minimum``: back-to-back reports come one report's transmission apart,
+    and a ``?`` sooner than that after the previous one would reach the robot while it still
+    prints that one's report, and be merged into it (``MERGE_WINDOW_PER_BYTE``)."""
+    merged_until = report_length * MERGE_WINDOW_PER_BYTE - MERGE_WINDOW_OFFSET
+    sent_in = report_length * REPORT_BYTE_SECONDS
+    return max(minimum, max(merged_until, sent_in) + MERGE_MARGIN)

@@ -10,6 +10,8 @@ from mirobot_emulator.firmware import Firmware
 from mirobot_emulator.firmware.uart import ORACLE_BYTE_SECONDS, Transmitter
 from mirobot_emulator.server.clock import Simulation
 
+from mirobot_async.poller import pipeline_gap
+
 
 def powered_on(profile: str = "classic") -> Firmware:
     fw = Firmware(profile)
@@ -109,3 +111,21 @@ def test_the_transmitter_is_off_unless_paced_in_real_time_or_faster(
     fw = powered_on()
     Simulation(fw, scale, 0.0, baud=baud)
     assert fw.uart.byte_seconds == 0.0
+
+
+@pytest.mark.parametrize(
+    ("length", "gap_ms"), [(100, 16.5), (175, 17.56), (190, 18.97), (300, 31.6)]
+)
+def test_the_client_spaces_pipelined_status_requests_by_one_report_on_the_wire(
+    length: int, gap_ms: float
+) -> None:
+    """The client's pipelined ``?`` (a motion wait) come no sooner than the robot can print a
+    report of the last one's length (93.5 us a byte): the next is never merged into it."""
+    gap = pipeline_gap(length, 0.0165)
+    assert gap == pytest.approx(gap_ms / 1000, abs=1e-5)
+    uart = Transmitter()
+    uart.byte_seconds = ORACLE_BYTE_SECONDS
+    uart.report(length, 0.0)
+    assert not uart.merges(gap)  # one report after the first
+    uart.report(length, gap)
+    assert not uart.merges(2 * gap)  # and after back-to-back ones
