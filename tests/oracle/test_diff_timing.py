@@ -27,15 +27,19 @@ from .harness import HarnessError, Pair, is_terminal, lines_of, motion_ends, ora
 def circle(n: int, radius: float = 20.0) -> list[str]:
     """``n`` short straight Cartesian segments around a circle near the start pose.
 
-    Every line names ``A0 B0 C0``: an ``M20`` line without them re-reads the orientation from the
-    arm's current (rounded) position at parse time, which makes the oracle's own time vary
-    from run to run (10.139 s and 9.867 s; with them 7.340 s twice).
+    ``M20`` is set once, by the first line: a line that carries ``M20`` starts from where the
+    arm *is* when it is parsed (the firmware resynchronises its position), so a program that
+    repeats it follows a path that depends on how far ahead the host streams: with ``M20`` on
+    every line the oracle took 7.340 s and our emulator 7.15-7.25 s depending on the host's
+    load. Every line names ``A0 B0 C0``: without them the orientation is re-read from the arm's
+    current (rounded) position (the oracle's own time then varied: 10.139 s and 9.867 s). With
+    both, the oracle takes 7.201 s (six runs, one 7.163 s on a loaded host).
     """
     out = ["M20 G90 G1 X202 Y0 Z160 A0 B0 C0 F2000"]
     for i in range(1, n + 1):
         a = 2 * math.pi * i / n
         x, y = 182 + radius * math.cos(a), radius * math.sin(a)
-        out.append(f"M20 G90 G1 X{x:.3f} Y{y:.3f} Z160 A0 B0 C0")
+        out.append(f"G1 X{x:.3f} Y{y:.3f} Z160 A0 B0 C0")
     return out
 
 
