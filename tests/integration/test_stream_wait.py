@@ -43,7 +43,7 @@ async def test_stream_wait_returns_once_the_arm_has_stopped_at_the_last_line(
     assert wire_spy.lines(mark)[-1] == b"G4 P0\n"  # the barrier, written after the last line
 
 
-@pytest.mark.mirobot_emulator(time_scale=4)
+@pytest.mark.mirobot_emulator(time_scale=1)  # 1.2 s of motion: a loaded machine cannot miss it
 async def test_stream_without_wait_returns_while_the_arm_still_moves(
     ready_arm: Mirobot, wire_spy: WireSpy
 ) -> None:
