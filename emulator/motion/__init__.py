@@ -40,11 +40,13 @@ The model, checked against the classic firmware running in an AVR simulator (the
 * Homing: the reported joints stay where they were during the switch search; ``$HH`` searches
   J1..J5 one after another, each for ``SEQUENTIAL_SEARCH_FRACTION * search_seconds``; the
   pull-off moves the homed axes to 0 at G0 rates. Feed hold is ignored during homing.
-* Feed hold shows ``Hold`` at once, while still decelerating, after ``HOLD_LATENCY`` (45 ms,
-  oracle replay); a ``~`` while still decelerating is dropped by the firmware (oracle: it stays
-  in ``Hold``). A hold with an empty planner is ignored; a hold that decelerates onto the end of
-  the last block ends in ``idle``. The first step comes ``CYCLE_START_LATENCY`` (1.75 ms,
-  oracle replay) after a cycle start.
+* Feed hold shows ``Hold`` at once, while still decelerating; the braking starts at the first
+  boundary of the stepper's 10 ms segments (``HOLD_SEGMENT_SECONDS``, counted from the start of
+  the motion) at least ``HOLD_LATENCY`` (40.3 ms) after the ``!`` (oracle replay: the held
+  position matches exactly); a ``~`` while still decelerating is dropped by the firmware
+  (oracle: it stays in ``Hold``). A hold with an empty planner is ignored; a hold that
+  decelerates onto the end of the last block ends in ``idle``. The first step comes
+  ``CYCLE_START_LATENCY`` (1.75 ms, oracle replay) after a cycle start.
 * Settings of 0 (or less) for a max rate or an acceleration are clamped to ``MIN_MAX_RATE`` /
   ``MIN_ACCEL``.
 

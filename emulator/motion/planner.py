@@ -47,11 +47,17 @@ START_TOLERANCE: Final = 1e-6
 HOLDABLE_KINDS: Final = frozenset({"move", "line", "arc", "dwell"})
 """Blocks a feed hold acts on (homing ignores it)."""
 
-HOLD_LATENCY: Final = 0.045
-"""Seconds a feed hold keeps the planned motion before it decelerates: GRBL's stepper has
-already prepared that much (its segment buffer). Oracle, replayed at its own simulated
-instants (tests/oracle/test_replay_motion.py): 42-48 ms fit best (the host latency included
-in an earlier wall-clock measurement gave 55-70 ms)."""
+HOLD_LATENCY: Final = 0.0403
+"""Seconds a feed hold keeps the planned motion at least before it decelerates: GRBL's stepper
+has already prepared that much (its segment buffer); the braking then starts at the next
+boundary of its ``HOLD_SEGMENT_SECONDS`` segments, counted from the start of the motion.
+Oracle, replayed at its own simulated instants (tests/oracle/test_replay_motion.py): in four
+recordings the held position is matched exactly by braking 40.9-49.8 ms after the ``!``, and
+each time at a multiple of 10 ms since the motion started (the fits allow 39.8-40.9 ms here)."""
+
+HOLD_SEGMENT_SECONDS: Final = 0.010
+"""GRBL's stepper segments (``ACCELERATION_TICKS_PER_SECOND`` = 100): a hold acts at their
+boundaries (0: at once after ``HOLD_LATENCY``)."""
 
 CYCLE_START_LATENCY: Final = 0.00175
 """Seconds from GRBL's auto cycle start to the first step: its stepper prepares the first
@@ -110,14 +116,20 @@ class Planner:
         deferred_start: bool = False,
         hold_latency: float = HOLD_LATENCY,
         start_latency: float = 0.0,
+        hold_segment: float = HOLD_SEGMENT_SECONDS,
     ) -> None:
         """``deferred_start``: blocks pushed onto an empty planner wait (state ``idle``) until
         :meth:`cycle_start`, as GRBL's auto cycle start does (see :meth:`cycle_start`); without
-        it they start at once. ``hold_latency``: see ``HOLD_LATENCY`` (0: brake at once)."""
+        it they start at once. ``hold_latency``, ``hold_segment``: see ``HOLD_LATENCY`` and
+        ``HOLD_SEGMENT_SECONDS`` (both 0: brake at once)."""
         if not (math.isfinite(hold_latency) and hold_latency >= 0.0):
             raise ValueError(f"hold_latency must be finite and >= 0: {hold_latency}")
         self._position = finite_vec7(position, "position")
+        if not (math.isfinite(hold_segment) and hold_segment >= 0.0):
+            raise ValueError(f"hold_segment must be finite and >= 0: {hold_segment}")
         self._hold_latency = hold_latency
+        self._hold_segment = hold_segment
+        self._motion_since = 0.0  # planner clock when the running motion began (its segments)
         self._start_latency = start_latency
         self._delay = 0.0  # left of the start latency: the running block waits that long
         self._deferred = deferred_start
@@ -256,6 +268,7 @@ class Planner:
         was_empty = not self._queue
         if was_empty:
             self._started = not self._deferred
+            self._motion_since = self.clock
             self._tail_direction = None
             if self._ran_out_at is not None:
                 self.starvations += 1
@@ -313,12 +326,22 @@ class Planner:
             self._profile = block.stop_profile(s, 0.0)
         else:
             # the prepared motion runs on for the latency (within this block), then brakes
-            t_brake = min(t + self._hold_latency, profile.duration)
+            t_brake = min(t + self._hold_delay(), profile.duration)
             brake = block.stop_profile(profile.s_at(t_brake), profile.v_at(t_brake))
             phases = profile.window(t, t_brake) + brake.phases()
             self._profile = Profile(s, profile.v_at(t), phases, brake.s_end, brake.v_end)
         self._t = 0.0
         self._held = True
+
+    def _hold_delay(self) -> float:
+        """Seconds from now until a hold brakes: ``HOLD_LATENCY``, then on to the next segment
+        boundary of the running motion."""
+        ready = self.clock + self._hold_latency
+        segment = self._hold_segment
+        if segment <= 0.0:
+            return self._hold_latency
+        segments = math.ceil((ready - self._motion_since) / segment - 1e-9)
+        return max(self._motion_since + segments * segment - self.clock, self._hold_latency)
 
     def resume(self) -> None:
         """Cycle start ``~``: re-plan from the current position and speed (from rest once
@@ -326,6 +349,7 @@ class Planner:
         if not self._held:
             return
         self._held = False
+        self._motion_since = self.clock  # GRBL prepares its segments anew
         if not self._queue:
             return
         block = self._queue[0]
@@ -345,6 +369,7 @@ class Planner:
             return
         self._started = True
         self._delay = 0.0 if self._queue[0].timed else self._start_latency
+        self._motion_since = self.clock + self._delay
         self._replan(0.0, 0.0)
 
     def abort(self) -> None:

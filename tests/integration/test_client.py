@@ -458,7 +458,7 @@ async def test_wait_false_then_wait_idle_hold_and_resume(
                 break
     held = await arm.hold()
     assert held.state is State.HOLD
-    # A held arm moves on ~55 ms, then brakes (as on the firmware oracle) and stays: frozen once
+    # A held arm moves on 40-50 ms, then brakes (as on the firmware oracle) and stays: frozen once
     # two statuses 50 ms apart agree.
     previous = -1.0
     frozen = -1.0

@@ -21,7 +21,7 @@ from mirobot_emulator.motion import (
     junction_speed_sqr,
     path_blocks,
 )
-from mirobot_emulator.motion.planner import HOLD_LATENCY
+from mirobot_emulator.motion.planner import HOLD_LATENCY, HOLD_SEGMENT_SECONDS
 from mirobot_emulator.settings import default_settings
 
 CLASSIC = AxisLimits.from_settings(default_settings("classic"))
@@ -217,7 +217,7 @@ def test_planner_can_always_stop_by_the_end_of_the_queue(
 
 
 def test_hold_brakes_across_block_ends_after_the_latency_and_resumes() -> None:
-    planner = Planner(ZERO)
+    planner = Planner(ZERO, hold_segment=0.0)  # the latency alone: numbers by hand
     push_path(planner, [vec(3 * k) for k in range(1, 17)], 2000.0, IDEAL)  # 3-deg blocks to 48
     planner.advance(0.8)  # cruising at 33.3 deg/s
     v = planner.speed
@@ -324,3 +324,20 @@ def test_path_blocks_cut_a_path_into_blending_joint_blocks() -> None:
     assert min(speeds[:8]) > 0.0  # no stop between the segments
     with pytest.raises(ValueError):
         path_blocks(vec(3), poses, 40.0, 1200.0, CLASSIC)
+
+
+@pytest.mark.parametrize("held_at", [0.500, 0.5003, 0.505, 0.5097, 0.51])
+def test_a_hold_brakes_at_the_next_segment_boundary_after_the_latency(held_at: float) -> None:
+    """Oracle: the braking starts at a multiple of ``HOLD_SEGMENT_SECONDS`` since the motion
+    began, the first at least ``HOLD_LATENCY`` after the ``!``."""
+    planner = Planner(ZERO)
+    planner.push(joint_block(ZERO, vec(60), 1000.0, IDEAL))
+    planner.advance(held_at)  # cruising: 60 deg at 1000 deg/min take 3.6 s
+    v = planner.speed
+    here = planner.position[0]
+    planner.hold()
+    run_all(planner)
+    boundary = math.ceil((held_at + HOLD_LATENCY) / HOLD_SEGMENT_SECONDS - 1e-9)
+    delay = boundary * HOLD_SEGMENT_SECONDS - held_at
+    assert HOLD_LATENCY <= delay < HOLD_LATENCY + HOLD_SEGMENT_SECONDS
+    assert planner.position[0] - here == pytest.approx(delay * v + v * v / 100.0, rel=1e-6)
