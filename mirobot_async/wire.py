@@ -28,13 +28,16 @@ from mirobot_async.protocol import Event, MirobotConnection, PendingLine
 from mirobot_async.transport import Implementation, SerialLink
 
 __all__ = [
+    "IN_PROCESS_SCHEME",
     "ClientStats",
     "DataCallback",
     "LostCallback",
     "Transport",
     "TransportOpener",
     "Wire",
+    "register_in_process",
     "serial_opener",
+    "unregister_in_process",
 ]
 
 _wire_log = logging.getLogger("mirobot_async.wire")
@@ -70,6 +73,23 @@ class TransportOpener(Protocol):
     ) -> Transport: ...
 
 
+IN_PROCESS_SCHEME = "virtual://"
+"""URLs of virtual arms served inside this process (:mod:`mirobot_async.testing.virtual`)."""
+_in_process: dict[str, TransportOpener] = {}
+
+
+def register_in_process(url: str, opener: TransportOpener) -> None:
+    """Serve ``url`` (``virtual://...``) with ``opener`` in this process until unregistered."""
+    if not url.startswith(IN_PROCESS_SCHEME):
+        raise ValueError(f"{url!r} does not start with {IN_PROCESS_SCHEME!r}")
+    _in_process[url] = opener
+
+
+def unregister_in_process(url: str) -> None:
+    """Stop serving ``url``: later opens fail with :class:`MirobotConnectionError`."""
+    _in_process.pop(url, None)
+
+
 def serial_opener(
     implementation: Implementation = "fast", exclusive: bool = True
 ) -> TransportOpener:
@@ -84,6 +104,14 @@ def serial_opener(
     async def open_serial(
         url: str, *, on_data: DataCallback, on_lost: LostCallback, timeout: float
     ) -> Transport:
+        if url.startswith(IN_PROCESS_SCHEME):
+            opener = _in_process.get(url)
+            if opener is None:
+                raise MirobotConnectionError(
+                    f"{url}: no virtual Mirobot by that name in this process (it was closed, "
+                    "or started in another process)"
+                )
+            return await opener(url, on_data=on_data, on_lost=on_lost, timeout=timeout)
         if url == AUTO:
             url = await asyncio.to_thread(find_mirobot, timeout=min(timeout, DEFAULT_PROBE_TIMEOUT))
         return await SerialLink.open(

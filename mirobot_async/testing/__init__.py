@@ -85,6 +85,7 @@ if TYPE_CHECKING:
 
     from mirobot_async.testing.pool import BorrowedEmulatorProcess, EmulatorPool
     from mirobot_async.testing.spy import WireSpy
+    from mirobot_async.testing.virtual import InProcessArm
 
 
 def __getattr__(name: str) -> Any:
@@ -92,6 +93,10 @@ def __getattr__(name: str) -> Any:
         from mirobot_async.testing.spy import WireSpy
 
         return WireSpy
+    if name == "InProcessArm":  # imported on first use (it loads the firmware model)
+        from mirobot_async.testing.virtual import InProcessArm
+
+        return InProcessArm
     if name in ("EmulatorPool", "BorrowedEmulatorProcess"):  # it builds on EmulatorProcess
         from mirobot_async.testing import pool
 
@@ -104,6 +109,7 @@ __all__ = [
     "EmulatorError",
     "EmulatorPool",
     "EmulatorProcess",
+    "InProcessArm",
     "SyncEmulatorProcess",
     "WireSpy",
     "emulator_command",
@@ -339,6 +345,7 @@ async def start_emulator(
     extra_args: Sequence[str] = (),
     startup_timeout: float = STARTUP_TIMEOUT,
     listen: str | None = None,
+    in_process: bool = False,
 ) -> AsyncIterator[str]:
     """Run a virtual Mirobot for the duration of the block; yields its port URL.
 
@@ -350,7 +357,23 @@ async def start_emulator(
     Startup waits at most ``startup_timeout`` s (:class:`EmulatorError`); on exit the process is
     stopped and reaped even if the block was cancelled. Use :class:`EmulatorProcess` for a
     handle with the fault-injection channel.
+
+    ``in_process=True`` runs the firmware model inside this process instead
+    (:class:`~mirobot_async.testing.virtual.InProcessArm`, a ``virtual://N`` URL for
+    ``Mirobot.connect``): no subprocess and no pty, a test costs milliseconds; ``extra_args``
+    and ``listen`` are then refused (the process's options: pacing, faults, links).
     """
+    if in_process:
+        if extra_args or listen is not None:
+            raise MirobotUsageError(
+                "start_emulator(in_process=True) takes no extra_args or listen: those are "
+                "options of the emulator process"
+            )
+        from mirobot_async.testing.virtual import InProcessArm
+
+        with InProcessArm(firmware, time_scale) as arm:
+            yield arm.url
+        return
     emulator = await EmulatorProcess.start(
         firmware,
         time_scale,
