@@ -40,6 +40,7 @@ from mirobot_async.errors import (
 if TYPE_CHECKING:
     from mirobot_async.client import (
         ClientStats,
+        Connector,
         LineResult,
         Mirobot,
         PathError,
@@ -53,6 +54,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "ClientStats",
+    "Connector",
     "Envelope",
     "InvalidLineError",
     "LineResult",
@@ -82,6 +84,7 @@ __version__ = "0.1.0"
 
 _LAZY: dict[str, str] = {
     "ClientStats": "mirobot_async.client",
+    "Connector": "mirobot_async.client",
     "LineResult": "mirobot_async.client",
     "Mirobot": "mirobot_async.client",
     "PathError": "mirobot_async.client",

@@ -117,7 +117,7 @@ from __future__ import annotations
 import asyncio
 import logging
 from collections.abc import AsyncIterable, Callable, Generator, Iterable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, overload
 
 from mirobot_async.accessories import AccessoryCommands
 from mirobot_async.condition import Firmware
@@ -142,6 +142,7 @@ from mirobot_async.transport import Implementation
 from mirobot_async.wire import ClientStats, Transport, TransportOpener, serial_opener
 
 if TYPE_CHECKING:  # imported when an envelope is used (it needs numpy)
+    from mirobot_async.bus.controller_bus import SingleArmConnector
     from mirobot_async.envelope import Envelope
 
 __all__ = [
@@ -152,6 +153,7 @@ __all__ = [
     "RESET_TIMEOUT",
     "STATUS_TIMEOUT",
     "ClientStats",
+    "Connector",
     "LineResult",
     "Mirobot",
     "PathError",
@@ -164,8 +166,9 @@ __all__ = [
 _log = logging.getLogger("mirobot_async.client")
 
 
-class _Connector:
-    """What :meth:`Mirobot.connect` returns: ``await`` it or use it with ``async with``."""
+class Connector:
+    """What :meth:`Mirobot.connect` returns: ``await`` it (then close the arm) or use it with
+    ``async with`` (closed at the end of the block)."""
 
     def __init__(
         self, arm: Mirobot, url: str, timeout: float | None, probe: bool, opener: TransportOpener
@@ -198,6 +201,40 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
 
     # ---- lifecycle ----
 
+    @overload
+    @classmethod
+    def connect(
+        cls,
+        url: str,
+        *,
+        firmware: Firmware | None = None,
+        timeout: float | None = CONNECT_TIMEOUT,
+        envelope: Envelope | None = None,
+        implementation: Implementation = "fast",
+        status_timeout: float = STATUS_TIMEOUT,
+        probe: bool = True,
+        exclusive: bool = True,
+        open_transport: TransportOpener | None = None,
+        address: None = None,
+    ) -> Connector: ...
+
+    @overload
+    @classmethod
+    def connect(
+        cls,
+        url: str,
+        *,
+        firmware: Firmware | None = None,
+        timeout: float | None = CONNECT_TIMEOUT,
+        envelope: Envelope | None = None,
+        implementation: Implementation = "fast",
+        status_timeout: float = STATUS_TIMEOUT,
+        probe: bool = True,
+        exclusive: bool = True,
+        open_transport: TransportOpener | None = None,
+        address: int,
+    ) -> SingleArmConnector: ...
+
     @classmethod
     def connect(
         cls,
@@ -212,7 +249,7 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
         exclusive: bool = True,
         open_transport: TransportOpener | None = None,
         address: int | None = None,
-    ) -> _Connector:
+    ) -> Connector | SingleArmConnector:
         """Open ``url`` (device, pty path, ``socket://host:port``, ``loop://``) at 115200 8N1.
 
         Use as ``async with Mirobot.connect(url) as arm:`` (closed at the end of the block) or
@@ -249,7 +286,7 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
         if address is not None:
             from mirobot_async.bus import connect as connect_on_bus
 
-            single: _Connector = connect_on_bus(
+            return connect_on_bus(
                 url,
                 address=address,
                 firmware=firmware,
@@ -258,7 +295,6 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
                 status_timeout=status_timeout,
                 probe=probe,
             )
-            return single
         arm = cls(
             firmware=firmware,
             envelope=envelope,
@@ -267,7 +303,7 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
         )
         arm._exclusive = exclusive
         opener = open_transport or serial_opener(implementation, exclusive)
-        return _Connector(arm, url, timeout, probe, opener)
+        return Connector(arm, url, timeout, probe, opener)
 
     async def _open(
         self, url: str, timeout: float | None, probe: bool, opener: TransportOpener

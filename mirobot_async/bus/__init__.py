@@ -48,7 +48,14 @@ from mirobot_async.bus.controller import (
     ControllerCommandError,
     ControllerVersion,
 )
-from mirobot_async.bus.controller_bus import ArmTransport, ControllerBus, connect
+from mirobot_async.bus.controller_bus import (
+    ArmConnector,
+    ArmTransport,
+    BusOpener,
+    ControllerBus,
+    SingleArmConnector,
+    connect,
+)
 from mirobot_async.bus.link import DEFAULT_BUS_BAUD, BusStats, BusTiming, NodeSilentError
 
 __all__ = [
@@ -56,8 +63,10 @@ __all__ = [
     "CONTROLLER_TIMEOUT",
     "DEFAULT_BUS_BAUD",
     "PINS",
+    "ArmConnector",
     "ArmState",
     "ArmTransport",
+    "BusOpener",
     "BusStats",
     "BusTiming",
     "Controller",
@@ -65,5 +74,6 @@ __all__ = [
     "ControllerCommandError",
     "ControllerVersion",
     "NodeSilentError",
+    "SingleArmConnector",
     "connect",
 ]

@@ -17,11 +17,18 @@ from typing import Any
 
 from mirobot_async.bus.controller import Controller
 from mirobot_async.bus.link import DEFAULT_BUS_BAUD, BusStats, BusTiming, LinkSide
-from mirobot_async.client import CONNECT_TIMEOUT, Mirobot
+from mirobot_async.client import CONNECT_TIMEOUT, Connector, Mirobot
 from mirobot_async.errors import MirobotConnectionError, MirobotUsageError
 from mirobot_async.wire import DataCallback, LostCallback, Transport
 
-__all__ = ["ArmTransport", "ControllerBus", "connect"]
+__all__ = [
+    "ArmConnector",
+    "ArmTransport",
+    "BusOpener",
+    "ControllerBus",
+    "SingleArmConnector",
+    "connect",
+]
 
 
 def _check_address(address: int) -> int:
@@ -62,7 +69,7 @@ class ArmTransport:
         self.abort()
 
 
-class _BusOpener:
+class BusOpener:
     """What :meth:`ControllerBus.open` returns: ``await`` it or use it with ``async with``."""
 
     def __init__(self, bus: ControllerBus, baud: int, exclusive: bool, timeout: float) -> None:
@@ -107,7 +114,7 @@ class ControllerBus:
         line_end: str = "\r\n",
         exclusive: bool = True,
         timeout: float = CONNECT_TIMEOUT,
-    ) -> _BusOpener:
+    ) -> BusOpener:
         """Open the bus at ``url`` (a USB-RS485 adapter, a pty...) at ``baud`` 8N1.
 
         ``line_end`` is what ends each request: ``"\\r\\n"`` (default: the manual and every
@@ -115,7 +122,7 @@ class ControllerBus:
         takes it is unknown). Raises :class:`MirobotConnectionError` when the port cannot be
         opened within ``timeout`` seconds. Nothing is sent until an arm or controller is used.
         """
-        return _BusOpener(cls(url, timing=timing, line_end=line_end), baud, exclusive, timeout)
+        return BusOpener(cls(url, timing=timing, line_end=line_end), baud, exclusive, timeout)
 
     async def _start(self, baud: int, exclusive: bool, timeout: float) -> ControllerBus:
         if self._side is not None:
@@ -168,7 +175,7 @@ class ControllerBus:
         if old in self._arms:
             self._arms[new] = self._arms.pop(old)
 
-    def arm(self, address: int, **options: Any) -> Any:
+    def arm(self, address: int, **options: Any) -> ArmConnector:
         """``Mirobot.connect(...)``-like connector for the arm at ``address``: ``await`` it or
         use ``async with``. ``options`` are those of :meth:`Mirobot.connect` (not
         ``open_transport``, ``implementation``, ``exclusive``)."""
@@ -184,21 +191,7 @@ class ControllerBus:
             return ArmTransport(side, address)
 
         connector = Mirobot.connect(f"{self.url}@{address:02d}", open_transport=opener, **options)
-        bus = self
-
-        class _Connector:
-            def __await__(self) -> Generator[Any, None, Mirobot]:
-                return bus._connect(address, connector).__await__()
-
-            async def __aenter__(self) -> Mirobot:
-                return await bus._connect(address, connector)
-
-            async def __aexit__(self, *exc_info: object) -> None:
-                arm = bus._arms.get(address)
-                if arm is not None:
-                    await arm.close()
-
-        return _Connector()
+        return ArmConnector(self, address, connector)
 
     async def connect_arm(self, address: int, **options: Any) -> Mirobot:
         """Connect to the arm at ``address`` (its first status proves it answers).
@@ -209,7 +202,7 @@ class ControllerBus:
         arm: Mirobot = await self.arm(address, **options)
         return arm
 
-    async def _connect(self, address: int, connector: Any) -> Mirobot:
+    async def _connect(self, address: int, connector: Connector) -> Mirobot:
         node = self._link().node(address)
         node.silenced = None
         try:
@@ -223,7 +216,54 @@ class ControllerBus:
         return arm
 
 
-def connect(url: str, *, address: int, baud: int = DEFAULT_BUS_BAUD, **options: Any) -> Any:
+class ArmConnector:
+    """What :meth:`ControllerBus.arm` returns: ``await`` it or use it with ``async with`` (the
+    arm is closed at the end of the block; the bus stays open)."""
+
+    def __init__(self, bus: ControllerBus, address: int, connector: Connector) -> None:
+        self._bus = bus
+        self._address = address
+        self._connector = connector
+
+    def __await__(self) -> Generator[Any, None, Mirobot]:
+        return self._bus._connect(self._address, self._connector).__await__()
+
+    async def __aenter__(self) -> Mirobot:
+        return await self._bus._connect(self._address, self._connector)
+
+    async def __aexit__(self, *exc_info: object) -> None:
+        arm = self._bus._arms.get(self._address)
+        if arm is not None:
+            await arm.close()
+
+
+class SingleArmConnector:
+    """What :func:`connect` (and ``Mirobot.connect(url, address=N)``) returns: use it with
+    ``async with`` only, since the bus it opens must be closed with the arm."""
+
+    def __init__(self, url: str, address: int, baud: int, options: dict[str, Any]) -> None:
+        self._url = url
+        self._address = address
+        self._baud = baud
+        self._options = options
+        self.bus: ControllerBus | None = None
+
+    async def __aenter__(self) -> Mirobot:
+        self.bus = await ControllerBus.open(self._url, baud=self._baud)
+        try:
+            return await self.bus.connect_arm(self._address, **self._options)
+        except BaseException:
+            await self.bus.close()
+            raise
+
+    async def __aexit__(self, *exc_info: object) -> None:
+        if self.bus is not None:
+            await self.bus.close()
+
+
+def connect(
+    url: str, *, address: int, baud: int = DEFAULT_BUS_BAUD, **options: Any
+) -> SingleArmConnector:
     """One arm behind a controller at ``address`` on the bus at ``url``, as
     ``Mirobot.connect(url, address=N)`` would be: ``async with connect(url, address=3) as arm``.
 
@@ -232,23 +272,4 @@ def connect(url: str, *, address: int, baud: int = DEFAULT_BUS_BAUD, **options: 
     :meth:`Mirobot.connect`. Raises :class:`NodeSilentError` when nothing answers there.
     """
     _check_address(address)
-
-    class _Single:
-        bus: ControllerBus | None = None
-
-        async def _open(self) -> Mirobot:
-            self.bus = await ControllerBus.open(url, baud=baud)
-            try:
-                return await self.bus.connect_arm(address, **options)
-            except BaseException:
-                await self.bus.close()
-                raise
-
-        async def __aenter__(self) -> Mirobot:
-            return await self._open()
-
-        async def __aexit__(self, *exc_info: object) -> None:
-            if self.bus is not None:
-                await self.bus.close()
-
-    return _Single()
+    return SingleArmConnector(url, address, baud, options)
