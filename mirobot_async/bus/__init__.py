@@ -39,7 +39,7 @@ status report is ~190 bytes: ~50 ms on the bus at 38400 baud, shared by every ar
 on the wire (a collision) holds the bus; the arm's call times out.
 """
 
-from mirobot_async.bus.controller import (
+from mirobot_async.bus._controller import (
     BAUD_CODES,
     CONTROLLER_TIMEOUT,
     PINS,
@@ -48,7 +48,7 @@ from mirobot_async.bus.controller import (
     ControllerCommandError,
     ControllerVersion,
 )
-from mirobot_async.bus.controller_bus import (
+from mirobot_async.bus._controller_bus import (
     ArmConnector,
     ArmTransport,
     BusOpener,
@@ -56,7 +56,7 @@ from mirobot_async.bus.controller_bus import (
     SingleArmConnector,
     connect,
 )
-from mirobot_async.bus.link import DEFAULT_BUS_BAUD, BusStats, BusTiming, NodeSilentError
+from mirobot_async.bus._link import DEFAULT_BUS_BAUD, BusStats, BusTiming, NodeSilentError
 
 __all__ = [
     "BAUD_CODES",

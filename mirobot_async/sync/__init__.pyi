@@ -4,18 +4,16 @@
 
 from __future__ import annotations
 
-from mirobot_async.client import Mirobot as AsyncMirobot
+from mirobot_async._client.client import Mirobot as AsyncMirobot
 from collections.abc import AsyncIterable, Callable, Iterable
 from typing import Any, Self
-from mirobot_async.condition import Firmware
-from mirobot_async.envelope import Envelope
-from mirobot_async.path_commands import Point
-from mirobot_async.replies import StatusReport
-from mirobot_async.streaming import LineResult, StreamResult
-from mirobot_async.sync.facade import BlockingContextManager, BlockingFacade, BlockingIterator
-from mirobot_async.sync.loop import EventLoopThread
-from mirobot_async.transport import Implementation
-from mirobot_async.wire import ClientStats, TransportOpener
+from mirobot_async import Firmware, Implementation, Point
+from mirobot_async._client.streaming import LineResult, StreamResult
+from mirobot_async._client.wire import ClientStats, TransportOpener
+from mirobot_async._core.replies import StatusReport
+from mirobot_async._safety.envelope import Envelope
+from mirobot_async.sync._facade import BlockingContextManager, BlockingFacade, BlockingIterator
+from mirobot_async.sync._loop import EventLoopThread
 
 __all__ = [
     "BlockingContextManager",

@@ -170,7 +170,7 @@ async def test_streaming_at_the_real_line_speed_loses_nothing(ready_arm: Mirobot
 
 
 async def test_loop_url_transport_echoes() -> None:
-    from mirobot_async.transport import SerialLink
+    from mirobot_async._client.transport import SerialLink
 
     received = bytearray()
     lost: list[BaseException | None] = []

@@ -23,6 +23,7 @@ import socket
 import subprocess
 import sys
 import time
+import typing
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
@@ -124,9 +125,8 @@ class Emulator:
         return self.stdout_line(timeout)
 
     def port(self, timeout: float = 0.05) -> serial.Serial:
-        port = serial.serial_for_url(self.path, 115200, timeout=timeout)
-        assert isinstance(port, serial.Serial)  # a pty path opens as a serial.Serial
-        return port
+        # A pty opens as serial.Serial, socket:// as its own class with the same reading API.
+        return typing.cast(serial.Serial, serial.serial_for_url(self.path, 115200, timeout=timeout))
 
     def stop(self, sig: int = signal.SIGTERM, timeout: float = 5.0) -> tuple[int, str]:
         """Signal the process, wait for it; return (exit status, stderr)."""

@@ -8,13 +8,13 @@ import time
 import pytest
 
 from mirobot_async import Mirobot
+from mirobot_async._core.replies import State
 from mirobot_async.errors import (
     MirobotConnectionError,
     MirobotError,
     MirobotUsageError,
     MotionRefusedError,
 )
-from mirobot_async.replies import State
 from mirobot_async.testing import InProcessArm, start_emulator
 
 PROFILES = ("2021", "classic")

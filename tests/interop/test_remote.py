@@ -29,8 +29,8 @@ from typing import Any
 import pytest
 
 from mirobot_async import Mirobot, MirobotConnectionError, MirobotError
+from mirobot_async._client.transport import SerialLink
 from mirobot_async.testing import EmulatorProcess
-from mirobot_async.transport import SerialLink
 
 pytestmark = [
     pytest.mark.timeout(60),

@@ -16,9 +16,9 @@ import pytest
 from hypothesis import HealthCheck, event, example, given, settings
 from hypothesis import strategies as st
 
-from mirobot_async.envelope import Envelope
+from mirobot_async._safety.envelope import Envelope
+from mirobot_async._safety.prediction import MachineState, Prediction, predict
 from mirobot_async.kinematics import forward
-from mirobot_async.prediction import MachineState, Prediction, predict
 
 Firmware = pytest.importorskip("mirobot_emulator.firmware").Firmware
 default_settings = pytest.importorskip("mirobot_emulator.settings").default_settings

@@ -10,12 +10,12 @@ from pathlib import Path
 
 import pytest
 
-from mirobot_async.sync import stubgen
+from mirobot_async.sync import _stubgen as stubgen
 
 
 def test_the_stub_is_generated_from_the_current_asyncio_class() -> None:
     assert stubgen.STUB_PATH.read_text() == stubgen.render_stub(), (
-        "mirobot_async/sync/__init__.pyi is stale: run python -m mirobot_async.sync.stubgen"
+        "mirobot_async/sync/__init__.pyi is stale: run python -m mirobot_async.sync._stubgen"
     )
 
 
@@ -56,7 +56,7 @@ def test_a_users_type_checker_reveals_real_types(tmp_path: Path) -> None:
         cwd=Path(__file__).resolve().parents[2],  # where an editable install keeps the sources
     )
     out = done.stdout
-    assert 'Revealed type is "mirobot_async.replies.StatusReport"' in out, out
-    assert "BlockingIterator[mirobot_async.replies.StatusReport]" in out, out
-    assert 'Revealed type is "mirobot_async.streaming.StreamResult"' in out, out
+    assert 'Revealed type is "mirobot_async._core.replies.StatusReport"' in out, out
+    assert "BlockingIterator[mirobot_async._core.replies.StatusReport]" in out, out
+    assert 'Revealed type is "mirobot_async._client.streaming.StreamResult"' in out, out
     assert 'Unexpected keyword argument "j7"' in out, out

@@ -19,7 +19,7 @@ import pytest
 from mirobot_async import Mirobot as AsyncMirobot
 from mirobot_async import MirobotConnectionError, MirobotUsageError
 from mirobot_async.sync import BlockingFacade, BlockingIterator, Mirobot
-from mirobot_async.sync.loop import LOOP_THREAD_NAME
+from mirobot_async.sync._loop import LOOP_THREAD_NAME
 
 pytestmark = pytest.mark.timeout(30)
 
