@@ -13,7 +13,7 @@ the repeated ``?`` is answered once it has booted.
 :func:`find_mirobot` probes the ports whose USB VID:PID is one of the USB-serial chips Mirobot
 controllers carry (:data:`MIROBOT_USB_IDS`) first, and the other ports only if none of those is a
 Mirobot. It returns the one port that answered as a Mirobot (logged at INFO on
-``mirobot_async._client.ports``) and refuses, listing them, when several did: which arm to move is
+``mirobot_async.ports``) and refuses, listing them, when several did: which arm to move is
 the user's choice, never a guess. ``$MIROBOT_AUTO_PORTS`` (ports separated by commas or spaces,
 pyserial URLs such as ``socket://host:port`` allowed) replaces the listed ports as the candidates.
 Blocking (threads, pyserial); the whole search takes about one probe timeout per stage.
