@@ -388,6 +388,33 @@ class ParsedLine:
         return self.dollar is not None and self.dollar.kind == "homing"
 
     @property
+    def clears_alarm(self) -> bool:
+        """Answered ``ok``, the line leaves Alarm and releases the axis lock: ``$X``, every
+        ``$H...`` the firmware accepts (it homes for each), and a G-code line with ``M50``."""
+        if self.dollar is not None:
+            return self.dollar.kind in ("unlock", "homing")
+        return self.kind == "gcode" and self.syntax_error is None and 50 in self.m_codes
+
+    @property
+    def changes_base_offset(self) -> bool:
+        """The line may change the 2021 base offset ``$41..$43`` (such a setting, in any form
+        the firmware reads as one, or ``$RST=...`` restoring the defaults)."""
+        dollar = self.dollar
+        if dollar is None:
+            return False
+        return dollar.kind == "restore" or (
+            dollar.kind == "setting" and dollar.number in (41, 42, 43)
+        )
+
+    @property
+    def queues_motion(self) -> bool:
+        """The line may put a block in the planner: a G-code line with an axis word or a ``G4``
+        dwell (``$`` commands do not: ``$H`` is answered when homing ends)."""
+        if self.kind != "gcode":
+            return False
+        return bool(self.axis_words) or 4 in self.g_codes
+
+    @property
     def has_odd_numbers(self) -> bool:
         """A word the firmware reads differently from its text (digits dropped, odd G/M form)."""
         return any(w.lossy or (isinstance(w, CodeWord) and not w.canonical) for w in self.words)

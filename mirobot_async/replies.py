@@ -37,6 +37,7 @@ __all__ = [
     "classify_line",
     "find_refusal",
     "format_status",
+    "parse_setting_line",
     "parse_status",
 ]
 
@@ -190,6 +191,19 @@ def parse_status(line: str | bytes) -> StatusReport:
         )
     except ValueError:
         raise MirobotProtocolError(f"bad number in status line {text[:120]!r}", data=line) from None
+
+
+_SETTING_LINE_RE = re.compile(r"\$(\d{1,3})\s*=\s*([+-]?(?:\d+\.?\d*|\.\d+))(?:[^\d.].*)?")
+
+
+def parse_setting_line(line: str | bytes) -> tuple[int, float] | None:
+    """``(number, value)`` of one line of a ``$$`` listing (``$110=1800.000 (...)``), or None
+    for any other line (the one reading of the listing: the client and the port probe)."""
+    text = line.decode("ascii", "replace") if isinstance(line, bytes | bytearray) else line
+    m = _SETTING_LINE_RE.fullmatch(text.strip())
+    if m is None:
+        return None
+    return int(m.group(1)), float(m.group(2))
 
 
 _DIAG_HEAD_RE = re.compile(r"<([A-Za-z]*)")
