@@ -58,7 +58,6 @@ CONNECT_TIMEOUT: Final = 5.0
 """Default ``timeout`` of :meth:`Mirobot.connect` (opening the port and the first status)."""
 
 
-
 class ClientParts:
     """The parts of one connection and what the command mixins share (not used alone)."""
 
