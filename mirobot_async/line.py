@@ -41,8 +41,9 @@ MAX_LINE_LENGTH: Final = 80
 """Longest line the firmware accepts after dropping spaces and comments (``Line overflow``)."""
 MAX_INT_DIGITS: Final = 8
 """Digits of a number the firmware keeps (GRBL 0.9j ``MAX_INT_DIGITS``), leading zeros count."""
-REALTIME_BYTES: Final = "?!~%"
-"""Bytes the firmware takes at once (status, hold, start, reset) and removes from the line."""
+REALTIME_BYTES: Final = "?!~%@"
+"""Bytes the firmware takes at once (status, hold, start, reset, safety door) and removes from
+the line, wherever they are (inside a comment too)."""
 
 AXIS_LETTERS: Final = "XYZABCD"
 """Axis words: J1..J6 and the rail D in ``M21``; x y z and roll pitch yaw (and D) in ``M20``."""
@@ -61,7 +62,8 @@ def _f32(value: float) -> float:
 
 def normalize_line(line: str | bytes) -> str:
     """The line as the firmware's parser sees it: bytes <= 0x20 and ``/`` dropped, letters upper
-    case, ``( ... )`` and ``; ...`` comments removed. Realtime bytes (``? ! ~ %``) are removed too.
+    case, ``( ... )`` and ``; ...`` comments removed. Realtime bytes (``? ! ~ % @``) are removed
+    too.
     """
     text = line.decode("latin-1") if isinstance(line, bytes) else line
     return normalize_text(text)[0]
