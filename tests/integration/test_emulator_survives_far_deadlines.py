@@ -5,35 +5,27 @@ die with ``OverflowError``). Real time (time scale 1): these deadlines are wall-
 
 from __future__ import annotations
 
-import asyncio
+import contextlib
 
 import pytest
 
-from mirobot_async import Mirobot, MirobotConnectionError, State
+from mirobot_async import Mirobot, MirobotConnectionError, MirobotTimeoutError, State
 from mirobot_async.testing import EmulatorProcess
 
 
-@pytest.mark.parametrize(
-    ("line", "state"), [("G4 P3000000", None), ("G1 X10 F0.0001", State.RUN)]
-)
+@pytest.mark.parametrize(("line", "state"), [("G4 P3000000", None), ("G1 X10 F0.0001", State.RUN)])
 async def test_a_far_motion_deadline_keeps_the_emulator_serving(
     line: str, state: State | None
 ) -> None:
-    async with await EmulatorProcess.start("2021", 1.0) as emu:
-        async with Mirobot.connect(emu.url) as arm:
-            await arm.unlock()
-            written = arm.stats.lines_sent
-            sending = asyncio.ensure_future(arm.send(line, validate=False))
-            async with asyncio.timeout(10):
-                while arm.stats.lines_sent == written:
-                    await asyncio.sleep(0.01)
-            report = await arm.status(timeout=5)  # answered: the server loop went on
-            assert state is None or report.state is state
-            assert emu.returncode is None
-            sending.cancel()
-            await asyncio.gather(sending, return_exceptions=True)
-            await arm.reset()  # the dwell or the crawl ends; the link is in step again
-            assert (await arm.status()).state in (State.IDLE, State.ALARM)
+    async with await EmulatorProcess.start("2021", 1.0) as emu, Mirobot.connect(emu.url) as arm:
+        await arm.unlock()
+        with contextlib.suppress(MirobotTimeoutError):  # the dwell's ok is days away
+            await arm.send(line, validate=False, timeout=0.5)
+        report = await arm.status(timeout=5)  # answered: the server loop went on
+        assert state is None or report.state is state
+        assert emu.returncode is None
+        await arm.reset()  # the dwell or the crawl ends; the link is in step again
+        assert (await arm.status()).state in (State.IDLE, State.ALARM)
 
 
 @pytest.mark.parametrize("seconds", ["1e12", "1e300"])
