@@ -13,12 +13,14 @@ import sys
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Final
 
-from mirobot_async import gcode, validation
+from mirobot_async import gcode
 from mirobot_async.cli.exits import EXIT_FAILED, EXIT_OK, CliError, RobotNotReadyError, note
 from mirobot_async.cli.programs import (
     ProgramLine,
     open_trace,
     program_name,
+    program_of,
+    program_problems,
     read_lines,
     read_program,
 )
@@ -47,7 +49,6 @@ from mirobot_async.errors import (
     MirobotError,
     MirobotTimeoutError,
 )
-from mirobot_async.line import normalize_line
 from mirobot_async.plotting import TraceError, TraceWriter
 from mirobot_async.replies import State
 
@@ -304,17 +305,15 @@ async def _check_before_running(
     stderr and :class:`RobotNotReadyError` (exit 1), so a program never stops half-way through
     at a line the check would have refused. The firmware profile is asked (``$$``, read-only)
     only when it is unknown and the profiles disagree about the program."""
-    texts = [line.text for line in program]
     firmware = args.firmware or arm.firmware
     if firmware is None:  # a port whose profile is not known yet: ask ($$) only if it matters
-        if not any(validation.check_program(texts, firmware=p) for p in gcode.FIRMWARE_PROFILES):
+        if not any(program_problems(program, p) for p in gcode.FIRMWARE_PROFILES):
             return
         firmware = await arm.detect_firmware()
-    problems = validation.check_program(texts, firmware=firmware)
+    problems = program_problems(program, firmware)
     if not problems:
         return
-    for index, message in problems:
-        line = program[index - 1]
+    for line, message in problems:
         print(f"{name}:{line.number}: {line.text}: {message}", file=sys.stderr)
     count = len(problems)
     raise RobotNotReadyError(
@@ -366,15 +365,15 @@ def cmd_check(args: argparse.Namespace) -> int:
     """``mirobot check FILE``: offline validation, problems as ``FILE:LINE: message``."""
     name = program_name(args.file)
     lines = read_lines(args.file)
-    problems = validation.check_program(lines, firmware=args.firmware)
-    for number, message in problems:
-        print(f"{name}:{number}: {message}")
+    program = program_of(lines)
+    problems = program_problems(program, args.firmware)
+    for line, message in problems:
+        print(f"{name}:{line.number}: {message}")
     if problems:
         count = len(problems)
         note(f"{count} problem{'s' if count != 1 else ''} in {name}")
         return EXIT_FAILED
-    commands = sum(1 for line in lines if normalize_line(line))
-    print(f"OK: {len(lines)} lines ({commands} commands, firmware {args.firmware})")
+    print(f"OK: {len(lines)} lines ({len(program)} commands, firmware {args.firmware})")
     return EXIT_OK
 
 
