@@ -11,8 +11,11 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import TypeVar
 
 import pytest
+
+_T = TypeVar("_T")
 
 
 def _children(pid: int) -> list[int]:
@@ -41,7 +44,7 @@ def _gone(pid: int) -> bool:
     return state in ("Z", "X")
 
 
-def _wait_for(condition: Callable[[], object], limit: float, what: str) -> object:
+def _wait_for(condition: Callable[[], _T], limit: float, what: str) -> _T:
     deadline = time.monotonic() + limit
     while not (found := condition()):
         if time.monotonic() > deadline:
@@ -72,7 +75,7 @@ def test_a_killed_monitor_leaves_no_emulator(sig: signal.Signals) -> None:
                     return child
             return 0
 
-        emulator = int(_wait_for(emulator_child, 60, "embedded emulator") or 0)
+        emulator = _wait_for(emulator_child, 60, "embedded emulator")
         os.kill(cli.pid, sig)
         cli.wait(30)
         _wait_for(lambda: _gone(emulator), 30, "exit of the orphaned emulator")
