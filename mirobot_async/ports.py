@@ -90,11 +90,13 @@ def _lines(data: bytes) -> list[str]:
 
 
 def _first_status(data: bytes) -> StatusReport | None:
-    """The first complete line of ``data`` that is a Mirobot status report, parsed."""
+    """The first complete line of ``data`` that ends with a Mirobot status report (after noise
+    from before the port was opened, if any), parsed."""
     for line in _lines(data):
-        if line.strip().startswith("<"):
+        start = line.rfind("<")
+        if start >= 0:
             try:
-                return parse_status(line)
+                return parse_status(line[start:])
             except MirobotProtocolError:
                 continue
     return None
