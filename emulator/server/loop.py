@@ -90,6 +90,15 @@ def _wait_until_landed(port: Port, written: int) -> None:
         time.sleep(0.0001)
 
 
+def _bounded_wait(times: list[float], now: float) -> float | None:
+    """Seconds from ``now`` to the earliest of ``times`` (None: none), at most
+    :data:`LONGEST_WAIT_S` (an infinite or nan deadline too)."""
+    if not times:
+        return None
+    wait = min(times) - now
+    return max(0.0, wait) if wait < LONGEST_WAIT_S else LONGEST_WAIT_S
+
+
 def _unregister(selector: selectors.BaseSelector, fileobjs: Iterable[Any]) -> None:
     """Take ``fileobjs`` out of ``selector`` (those already gone or closed too)."""
     for fileobj in fileobjs:
@@ -421,10 +430,7 @@ class EmulatorServer:
             times.append(self._start + due)
         if _MAX_SLEEP_S is not None:
             times.append(now + _MAX_SLEEP_S)
-        if not times:
-            return None
-        wait = min(times) - now
-        return max(0.0, wait) if wait < LONGEST_WAIT_S else LONGEST_WAIT_S  # inf and nan too
+        return _bounded_wait(times, now)
 
     # ------------------------------------------------------------------ control channel
     def _handle_command(self, text: str, reply: Callable[[str], None] | None) -> None:
