@@ -42,6 +42,9 @@ MAX_LOGGED_ERRORS = 5  # tracebacks of firmware-model exceptions written to the 
 # Where a signal handler cannot interrupt select() (Windows), the loop wakes this often to see
 # a stop requested from one.
 _MAX_SLEEP_S = 0.25 if sys.platform == "win32" else None
+# The longest one select() waits: a far deadline (a dwell of days, a feed of 0.0001, a stall of
+# years) is reached by waking again, never by a timeout select() cannot take (OverflowError).
+LONGEST_WAIT_S = 60.0
 
 
 def _default_firmware_factory(options: ServerOptions) -> Callable[[], FirmwareLike]:
@@ -85,6 +88,15 @@ def _wait_until_landed(port: Port, written: int) -> None:
         if time.monotonic() >= deadline:
             return
         time.sleep(0.0001)
+
+
+def _bounded_wait(times: list[float], now: float) -> float | None:
+    """Seconds from ``now`` to the earliest of ``times`` (None: none), at most
+    :data:`LONGEST_WAIT_S` (an infinite or nan deadline too)."""
+    if not times:
+        return None
+    wait = min(times) - now
+    return max(0.0, wait) if wait < LONGEST_WAIT_S else LONGEST_WAIT_S
 
 
 def _unregister(selector: selectors.BaseSelector, fileobjs: Iterable[Any]) -> None:
@@ -418,7 +430,7 @@ class EmulatorServer:
             times.append(self._start + due)
         if _MAX_SLEEP_S is not None:
             times.append(now + _MAX_SLEEP_S)
-        return max(0.0, min(times) - now) if times else None
+        return _bounded_wait(times, now)
 
     # ------------------------------------------------------------------ control channel
     def _handle_command(self, text: str, reply: Callable[[str], None] | None) -> None:

@@ -19,6 +19,8 @@ from mirobot_async._cli.programs import (
     ProgramLine,
     open_trace,
     program_name,
+    program_of,
+    program_problems,
     read_lines,
     read_program,
 )
@@ -41,8 +43,7 @@ from mirobot_async._cli.session import (
     time_scale_of,
 )
 from mirobot_async._cli.targets import JOINT_KEYS, POSE_KEYS, parse_assignments
-from mirobot_async._core import gcode, validation
-from mirobot_async._core.line import normalize_line
+from mirobot_async._core import gcode
 from mirobot_async._core.replies import State
 from mirobot_async.errors import (
     MirobotAlarmError,
@@ -305,17 +306,15 @@ async def _check_before_running(
     program never stops half-way through at a line the check would have refused. The firmware
     profile is asked (``$$``, read-only) only when it is unknown and the profiles disagree about
     the program."""
-    texts = [line.text for line in program]
     firmware = args.firmware or arm.firmware
     if firmware is None:  # a port whose profile is not known yet: ask ($$) only if it matters
-        if not any(validation.check_program(texts, firmware=p) for p in gcode.FIRMWARE_PROFILES):
+        if not any(program_problems(program, p) for p in gcode.FIRMWARE_PROFILES):
             return
         firmware = await arm.detect_firmware()
-    problems = validation.check_program(texts, firmware=firmware)
+    problems = program_problems(program, firmware)
     if not problems:
         return
-    for index, message in problems:
-        line = program[index - 1]
+    for line, message in problems:
         print(f"{name}:{line.number}: {line.text}: {message}", file=sys.stderr)
     count = len(problems)
     raise RobotNotReadyError(
@@ -367,15 +366,15 @@ def cmd_check(args: argparse.Namespace) -> int:
     """``mirobot check FILE``: offline validation, problems as ``FILE:LINE: message``."""
     name = program_name(args.file)
     lines = read_lines(args.file)
-    problems = validation.check_program(lines, firmware=args.firmware)
-    for number, message in problems:
-        print(f"{name}:{number}: {message}")
+    program = program_of(lines)
+    problems = program_problems(program, args.firmware)
+    for line, message in problems:
+        print(f"{name}:{line.number}: {message}")
     if problems:
         count = len(problems)
         note(f"{count} problem{'s' if count != 1 else ''} in {name}")
         return EXIT_FAILED
-    commands = sum(1 for line in lines if normalize_line(line))
-    print(f"OK: {len(lines)} lines ({commands} commands, firmware {args.firmware})")
+    print(f"OK: {len(lines)} lines ({len(program)} commands, firmware {args.firmware})")
     return EXIT_OK
 
 

@@ -266,11 +266,18 @@ def _parse_time(text: str) -> float:
     return moment.timestamp()
 
 
-def _optional_int(text: str | None) -> int | None:
-    try:
-        return int(float(text)) if text else None
-    except ValueError:
+def _optional_pwm(text: str | None, column: str) -> int | None:
+    """A ``pump`` / ``valve`` cell: None when empty, else a whole number (``ValueError`` for
+    anything else, ``inf`` and ``nan`` included)."""
+    if not text:
         return None
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value) or not value.is_integer():
+        raise ValueError(f"{column} {text!r} is not a whole PWM value")
+    return int(value)
 
 
 def _robot_seconds(walls: list[float], scales: list[float]) -> tuple[tuple[float, ...], bool]:
@@ -315,6 +322,8 @@ def _parse_rows(lines: Iterable[str], name: str) -> Trace:
             j = tuple(float(row[f"j{n}"] or "") for n in range(1, 7))
             p = tuple(float(row[axis] or "") for axis in ("x", "y", "z"))
             scale = float(row.get("time_scale") or 1.0)
+            pump = _optional_pwm(row.get("pump"), "pump")
+            valve = _optional_pwm(row.get("valve"), "valve")
         except (ValueError, TypeError) as err:
             raise TraceError(f"{name}:{lineno}: bad sample: {err}") from err
         if not all(math.isfinite(v) for v in (stamp, scale, *j, *p)):
@@ -324,8 +333,8 @@ def _parse_rows(lines: Iterable[str], name: str) -> Trace:
         states.append(row.get("state") or "")
         joints.append((j[0], j[1], j[2], j[3], j[4], j[5]))
         positions.append((p[0], p[1], p[2]))
-        pumps.append(_optional_int(row.get("pump")))
-        valves.append(_optional_int(row.get("valve")))
+        pumps.append(pump)
+        valves.append(valve)
     seconds, robot_time = _robot_seconds(times, scales)
     return Trace(
         seconds=seconds,

@@ -16,6 +16,8 @@ import re
 from collections.abc import Iterable, Mapping
 from typing import Final, Literal
 
+from mirobot_async._core.events import LineAcknowledged, LineRejected
+from mirobot_async._core.line import ParsedLine
 from mirobot_async.errors import (
     MirobotAlarmError,
     MirobotConnectionError,
@@ -159,6 +161,18 @@ class RobotCondition:
         self.reset_only = None
         if self.alarm_epoch == alarm_epoch:
             self.alarm = None
+
+    def on_line_answered(
+        self, parsed: ParsedLine | None, reply: LineAcknowledged | LineRejected
+    ) -> None:
+        """The robot answered ``parsed`` (sent by any call, a stream or a path; the line parsed
+        once when it was written): the facts its success settles, decided here only."""
+        if parsed is None or not isinstance(reply, LineAcknowledged) or reply.refusal is not None:
+            return
+        if parsed.clears_alarm:
+            self.unlocked()
+        if parsed.changes_base_offset:
+            self.base_offset = None
 
     def unlocked(self) -> None:
         """``$X``, ``$H``... succeeded: forget the remembered alarm (not a reset-only one)."""

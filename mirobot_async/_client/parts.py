@@ -13,7 +13,6 @@ share: sending one line and awaiting its reply, the firmware profile, the timing
 from __future__ import annotations
 
 import asyncio
-import re
 from typing import TYPE_CHECKING, Final
 
 from mirobot_async._client.completion import MotionCompletion
@@ -27,6 +26,7 @@ from mirobot_async._client.transport import Implementation
 from mirobot_async._client.wire import ClientStats, Wire
 from mirobot_async._core import gcode
 from mirobot_async._core.line import parse_line
+from mirobot_async._core.replies import parse_setting_line
 from mirobot_async.errors import MirobotConnectionError, MirobotUsageError
 
 if TYPE_CHECKING:  # imported when an envelope is used (it needs numpy)
@@ -56,12 +56,6 @@ RESET_TIMEOUT: Final = 10.0
 """Default ``timeout`` of :meth:`Mirobot.reset` (the banner after ``%``)."""
 CONNECT_TIMEOUT: Final = 5.0
 """Default ``timeout`` of :meth:`Mirobot.connect` (opening the port and the first status)."""
-
-# Raw lines whose success clears a remembered alarm: $X, $H, $HH, $H0..$H7, $HE, M50.
-_UNLOCKING_RE: Final = re.compile(r"^(?:\$X|\$H[H0-7E]?|M0*50)$")
-# Raw lines that may change the base offset $41..$43 (a setting, or restoring the defaults).
-_OFFSET_CHANGE_RE: Final = re.compile(r"^\$(?:0*4[123]=|RST)")
-_SETTING_LINE_RE: Final = re.compile(r"^\$(\d+)\s*=\s*([+-]?(?:\d+\.?\d*|\.\d+))")
 
 
 class ClientParts:
@@ -195,12 +189,7 @@ class ClientParts:
             parsed=parsed,
             validate=validate,
         )
-        output = await self._lines.await_slot(slot, deadline, timeout)
-        if _UNLOCKING_RE.match(parsed.text):
-            self._condition.unlocked()
-        if _OFFSET_CHANGE_RE.match(parsed.text):
-            self._condition.base_offset = None
-        return output
+        return await self._lines.await_slot(slot, deadline, timeout)
 
     async def _command_within(self, data: bytes, timeout: float | None) -> tuple[str, ...]:
         """:meth:`_command` with a deadline ``timeout`` seconds from now (the one-line calls)."""
@@ -236,9 +225,9 @@ class ClientParts:
         )
         values: dict[int, float] = {}
         for line in output:
-            match = _SETTING_LINE_RE.match(line.strip())
-            if match is not None:
-                values[int(match.group(1))] = float(match.group(2))
+            setting = parse_setting_line(line)
+            if setting is not None:
+                values[setting[0]] = setting[1]
         self._condition.learn_firmware_from_settings(values)
         self._guard.adopt_settings(values)
         return values

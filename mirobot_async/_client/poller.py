@@ -87,6 +87,7 @@ class StatusPoller:
         self._asks: deque[float] = deque()  # write times of unanswered "?", oldest first
         self._last_ask = -math.inf
         self._last_report = -math.inf  # when the last report (even a corrupted one) arrived
+        self._unreadable = 0  # corrupted reports in a row: the next "?" waits longer (_gap)
         self._timer: asyncio.TimerHandle | None = None
 
     def start(self, loop: asyncio.AbstractEventLoop) -> None:
@@ -109,6 +110,7 @@ class StatusPoller:
         """A well-formed report: credit it, give it to the waiters it satisfies."""
         self._wire.stats.status_reports += 1
         self.last_status = report
+        self._unreadable = 0
         self._last_report = self._running_loop().time()
         asked_at = self._asks.popleft() if self._asks else -math.inf
         keep: list[_Waiter] = []
@@ -125,6 +127,7 @@ class StatusPoller:
     def on_corrupted(self, reason: str) -> None:
         """An unreadable report answered the oldest ``?``: drop it and ask again."""
         self._wire.stats.status_corrupted += 1
+        self._unreadable += 1
         _log.warning("dropped a corrupted status line (%s)", reason)
         if self._asks:
             self._asks.popleft()
@@ -219,7 +222,7 @@ class StatusPoller:
             # A completion wait: one "?" every pipeline gap, at most ``depth`` in flight (those
             # older than PIPELINE_WINDOW were merged or ignored), so the reports follow each other.
             recent = [asked for asked in asks if asked > now - PIPELINE_WINDOW]
-            due = self._last_ask + (self._pipeline_gap() if recent else self.min_gap)
+            due = self._last_ask + (self._pipeline_gap() if recent else self._gap())
             if len(recent) >= depth:
                 due = max(due, recent[0] + PIPELINE_WINDOW)
             if now < due:
@@ -235,7 +238,7 @@ class StatusPoller:
             self._wire.stats.status_retries += 1
             _log.debug("no status reply after %.3f s; asking again", now - self._last_ask)
         else:
-            due = self._last_ask + self.min_gap
+            due = self._last_ask + self._gap()
             if now < due:
                 self._arm_timer(due)
                 return
@@ -246,6 +249,14 @@ class StatusPoller:
         asks.append(now)
         self._last_ask = now
         self._arm_timer(now + (self._pipeline_gap() if pipelining else self.retry_interval))
+
+    def _gap(self) -> float:
+        """:attr:`min_gap`, four times longer per unreadable report in a row, up to
+        :attr:`retry_interval`: a robot whose reports cannot be read is asked a few times a
+        second, not hundreds (each unreadable report would otherwise call for the next ``?``)."""
+        if not self._unreadable:
+            return self.min_gap
+        return min(self.retry_interval, max(self.min_gap, 0.002) * 4.0 ** min(self._unreadable, 8))
 
     def _pipeline_gap(self) -> float:
         """:func:`pipeline_gap` for the last report's length."""

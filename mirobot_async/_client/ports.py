@@ -24,13 +24,13 @@ from __future__ import annotations
 import concurrent.futures
 import logging
 import os
-import re
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Final
 
-from mirobot_async._core.replies import StatusReport, parse_status
+from mirobot_async._client.condition import firmware_from_banner
+from mirobot_async._core.replies import StatusReport, parse_setting_line, parse_status
 from mirobot_async.errors import MirobotConnectionError, MirobotProtocolError
 
 if TYPE_CHECKING:
@@ -69,9 +69,6 @@ MIROBOT_USB_IDS: Final = frozenset(
 DEFAULT_PROBE_TIMEOUT: Final = 3.0
 """Seconds a probe waits for a status (a Mirobot resetting on open needs about 2 s to boot)."""
 _ASK_EVERY: Final = 0.5
-_STATUS_RE: Final = re.compile(rb"<[^<>\r\n]{10,400}>")
-_VERSION_RE: Final = re.compile(rb"Robot\s+(\d{8})(\S*)")
-_SETTING_29_RE: Final = re.compile(rb"^\$29\s*=", re.MULTILINE)
 
 
 @dataclass(frozen=True, slots=True)
@@ -86,9 +83,23 @@ class PortVerdict:
     is_mirobot: bool
 
 
-def _firmware_of(version: bytes) -> str:
-    date = version.decode("ascii", "replace")[:8]
-    return "classic" if date < "20210000" else "2021"
+def _lines(data: bytes) -> list[str]:
+    """The complete lines received so far (``\r`` and ``\n`` each end a line)."""
+    text = data.decode("ascii", "replace").replace("\r", "\n")
+    return text.split("\n")[:-1]
+
+
+def _first_status(data: bytes) -> StatusReport | None:
+    """The first complete line of ``data`` that ends with a Mirobot status report (after noise
+    from before the port was opened, if any), parsed."""
+    for line in _lines(data):
+        start = line.rfind("<")
+        if start >= 0:
+            try:
+                return parse_status(line[start:])
+            except MirobotProtocolError:
+                continue
+    return None
 
 
 def _read_for(link: serial.Serial, seconds: float) -> bytes:
@@ -131,25 +142,24 @@ def probe_port(device: str, timeout: float = DEFAULT_PROBE_TIMEOUT) -> tuple[str
                     link.write(b"?")
                     asked = time.monotonic()
                 data += link.read(512)
-                for match in _STATUS_RE.finditer(data):
-                    try:
-                        status = parse_status(match.group(0))
-                    except MirobotProtocolError:
-                        continue
-                    break
+                status = _first_status(data)
             if status is None:
                 heard = "answers something else" if data.strip() else "silent"
                 return f"not a Mirobot ({heard}: no status reply to ?)", False
-            version = _VERSION_RE.search(data)
-            if version is not None:
-                name = (version.group(1) + version.group(2)).decode("ascii", "replace")
-                firmware = f"firmware {_firmware_of(version.group(1))} ({name})"
+            profile, version = firmware_from_banner(_lines(data))
+            if profile is not None:
+                firmware = f"firmware {profile} ({version})"
             else:
                 link.write(b"$$\n")
                 settings = _read_for(link, max(1.0, timeout / 2))
+                numbers = {
+                    setting[0]
+                    for line in _lines(settings)
+                    if (setting := parse_setting_line(line)) is not None
+                }
                 if b"ok" not in settings:
                     firmware = "firmware unknown (no reply to $$)"
-                elif _SETTING_29_RE.search(settings.replace(b"\r", b"")):
+                elif 29 in numbers:
                     firmware = "firmware 2021"
                 else:
                     firmware = "firmware classic"

@@ -69,6 +69,7 @@ class Slot:
     reply_epoch: int = -1  # the reset epoch when its reply came (a line may run after a reset)
     # Called synchronously when the reply (or failure) is settled, before anything else runs.
     watch: Callable[[Slot], None] | None = None
+    parsed: ParsedLine | None = None  # the line's one parse: its ok settles facts (condition)
 
     @property
     def check(self) -> LineCheck | None:
@@ -178,14 +179,14 @@ class LineScheduler:
         stats = self._wire.stats
         if isinstance(event, LineAcknowledged):
             stats.lines_acknowledged += 1
-            if event.refusal is not None:
-                stats.lines_refused += 1
+            stats.lines_refused += event.refusal is not None
         else:
             stats.lines_rejected += 1
         slot = self._take(event.line.id)
         if slot is None:
             return
         self._poller.on_line_reply(slot.sent_at)
+        self._condition.on_line_answered(slot.parsed, event)
         if slot.tracked is not None:
             if isinstance(event, LineRejected):
                 self._guard.line_failed(slot.tracked, rejected=True)
@@ -364,7 +365,7 @@ class LineScheduler:
                     if should_stop is not None and should_stop():
                         raise StreamStopped  # a reply received meanwhile stopped it
                     slot = self._write(data, command, exclusive, parsed.dwell_seconds)
-                    slot.watch = watch  # no reply can be dispatched before this
+                    slot.watch, slot.parsed = watch, parsed  # no reply can come before this
                     slot.tracked = guard.track_written(
                         slot.pending.id,
                         command,

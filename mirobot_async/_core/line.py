@@ -41,8 +41,9 @@ MAX_LINE_LENGTH: Final = 80
 """Longest line the firmware accepts after dropping spaces and comments (``Line overflow``)."""
 MAX_INT_DIGITS: Final = 8
 """Digits of a number the firmware keeps (GRBL 0.9j ``MAX_INT_DIGITS``), leading zeros count."""
-REALTIME_BYTES: Final = "?!~%"
-"""Bytes the firmware takes at once (status, hold, start, reset) and removes from the line."""
+REALTIME_BYTES: Final = "?!~%@"
+"""Bytes the firmware takes at once (status, hold, start, reset, safety door) and removes from
+the line, wherever they are (inside a comment too)."""
 
 AXIS_LETTERS: Final = "XYZABCD"
 """Axis words: J1..J6 and the rail D in ``M21``; x y z and roll pitch yaw (and D) in ``M20``."""
@@ -61,7 +62,8 @@ def _f32(value: float) -> float:
 
 def normalize_line(line: str | bytes) -> str:
     """The line as the firmware's parser sees it: bytes <= 0x20 and ``/`` dropped, letters upper
-    case, ``( ... )`` and ``; ...`` comments removed. Realtime bytes (``? ! ~ %``) are removed too.
+    case, ``( ... )`` and ``; ...`` comments removed. Realtime bytes (``? ! ~ % @``) are removed
+    too.
     """
     text = line.decode("latin-1") if isinstance(line, bytes) else line
     return normalize_text(text)[0]
@@ -386,6 +388,33 @@ class ParsedLine:
     def is_homing(self) -> bool:
         """Any ``$H...`` line (the firmware homes for every variant it accepts)."""
         return self.dollar is not None and self.dollar.kind == "homing"
+
+    @property
+    def clears_alarm(self) -> bool:
+        """Answered ``ok``, the line leaves Alarm and releases the axis lock: ``$X``, every
+        ``$H...`` the firmware accepts (it homes for each), and a G-code line with ``M50``."""
+        if self.dollar is not None:
+            return self.dollar.kind in ("unlock", "homing")
+        return self.kind == "gcode" and self.syntax_error is None and 50 in self.m_codes
+
+    @property
+    def changes_base_offset(self) -> bool:
+        """The line may change the 2021 base offset ``$41..$43`` (such a setting, in any form
+        the firmware reads as one, or ``$RST=...`` restoring the defaults)."""
+        dollar = self.dollar
+        if dollar is None:
+            return False
+        return dollar.kind == "restore" or (
+            dollar.kind == "setting" and dollar.number in (41, 42, 43)
+        )
+
+    @property
+    def queues_motion(self) -> bool:
+        """The line may put a block in the planner: a G-code line with an axis word or a ``G4``
+        dwell (``$`` commands do not: ``$H`` is answered when homing ends)."""
+        if self.kind != "gcode":
+            return False
+        return bool(self.axis_words) or 4 in self.g_codes
 
     @property
     def has_odd_numbers(self) -> bool:

@@ -15,9 +15,16 @@ from mirobot_async.errors import MirobotUsageError
 __all__ = ["encode_line"]
 
 # Bytes that a command line may not contain: line ends (a line is one line) and the realtime bytes,
-# which the firmware takes out of the stream wherever they are (PROTOCOL.md section 3).
-_FORBIDDEN_TEXT_RE = re.compile(r"[\r\n?!~%]")
-_REALTIME_HINTS = {"?": "use status()", "!": "use hold()", "~": "use resume()", "%": "use reset()"}
+# which the firmware takes out of the stream wherever they are, even inside a comment (PROTOCOL.md
+# section 3): "@" (GRBL's safety door) holds the firmware's parser until "~".
+_FORBIDDEN_TEXT_RE = re.compile(r"[\r\n?!~%@]")
+_REALTIME_HINTS = {
+    "?": "use status()",
+    "!": "use hold()",
+    "~": "use resume()",
+    "%": "use reset()",
+    "@": "the safety-door byte: the robot would stop reading lines until '~'",
+}
 
 
 def encode_line(line: object, rx_buffer_size: int = 128, *, strip: bool = True) -> bytes:
@@ -27,7 +34,8 @@ def encode_line(line: object, rx_buffer_size: int = 128, *, strip: bool = True) 
     Accepts ``str``, ``bytes`` or ``bytearray`` of ASCII text; one trailing line end (``"\\n"``,
     and with ``strip`` also ``"\\r\\n"`` and surrounding blanks) is removed. Raises
     :class:`MirobotUsageError` for another type, non-ASCII text, a line break inside, a realtime
-    byte (``? ! ~ %``, which the firmware would act on at once), or a line that with its line end
+    byte (``? ! ~ % @``, which the firmware would act on at once, even inside a comment), or a
+    line that with its line end
     is longer than the robot's ``rx_buffer_size``-byte receive buffer.
     """
     if isinstance(line, bytes | bytearray):

@@ -37,6 +37,7 @@ __all__ = [
     "classify_line",
     "find_refusal",
     "format_status",
+    "parse_setting_line",
     "parse_status",
 ]
 
@@ -151,8 +152,12 @@ _STATUS_RE = re.compile(
     r"Cartesian coordinate\(XYZ ?RxRyRz\):"
     rf"{_NUM},{_NUM},{_NUM},{_NUM},{_NUM},{_NUM},"
     rf"Pump PWM:{_INT},Va(?:lv|lu)e PWM:{_INT}"
-    rf"(?:,Motion_MODE:{_INT})?>"
+    rf"(?:,Motion_MODE:{_INT})?"
+    r"(?:,Buf:[0-9]{1,3})?(?:,RX:[0-9]{1,3})?(?:,Lim:[01]{1,8})?>"
 )
+"""A status report with the angles, the pose and the PWM values (``$10`` bits 1 and 32), and
+what the other bits of the mask add: ``Motion_MODE`` (64), ``Buf`` (4), ``RX`` (8), ``Lim`` (16).
+"""
 
 
 def parse_status(line: str | bytes) -> StatusReport:
@@ -192,6 +197,19 @@ def parse_status(line: str | bytes) -> StatusReport:
         raise MirobotProtocolError(f"bad number in status line {text[:120]!r}", data=line) from None
 
 
+_SETTING_LINE_RE = re.compile(r"\$(\d{1,3})\s*=\s*([+-]?(?:\d+\.?\d*|\.\d+))(?:[^\d.].*)?")
+
+
+def parse_setting_line(line: str | bytes) -> tuple[int, float] | None:
+    """``(number, value)`` of one line of a ``$$`` listing (``$110=1800.000 (...)``), or None
+    for any other line (the one reading of the listing: the client and the port probe)."""
+    text = line.decode("ascii", "replace") if isinstance(line, bytes | bytearray) else line
+    m = _SETTING_LINE_RE.fullmatch(text.strip())
+    if m is None:
+        return None
+    return int(m.group(1)), float(m.group(2))
+
+
 _DIAG_HEAD_RE = re.compile(r"<([A-Za-z]*)")
 
 
@@ -204,6 +222,11 @@ def _diagnose(text: str) -> str:
     head = _DIAG_HEAD_RE.match(text)
     if head is not None and head.group(1) not in _STATES:
         return f"unknown state {head.group(1)!r} in status line {text[:80]!r}"
+    if ",Angle(" not in text or ",Pump PWM:" not in text:
+        return (
+            f"status line {text[:80]!r} lacks the angles or the PWM values: the robot's status "
+            "report mask $10 leaves them out (set $10=99)"
+        )
     low = text.lower()
     if "nan" in low or "inf" in low:
         return f"non-finite number in status line {text[:80]!r}"

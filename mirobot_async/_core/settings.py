@@ -11,9 +11,22 @@ from typing import Final, Literal
 
 from mirobot_async._core.values import FIRMWARE_PROFILES, show_number
 
-__all__ = ["SETTINGS", "SettingInfo", "SettingKind", "setting_problem"]
+__all__ = [
+    "SETTINGS",
+    "STATUS_MASK",
+    "STATUS_MASK_NEEDED",
+    "SettingInfo",
+    "SettingKind",
+    "setting_problem",
+]
 
 SettingKind = Literal["bool", "int", "float"]
+
+STATUS_MASK: Final = 10
+"""``$10``, the status report mask."""
+STATUS_MASK_NEEDED: Final = 1 | 32
+"""The bits of ``$10`` a status report needs to be read: the angles and pose (1), the PWM values
+(32). The others (Motion_MODE 64, Buf 4, RX 8, Lim 16, 2) only add fields the client skips."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -50,7 +63,7 @@ def _build_settings(profile: str) -> dict[int, SettingInfo]:
         SettingInfo(4, "step enable invert", "", "bool"),
         SettingInfo(5, "limit pins invert", "", "bool"),
         SettingInfo(6, "probe pin invert", "", "bool"),
-        SettingInfo(10, "status report mask", "", "int", 0, 255),
+        SettingInfo(10, "status report mask", "", "int", STATUS_MASK_NEEDED, 255),
         SettingInfo(11, "junction deviation", "mm", "float", 0),
         SettingInfo(12, "arc tolerance", "mm", "float", 0),
         SettingInfo(13, "report in inches", "", "bool"),
@@ -138,6 +151,15 @@ def setting_problem(number: int, value: float, profile: str, *, in_line: bool) -
         return None if value in (0, 1) else f"{subject} must be 0 or 1"
     if info.kind == "int" and not value.is_integer():
         return f"{subject} must be an integer"
+    if (
+        number == STATUS_MASK
+        and 0 <= value <= 255
+        and int(value) & STATUS_MASK_NEEDED != STATUS_MASK_NEEDED
+    ):
+        return (
+            f"{subject}: status reports would lack the angles (1) or the PWM values (32), and "
+            "the client could read no status any more; keep both bits (default 99)"
+        )
     low, high = info.minimum, info.maximum
     if (low is not None and value < low) or (high is not None and value > high):
         low_text = "" if low is None else show_number(low)

@@ -80,6 +80,7 @@ _REALTIME: Final[dict[str, str]] = {
     "!": "a feed hold",
     "~": "a cycle start",
     "%": "a soft reset of the robot",
+    "@": "the safety door (it stops reading lines until '~')",
 }
 _DOLLAR_SIMPLE: Final = frozenset({"$", "$$", "$#", "$G", "$I", "$N", "$C", "$X", "$H", "$HH"})
 _DOLLAR_2021: Final = frozenset({*(f"$H{n}" for n in range(8)), "$HE", "$M"})

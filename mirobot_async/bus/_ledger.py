@@ -21,10 +21,11 @@ direct link would show. Pure: no I/O, no clock.
 from __future__ import annotations
 
 import enum
-import re
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
+
+from mirobot_async._core.line import parse_line
 
 __all__ = ["Kind", "NodeLedger", "Owed", "is_final", "is_status", "may_move"]
 
@@ -40,15 +41,12 @@ def is_status(text: str) -> bool:
     return text.startswith("<")
 
 
-_MOVING = re.compile(r"[XYZABCD]|G0*4(?!\d)")
-
-
 def may_move(line: str) -> bool:
-    """Whether a G-code line may put a block in the arm's planner: one with an axis word or a
-    dwell (``G4``), comments removed. Conservative; ``$`` commands are not (``$H`` is answered
+    """Whether a line may put a block in the arm's planner (an axis word or a ``G4`` dwell, as
+    the one parse of the line reads it: :attr:`ParsedLine.queues_motion
+    <mirobot_async._core.line.ParsedLine.queues_motion>`); ``$`` commands do not (``$H`` is answered
     when homing ends, whatever the planner holds)."""
-    text = re.sub(r"\([^)]*\)|;.*", "", line).upper().replace(" ", "")
-    return not text.startswith("$") and _MOVING.search(text) is not None
+    return parse_line(line).queues_motion
 
 
 class Kind(enum.Enum):

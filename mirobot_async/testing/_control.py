@@ -106,7 +106,8 @@ def emulator_command(
     listen: str | None = None,
 ) -> list[str]:
     """The argument vector that starts the emulator with this Python interpreter
-    (``listen``: see :func:`link_args`)."""
+    (``listen``: see :func:`link_args`), always with ``--exit-on-stdin-eof``: the emulator
+    stops when the process that started it is gone (killed too), leaving nothing behind."""
     options = emulator_args(firmware, time_scale, extra_args)
     return [
         sys.executable,
@@ -115,6 +116,7 @@ def emulator_command(
         *options[:4],
         *link_args(listen),
         *options[4:],
+        *([] if EXIT_ON_EOF in options[4:] else [EXIT_ON_EOF]),
     ]
 
 
@@ -135,15 +137,13 @@ def renewed_command(
     extra_args: Sequence[str] = (),
 ) -> list[str]:
     """The argument vector of a new process equivalent to ``command`` renewed with these
-    settings: its link (``--listen``) and ``--exit-on-stdin-eof`` kept, the rest replaced."""
+    settings: its link (``--listen``) kept, the rest replaced (``--exit-on-stdin-eof``, as
+    always)."""
     words = list(command)
     listen = "pty"
     if "--listen" in words[3:-1]:
         listen = words[words.index("--listen", 3) + 1]
-    renewed = emulator_command(firmware, time_scale, extra_args, listen)
-    if EXIT_ON_EOF in words[3:]:
-        renewed.append(EXIT_ON_EOF)
-    return renewed
+    return emulator_command(firmware, time_scale, extra_args, listen)
 
 
 def renewed_url(reply: str) -> str:

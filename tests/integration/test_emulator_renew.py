@@ -139,6 +139,7 @@ def test_renew_keeps_the_url_of_a_new_port_in_the_command() -> None:
             "127.0.0.1:0",
             "--baud",
             "9600",
+            "--exit-on-stdin-eof",
         )
         assert emulator.url.startswith("socket://127.0.0.1:")
 
@@ -233,7 +234,7 @@ def test_the_pool_does_not_reuse_a_killed_stopped_or_closed_process(how: str) ->
 def test_fresh_fixed_ports_and_a_size_of_zero_are_not_pooled() -> None:
     with EmulatorPool(start_spares=False) as pool:
         with pool.lend(fresh=True) as fresh:
-            assert "--exit-on-stdin-eof" not in fresh.command
+            assert "--exit-on-stdin-eof" in fresh.command  # every process: none outlives pytest
         with pool.lend(extra_args=["--listen", "127.0.0.1:0"]) as listening:
             pass
         with pool.lend() as pooled:

@@ -23,7 +23,7 @@ def test_listen_values(monkeypatch: pytest.MonkeyPatch) -> None:
 def test_the_environment_chooses_the_default(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv(LINK_ENV, "TCP")
     assert default_link() == "tcp"
-    assert emulator_command("2021", 0)[-2:] == ["--listen", "127.0.0.1:0"]
+    assert emulator_command("2021", 0)[-3:-1] == ["--listen", "127.0.0.1:0"]
     assert "--listen" not in emulator_command("2021", 0, listen="pty")  # explicit wins
     monkeypatch.setenv(LINK_ENV, "serial")
     with pytest.raises(MirobotUsageError, match=LINK_ENV):

@@ -1,0 +1,87 @@
+"""A command with an embedded emulator (no ``--port``) leaves no emulator behind when it is
+killed (SIGKILL, SIGHUP: no cleanup of its own runs): every emulator ``start_emulator`` starts
+gets ``--exit-on-stdin-eof`` and exits when its parent's end of the pipe closes."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import TypeVar
+
+import pytest
+
+_T = TypeVar("_T")
+
+
+def _children(pid: int) -> list[int]:
+    found: list[int] = []
+    for task in Path(f"/proc/{pid}/task").glob("*"):
+        try:
+            found += [int(word) for word in (task / "children").read_text().split()]
+        except (FileNotFoundError, ProcessLookupError):
+            continue
+    return found
+
+
+def _cmdline(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode()
+    except (FileNotFoundError, ProcessLookupError):
+        return ""
+
+
+def _gone(pid: int) -> bool:
+    """True once ``pid`` has exited (a zombie left for its new parent counts as gone)."""
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()[0]
+    except (FileNotFoundError, ProcessLookupError):
+        return True
+    return state in ("Z", "X")
+
+
+def _wait_for(condition: Callable[[], _T], limit: float, what: str) -> _T:
+    deadline = time.monotonic() + limit
+    while not (found := condition()):
+        if time.monotonic() > deadline:
+            raise AssertionError(f"no {what} within {limit} s")
+        time.sleep(0.02)
+    return found
+
+
+pytestmark = pytest.mark.skipif(
+    not Path("/proc/self/task").exists(), reason="needs /proc (Linux) to find the child"
+)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGHUP])
+def test_a_killed_monitor_leaves_no_emulator(sig: signal.Signals) -> None:
+    cli = subprocess.Popen(
+        [sys.executable, "-m", "mirobot_async", "monitor", "--time-scale", "0"],
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    emulator = 0
+    try:
+
+        def emulator_child() -> int:
+            for child in _children(cli.pid):
+                if "mirobot_emulator" in _cmdline(child):
+                    return child
+            return 0
+
+        emulator = _wait_for(emulator_child, 60, "embedded emulator")
+        os.kill(cli.pid, sig)
+        cli.wait(30)
+        _wait_for(lambda: _gone(emulator), 30, "exit of the orphaned emulator")
+    finally:
+        if cli.poll() is None:
+            cli.kill()
+            cli.wait()
+        if emulator and not _gone(emulator):
+            os.kill(emulator, signal.SIGKILL)
