@@ -111,6 +111,7 @@ class ArmService:
         self.arm = arm
         self.twin = twin
         self._running: str | None = None
+        self._twin_said: str | None = None
 
     # ---- one command at a time ----
 
@@ -128,6 +129,7 @@ class ArmService:
                 "command at a time); wait for it, or stop it with hold or reset"
             )
         self._running = name
+        self._twin_said = None
         try:
             yield
         finally:
@@ -145,7 +147,11 @@ class ArmService:
 
     async def _final(self, outcome: str, **more: Any) -> dict[str, Any]:
         report = await self.arm.status()
-        return {"outcome": outcome, **more, "status": status_dict(report)}
+        result = {"outcome": outcome, **more, "status": status_dict(report)}
+        said, self._twin_said = self._twin_said, None
+        if said is not None:
+            result["dry_run"] = said
+        return result
 
     # ---- reading ----
 
@@ -175,9 +181,12 @@ class ArmService:
         twin = self.twin
         if twin is None:
             return
+        self._twin_said = None
         try:
             await self._sync_twin(twin)
             await step(twin)
+            report = await twin.status()
+            self._twin_said = f"ran first on the virtual twin: ok, it ended {report.to_line()}"
         except MirobotError as err:
             raise MirobotUsageError(
                 f"refused by the dry run on the virtual twin, nothing was sent to the arm: {err}"
