@@ -22,6 +22,8 @@ import pytest
 from mcp import ClientSession, StdioServerParameters, stdio_client
 from mcp.types import CallToolResult, TextContent
 
+from mirobot_async.cli.arguments import build_parser
+from mirobot_async.cli.commands import cmd_mcp
 from mirobot_async.testing import EmulatorPool
 from mirobot_async.testing.pool import BorrowedEmulatorProcess
 
@@ -314,3 +316,14 @@ async def test_dry_run_runs_every_motion_on_a_twin_first(
     assert moved["status"]["joints"]["j1"] == pytest.approx(15, abs=0.05)
     assert ran["outcome"] == "done"
     assert refused.is_error and "nothing was sent" in text_of(refused)
+
+
+def test_the_readme_configuration_is_a_mirobot_mcp_command() -> None:
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+    section = readme[readme.index("### AI agents (MCP)") :]
+    snippet = section[section.index("```json") + len("```json") : section.index("```\n\n")]
+    server = json.loads(snippet)["mcpServers"]["mirobot"]
+    assert server["command"] == "mirobot"
+    args = build_parser().parse_args(server["args"])
+    assert args.handler is cmd_mcp
+    assert args.port == "/dev/ttyUSB0" and args.envelope == "/path/to/envelope.toml"
