@@ -14,8 +14,9 @@ on the arm; a failure on the twin is a refusal with nothing sent to the arm.
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
-from collections.abc import Iterator
+from collections.abc import AsyncIterator, Iterator
 from typing import TYPE_CHECKING, Any, Final, TypeAlias
 
 from mirobot_async import gcode, validation
@@ -135,6 +136,17 @@ class ArmService:
         finally:
             self._running = None
 
+    @contextlib.asynccontextmanager
+    async def _held_if_cancelled(self) -> AsyncIterator[None]:
+        """A motion call cancelled by the client (its request cancelled, or the client gone)
+        leaves the arm in feed hold: ``!`` is written at once, so that the arm decelerates to a
+        stop instead of running on with nobody watching (resume or reset go on from there)."""
+        try:
+            yield
+        except asyncio.CancelledError:
+            async with self.arm.hold_on_exit():  # writes "!" without awaiting, then re-raises
+                raise
+
     def _refusal(self, err: MirobotUsageError) -> MirobotUsageError:
         """A refusal that says why, that nothing was sent, and what the envelope allows."""
         envelope = self.arm.envelope
@@ -244,7 +256,8 @@ class ArmService:
                 lambda twin: twin.move_joints(*joints, rail, speed=speed, relative=relative),
             )
             try:
-                await self.arm.move_joints(*joints, rail, speed=speed, relative=relative)
+                async with self._held_if_cancelled():
+                    await self.arm.move_joints(*joints, rail, speed=speed, relative=relative)
             except MirobotUsageError as err:
                 raise self._refusal(err) from None
             return await self._final("done (ok; the arm is at rest at the target)")
@@ -268,7 +281,8 @@ class ArmService:
                 lambda twin: twin.move_pose(*pose, speed=speed, linear=linear, relative=relative),
             )
             try:
-                await self.arm.move_pose(*pose, speed=speed, linear=linear, relative=relative)
+                async with self._held_if_cancelled():
+                    await self.arm.move_pose(*pose, speed=speed, linear=linear, relative=relative)
             except MirobotUsageError as err:
                 raise self._refusal(err) from None
             return await self._final("done (ok; the arm is at rest at the target)")
@@ -367,13 +381,14 @@ class ArmService:
             await self._twin_first(on_twin)
             outcomes: list[dict[str, Any]] = []
             stream = self.arm.stream(texts, continue_on_error=continue_on_error, wait=True)
-            async for line in stream:
-                number = commands[line.number - 1][0]
-                entry: dict[str, Any] = {"line": number, "text": line.line}
-                entry["outcome"] = "ok" if line.ok else f"failed: {line.error}"
-                if line.output:
-                    entry["firmware_output"] = list(line.output)
-                outcomes.append(entry)
+            async with self._held_if_cancelled():
+                async for line in stream:
+                    number = commands[line.number - 1][0]
+                    entry: dict[str, Any] = {"line": number, "text": line.line}
+                    entry["outcome"] = "ok" if line.ok else f"failed: {line.error}"
+                    if line.output:
+                        entry["firmware_output"] = list(line.output)
+                    outcomes.append(entry)
             result = stream.result
             unsent = [number for number, _ in commands[result.sent :]]
             summary = "done" if result.ok else "stopped" if result.stopped else "done, with errors"
@@ -389,6 +404,11 @@ class ArmService:
 
     async def hold(self) -> dict[str, Any]:
         """Feed hold (``!``): acts at once, even while a motion tool runs."""
+        if self._running == "home":
+            raise MirobotUsageError(
+                "refused, nothing was sent: the arm is homing, and the firmware ignores feed "
+                "hold (!) while it homes: reset (%) is the only thing that stops homing"
+            )
         report = await self.arm.hold()
         if self.twin is not None:
             with contextlib.suppress(MirobotError):

@@ -327,3 +327,25 @@ def test_the_readme_configuration_is_a_mirobot_mcp_command() -> None:
     args = build_parser().parse_args(server["args"])
     assert args.handler is cmd_mcp
     assert args.port == "/dev/ttyUSB0" and args.envelope == "/path/to/envelope.toml"
+
+
+async def test_a_cancelled_program_call_leaves_the_arm_held(
+    errlog: TextIO, mirobot_emulator_pool: EmulatorPool
+) -> None:
+    """The client gives up on run_program (its request is cancelled): the arm is held at once,
+    not left running the program with nobody watching."""
+    async with (
+        mirobot_emulator_pool.lend_async(time_scale=1) as emulator,  # real time: 12 s of motion
+        mcp_server("--port", emulator.url, errlog=errlog) as call,
+    ):
+        data_of(await call("unlock"))
+        running = asyncio.ensure_future(call("run_program", program=SLOW))
+        await wait_status(call, lambda s: s["state"] == "Run", "motion")
+        running.cancel()
+        with contextlib.suppress(asyncio.CancelledError):
+            await running
+        held = await wait_status(call, lambda s: s["state"] == "Hold", "Hold", limit=5)
+        assert held["busy_with"] is None  # the next command may run
+        reset = data_of(await call("reset"))
+    assert 0 < abs(held["joints"]["j1"]) < 30
+    assert reset["status"]["state"] == "Alarm"

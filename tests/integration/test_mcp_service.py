@@ -4,6 +4,8 @@ channel (``stats``), which the service does not use."""
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 from collections.abc import AsyncIterator
 
 import pytest
@@ -11,6 +13,7 @@ import pytest
 from mirobot_async import Mirobot
 from mirobot_async.errors import MirobotUsageError
 from mirobot_async.mcp_server.service import ArmService, default_envelope, program_lines
+from mirobot_async.replies import State
 from mirobot_async.testing import EmulatorPool
 from mirobot_async.testing.pool import BorrowedEmulatorProcess
 
@@ -78,3 +81,27 @@ async def test_a_failure_on_the_twin_sends_nothing_to_the_arm(
 def test_program_lines_keep_the_numbers_of_the_text() -> None:
     text = "; header\n\nG0 X1 ; go\n(only a comment)\nG1 Y2 F100\n"
     assert program_lines(text) == [(3, "G0 X1"), (5, "G1 Y2 F100")]
+
+
+async def test_hold_while_homing_is_refused_with_the_way_out(
+    mirobot_emulator_pool: EmulatorPool,
+) -> None:
+    """The firmware ignores feed hold while it homes: hold says so (and that reset stops it)."""
+    async with (
+        mirobot_emulator_pool.lend_async("2021", 10.0) as emulator,
+        Mirobot.connect(emulator.url, firmware="2021", envelope=default_envelope("2021")) as arm,
+    ):
+        service = ArmService(arm)
+        homing = asyncio.ensure_future(service.home())
+        try:
+            deadline = asyncio.get_running_loop().time() + 10
+            while (await arm.status()).state is not State.HOME:
+                assert asyncio.get_running_loop().time() < deadline, "never homing"
+            with pytest.raises(MirobotUsageError, match="reset \\(%\\) is the only thing"):
+                await service.hold()
+            homed = await homing
+        finally:
+            homing.cancel()
+            with contextlib.suppress(BaseException):
+                await homing
+    assert homed["status"]["state"] == "Idle"  # homing went on, untouched
