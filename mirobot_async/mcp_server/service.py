@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-from collections.abc import AsyncIterator, Iterator
+from collections.abc import AsyncIterator, Awaitable, Callable, Iterator
 from typing import TYPE_CHECKING, Any, Final, TypeAlias
 
 from mirobot_async import gcode, validation
@@ -187,7 +187,22 @@ class ArmService:
 
     # ---- the twin (--dry-run) ----
 
-    async def _twin_first(self, step: Any) -> None:
+    async def _preflight(self) -> None:
+        """A motion is refused, with nothing sent, while the arm is locked (Alarm) or holds
+        queued moves (Hold): it would fail, or be queued behind moves nobody is watching."""
+        report = await self.arm.status()
+        if report.state is State.ALARM:
+            raise MirobotUsageError(
+                "refused, nothing was sent: the arm is locked (Alarm, as after power-on or a "
+                "reset): call home (or unlock) first"
+            )
+        if report.state is State.HOLD:
+            raise MirobotUsageError(
+                "refused, nothing was sent: the arm is in Hold with moves still queued: resume "
+                "finishes them, reset drops them"
+            )
+
+    async def _twin_first(self, step: Callable[[Mirobot], Awaitable[object]]) -> None:
         """Run ``step(twin)`` on the twin brought to the arm's state; a failure there is a
         refusal: nothing is sent to the arm."""
         twin = self.twin
@@ -217,7 +232,7 @@ class ArmService:
                 await twin.reset()
             await twin.unlock()
         moved = any(abs(a - b) > _SAME_ANGLE for a, b in zip(arm.joints, seen.joints, strict=True))
-        rail = arm.rail if arm.rail is not None and seen.rail is not None else None
+        rail = None if arm.rail is None or seen.rail is None else arm.rail
         if moved or (rail is not None and seen.rail is not None and abs(rail - seen.rail) > 0.05):
             await twin.move_joints(*arm.joints, rail=rail)
 
@@ -246,6 +261,7 @@ class ArmService:
     ) -> dict[str, Any]:
         """A joint move, checked by the envelope before anything is sent."""
         with self._exclusive("move_joints"):
+            await self._preflight()
             if self.twin is not None:  # the envelope first: the twin must not move either
                 await self._preview(
                     gcode.move_joints(
@@ -271,6 +287,7 @@ class ArmService:
     ) -> dict[str, Any]:
         """A Cartesian move, checked by the envelope before anything is sent."""
         with self._exclusive("move_pose"):
+            await self._preflight()
             if linear and speed is None:
                 speed = 2000.0
             if self.twin is not None:
@@ -357,6 +374,7 @@ class ArmService:
         if not commands:
             raise MirobotUsageError("no commands in the program; nothing was sent")
         with self._exclusive("run_program"):
+            await self._preflight()
             texts = [text for _, text in commands]
             problems = validation.check_program(program.splitlines(), firmware=self._firmware())
             if problems:

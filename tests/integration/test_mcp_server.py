@@ -170,6 +170,7 @@ async def test_the_tools_and_resources_a_client_sees(errlog: TextIO) -> None:
 async def test_home_move_and_run_a_program_on_the_embedded_arm(errlog: TextIO) -> None:
     async with mcp_server(errlog=errlog) as call:  # embedded, time scale 10
         locked = data_of(await call("status"))
+        refused = await call("move_joints", j1=20)
         homed = data_of(await call("home"))
         moved = data_of(await call("move_joints", j1=20, j2=10))
         pose = data_of(await call("move_pose", x=210, y=0, z=200))
@@ -178,6 +179,7 @@ async def test_home_move_and_run_a_program_on_the_embedded_arm(errlog: TextIO) -
         pumped = data_of(await call("set_pump", pwm=1000))
         gripped = data_of(await call("gripper", action="close"))
     assert locked["state"] == "Alarm"
+    assert refused.is_error and "the arm is locked (Alarm" in text_of(refused)
     assert homed["status"]["state"] == "Idle"
     assert homed["status"]["joints"] == {f"j{i}": 0.0 for i in range(1, 7)}
     assert moved["status"]["state"] == "Idle"
@@ -346,6 +348,8 @@ async def test_a_cancelled_program_call_leaves_the_arm_held(
             await running
         held = await wait_status(call, lambda s: s["state"] == "Hold", "Hold", limit=5)
         assert held["busy_with"] is None  # the next command may run
+        behind = await call("move_joints", j1=5)  # ... but not queued behind the held moves
         reset = data_of(await call("reset"))
     assert 0 < abs(held["joints"]["j1"]) < 30
+    assert behind.is_error and "the arm is in Hold with moves still queued" in text_of(behind)
     assert reset["status"]["state"] == "Alarm"
