@@ -105,3 +105,20 @@ async def test_hold_while_homing_is_refused_with_the_way_out(
             with contextlib.suppress(BaseException):
                 await homing
     assert homed["status"]["state"] == "Idle"  # homing went on, untouched
+
+
+async def test_check_program_reports_problems_and_run_program_refuses_them(
+    arm_and_twin: tuple[ArmService, BorrowedEmulatorProcess, BorrowedEmulatorProcess],
+) -> None:
+    service, arm_emulator, _ = arm_and_twin
+    await service.home()
+    program = "M21 G90 G21\nG0 X10 Q5 ; a letter the firmware does not know\n"
+    checked = await service.check_program(program)
+    assert [problem["line"] for problem in checked["problems"]] == [2]
+    assert checked["commands"] == 2 and checked["firmware"] == "2021"
+    sent = await lines_received(arm_emulator)
+    with pytest.raises(
+        MirobotUsageError, match=r"refused, nothing was sent: 1 problem\(s\): line 2"
+    ):
+        await service.run_program(program)
+    assert await lines_received(arm_emulator) == sent
