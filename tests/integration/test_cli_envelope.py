@@ -88,7 +88,9 @@ def test_mcp_without_the_sdk_says_how_to_install_it(
     cli: Cli, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     monkeypatch.delitem(sys.modules, "mirobot_async.mcp_server.server", raising=False)
-    monkeypatch.setitem(sys.modules, "mcp", None)  # import mcp -> ImportError
+    for name in [name for name in sys.modules if name == "mcp" or name.startswith("mcp.")]:
+        monkeypatch.setitem(sys.modules, name, None)  # imported before: ImportError now
+    monkeypatch.setitem(sys.modules, "mcp", None)
     result = cli("mcp", "--time-scale", "0")
     assert result.returncode == 2
     last = result.stderr.strip().splitlines()[-1]

@@ -123,6 +123,11 @@ async def lines_received(emulator: BorrowedEmulatorProcess) -> int:
     return int(counts["lines_in"])
 
 
+def on_the_way(status: dict[str, Any]) -> bool:
+    """The arm runs the program and has left its start (j1 = 0) by more than a degree."""
+    return bool(status["state"] == "Run" and abs(status["joints"]["j1"]) > 1)
+
+
 async def wait_status(
     call: Callable[..., Awaitable[CallToolResult]],
     condition: Callable[[dict[str, Any]], bool],
@@ -242,7 +247,7 @@ async def test_hold_stops_a_running_program_and_resume_finishes_it(
         data_of(await call("unlock"))
         running = asyncio.ensure_future(call("run_program", program=SLOW))
         try:
-            await wait_status(call, lambda s: s["state"] == "Run" or running.done(), "motion")
+            await wait_status(call, lambda s: on_the_way(s) or running.done(), "motion")
             assert not running.done(), text_of(running.result())
             busy = await call("move_joints", j1=5)
             held = data_of(await call("hold"))
@@ -286,7 +291,7 @@ async def test_reset_stops_a_running_program_at_once(
         data_of(await call("unlock"))
         running = asyncio.ensure_future(call("run_program", program=SLOW))
         try:
-            await wait_status(call, lambda s: s["state"] == "Run", "motion")
+            await wait_status(call, on_the_way, "motion")
             reset = data_of(await call("reset"))
             outcome = await asyncio.wait_for(running, 20)
         finally:
@@ -342,7 +347,7 @@ async def test_a_cancelled_program_call_leaves_the_arm_held(
     ):
         data_of(await call("unlock"))
         running = asyncio.ensure_future(call("run_program", program=SLOW))
-        await wait_status(call, lambda s: s["state"] == "Run", "motion")
+        await wait_status(call, on_the_way, "motion")
         running.cancel()
         with contextlib.suppress(asyncio.CancelledError):
             await running
