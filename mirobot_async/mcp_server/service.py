@@ -376,9 +376,10 @@ class ArmService:
         with self._exclusive("run_program"):
             await self._preflight()
             texts = [text for _, text in commands]
-            problems = validation.check_program(program.splitlines(), firmware=self._firmware())
+            # as `mirobot run` checks: the commands that will be sent, without their comments
+            problems = validation.check_program(texts, firmware=self._firmware())
             if problems:
-                listed = "; ".join(f"line {n}: {p}" for n, p in problems[:5])
+                listed = "; ".join(f"line {commands[n - 1][0]}: {p}" for n, p in problems[:5])
                 raise MirobotUsageError(
                     f"refused, nothing was sent: {len(problems)} problem(s): {listed}"
                 )

@@ -112,13 +112,13 @@ async def test_check_program_reports_problems_and_run_program_refuses_them(
 ) -> None:
     service, arm_emulator, _ = arm_and_twin
     await service.home()
-    program = "M21 G90 G21\nG0 X10 Q5 ; a letter the firmware does not know\n"
+    program = "; Q is a letter the firmware does not know\nM21 G90 G21\nG0 X10 Q5\n"
     checked = await service.check_program(program)
-    assert [problem["line"] for problem in checked["problems"]] == [2]
+    assert [problem["line"] for problem in checked["problems"]] == [3]
     assert checked["commands"] == 2 and checked["firmware"] == "2021"
     sent = await lines_received(arm_emulator)
     with pytest.raises(
-        MirobotUsageError, match=r"refused, nothing was sent: 1 problem\(s\): line 2"
+        MirobotUsageError, match=r"refused, nothing was sent: 1 problem\(s\): line 3: "
     ):
         await service.run_program(program)
     assert await lines_received(arm_emulator) == sent
