@@ -9,7 +9,9 @@ refused at once, not queued); :meth:`ArmService.hold`, :meth:`~ArmService.resume
 :meth:`~ArmService.reset` and :meth:`~ArmService.status` never wait for the running command, so
 they act while it runs. With a *twin* (``--dry-run``: a virtual Mirobot, the embedded
 emulator), every motion tool runs first on the twin, brought to the arm's state, and only then
-on the arm; a failure on the twin is a refusal with nothing sent to the arm.
+on the arm; a failure on the twin is a refusal with nothing sent to the arm. A motion is refused
+while the arm is locked (Alarm) or held with moves queued (Hold); a motion call that the client
+cancels leaves the arm in feed hold rather than running on unwatched.
 """
 
 from __future__ import annotations
