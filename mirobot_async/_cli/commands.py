@@ -62,6 +62,7 @@ __all__ = [
     "cmd_emulator",
     "cmd_gripper",
     "cmd_home",
+    "cmd_mcp",
     "cmd_monitor",
     "cmd_move_joints",
     "cmd_move_pose",
@@ -271,6 +272,8 @@ async def cmd_run(args: argparse.Namespace) -> int:
                 await _check_before_running(arm, args, name, program)
             await prepare(arm, args)
             before = await preflight(arm)
+            if not args.no_check:
+                await check_envelope_before_running(arm, name, program)
             if trace is not None:
                 trace.write(before)  # the start of the path, before the first move
             result = await _stream_program(arm, args, name, program, trace, scale)
@@ -321,6 +324,33 @@ async def _check_before_running(
         f"{count} problem{'s' if count != 1 else ''} in {name} (firmware {firmware}): nothing "
         "was sent (--no-check sends it anyway)"
     )
+
+
+# --- the envelope's check of a whole program (--envelope) ---------------------------------------
+
+
+async def check_envelope_before_running(
+    arm: Mirobot, name: str, program: list[ProgramLine]
+) -> None:
+    """With a safety envelope (``--envelope``), the whole program is predicted from where the
+    arm stands before anything is sent: a line the envelope refuses is ``FILE:LINE: text:
+    why`` on stderr and :class:`RobotNotReadyError` (exit 1), so that the program does not stop
+    half-way at that line. Without an envelope, nothing to do."""
+    from mirobot_async._client.guard import PathRefused
+
+    if arm.envelope is None:
+        return
+    try:
+        await arm.preview_lines([line.text for line in program])
+    except PathRefused as err:
+        line = program[err.index]
+        print(f"{name}:{line.number}: {line.text}: {err}", file=sys.stderr)
+        raise RobotNotReadyError(
+            f"{name} leaves the safety envelope at line {line.number}: nothing was sent"
+        ) from None
+
+
+# --- end of the envelope's check --------------------------------------------------------------
 
 
 async def _stream_program(
@@ -413,6 +443,19 @@ def cmd_ports(args: argparse.Namespace) -> int:
     if args.no_probe or any(p.is_mirobot for p in found):
         return EXIT_OK
     return EXIT_FAILED
+
+
+# --- mcp -----------------------------------------------------------------------------------
+
+
+async def cmd_mcp(args: argparse.Namespace) -> int:
+    """``mirobot mcp``: a Model Context Protocol server over stdio (needs the ``mcp`` extra)."""
+    from mirobot_async._mcp_server import serve
+
+    return await serve(args)
+
+
+# --- end of mcp ----------------------------------------------------------------------------
 
 
 def cmd_emulator(args: argparse.Namespace) -> int:

@@ -5,11 +5,12 @@
 from __future__ import annotations
 
 from mirobot_async._client.client import Mirobot as AsyncMirobot
-from collections.abc import AsyncIterable, Callable, Iterable
+from collections.abc import AsyncIterable, Callable, Iterable, Sequence
 from typing import Any, Self
 from mirobot_async import Firmware, Implementation, Point
 from mirobot_async._client.streaming import LineResult, StreamResult
 from mirobot_async._client.wire import ClientStats, TransportOpener
+from mirobot_async._core.modal import LineCheck
 from mirobot_async._core.replies import StatusReport
 from mirobot_async._safety.envelope import Envelope
 from mirobot_async.sync._facade import BlockingContextManager, BlockingFacade, BlockingIterator
@@ -100,6 +101,8 @@ class Mirobot(BlockingFacade, wraps=AsyncMirobot):
 
     @property
     def pending_count(self) -> int: ...
+
+    def preview_lines(self, lines: Sequence[str | bytes], *, timeout: float | None = ...) -> list[LineCheck]: ...
 
     def pump_off(self, *, timeout: float | None = ...) -> None: ...
 
