@@ -7,6 +7,13 @@ gets a :class:`Slot` whose future gets its reply. A call waiting for a reply che
 liveness after :attr:`LineScheduler.liveness_interval` without progress: a quiet robot that
 answered a ``?`` written well after the oldest unanswered line has lost that line's reply, and
 the line is given up (:class:`MirobotTimeoutError`); the following replies keep their lines.
+
+Two silences are expected and never taken for a lost reply: a homing line (``$H``...) is
+answered when the switch search ends and the firmware answers no ``?`` until then
+(:class:`~mirobot_async.condition.HomingCycle`: no ``?`` is asked until its bound has passed),
+and a ``G4`` dwell is answered after the planner has emptied *and* the dwell has run, while the
+robot reports ``Idle`` (its lines keep their slots until the dwells could have ended, counted
+from the first quiet report). See ARCHITECTURE.md, "Timeouts and liveness".
 """
 
 from __future__ import annotations
@@ -18,7 +25,7 @@ from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Final
 
-from mirobot_async.condition import RobotCondition
+from mirobot_async.condition import HOMING_LINE_RE, HomingCycle, RobotCondition, homing_bound
 from mirobot_async.deadline import clip, within
 from mirobot_async.errors import (
     MirobotAlarmError,
@@ -66,6 +73,7 @@ class Slot:
     fut: asyncio.Future[Outcome]
     sent_at: float
     tracked: Tracked | None = None  # what the envelope guard assumed when it was written
+    dwell: float = 0.0  # seconds of G4 dwell the line holds the robot (after the planner empties)
     reply_epoch: int = -1  # the reset epoch when its reply came (a line may run after a reset)
     # Called synchronously when the reply (or failure) is settled, before anything else runs.
     watch: Callable[[Slot], None] | None = None
@@ -152,6 +160,11 @@ class LineScheduler:
         self._send_lock = asyncio.Lock()
         self._barrier: int | None = None  # id of an in-flight "$" line (send-response)
         self._dwell_until = -math.inf
+        # When a status first showed the robot quiet after the newest line was written (None:
+        # not seen, or seen busy since): pending dwells run from no earlier than that.
+        self._quiet_anchor: float | None = None
+        self._last_write = -math.inf
+        self._homing_line: int | None = None  # id of the homing line in flight
         self.liveness_interval = 1.0
         self.reply_grace = 0.5
         self.status_timeout = 2.0
@@ -203,6 +216,7 @@ class LineScheduler:
         failed = event.failed
         self._barrier = None
         self._dwell_until = -math.inf
+        self._end_homing()  # a reset stops the homing search
         for pending in event.in_doubt:
             slot = self.slots.get(pending.id)
             if slot is not None:
@@ -234,9 +248,25 @@ class LineScheduler:
         slot = self.slots.pop(line_id, None)
         if self._barrier == line_id:
             self._barrier = None
+        if self._homing_line == line_id:
+            self._end_homing()
         if slot is not None:
             slot.reply_epoch = self._condition.reset_epoch
         return slot
+
+    def _end_homing(self) -> None:
+        """The homing line was answered (or a reset ended it): the robot answers ``?`` again;
+        the ``?`` written during the search were merged into the one report it printed then."""
+        if self._homing_line is None and self._condition.homing is None:
+            return
+        self._homing_line = None
+        self._condition.homing = None
+        self._poller.on_homing_end()
+
+    @property
+    def homing(self) -> HomingCycle | None:
+        """The homing line in flight, if any (the robot answers no ``?`` meanwhile)."""
+        return self._condition.homing
 
     def on_doubt_resolved(self, event: DoubtResolved) -> None:
         """Lines in doubt after a reset that did not run: they fail with MirobotResetError."""
@@ -385,9 +415,20 @@ class LineScheduler:
         now = self._loop.time()
         slot = Slot(pending, command, self._loop.create_future(), now)
         self.slots[pending.id] = slot
+        self._last_write = now
         if exclusive:
             self._barrier = pending.id
+            text = pending.line.decode("ascii", "replace").replace(" ", "").upper()
+            if HOMING_LINE_RE.match(text):
+                condition = self._condition
+                bound = homing_bound(text, condition.homing_rates, condition.homing_bounds)
+                condition.homing = HomingCycle(command, now, bound)
+                self._homing_line = pending.id
+                _log.info(
+                    "%r sent: the robot answers nothing until homing ends (<= %g s)", command, bound
+                )
         if dwell is not None and dwell > 0:
+            slot.dwell = dwell
             self._dwell_until = max(self._dwell_until, now) + dwell
         return slot
 
@@ -423,17 +464,43 @@ class LineScheduler:
             await self.check_liveness(deadline)
 
     async def check_liveness(self, deadline: float | None) -> None:
-        """Ask for a status; if the robot is quiet, give up on lines whose reply was lost."""
+        """Ask for a status; if the robot is quiet, give up on lines whose reply was lost.
+
+        While a homing line may still be searching (:meth:`RobotCondition.homing_silent`)
+        nothing is asked: the firmware answers no ``?`` then, and a closed port fails the call
+        anyway. Past the homing bound a status reply that does not come names homing."""
         now = self._now()
         if deadline is not None and deadline <= now:
             return  # the caller's own deadline decides
+        if self._condition.homing_silent(now) is not None:
+            return
+        what = "a status reply (checking that the robot is alive while waiting for a reply)"
+        homing = self._condition.homing
+        if homing is not None:
+            what = (
+                f"a status reply: no reply to {homing.command!r} after "
+                f"{now - homing.started:.1f} s, longer than homing can take ({homing.bound:g} s; "
+                "the firmware answers no '?' while homing, so the link or the robot is dead)"
+            )
         report, asked_at = await self._poller.fetch(
-            fresh=True,
-            timeout=clip(self.status_timeout, deadline, now),
-            what="a status reply (checking that the robot is alive while waiting for a reply)",
+            fresh=True, timeout=clip(self.status_timeout, deadline, now), what=what
         )
         if report.state in QUIET:
             self._expire_lost_replies(asked_at, report.state)
+        else:
+            self._quiet_anchor = None  # busy: a dwell queued behind motion has not started
+
+    def _pending_dwell_end(self, asked_at: float) -> float:
+        """The latest the dwells of the pending lines can end, judged from a quiet report
+        answering a ``?`` written at ``asked_at`` (the firmware runs a ``G4`` only once its
+        planner is empty, and reports ``Idle`` during it: oracle, 1.8 s of ``Idle`` before the
+        ``ok`` of a ``G4 P2`` sent behind a 1.5 s move)."""
+        dwells = [slot.dwell for slot in self.slots.values() if slot.dwell > 0]
+        if not dwells:
+            return -math.inf
+        if self._quiet_anchor is None or self._quiet_anchor < self._last_write:
+            self._quiet_anchor = max(asked_at, self._last_write, self._now())
+        return self._quiet_anchor + math.fsum(dwells)
 
     def _expire_lost_replies(self, asked_at: float, state: State) -> None:
         conn = self._wire.conn
@@ -447,6 +514,7 @@ class LineScheduler:
             assert dispatch is not None
             for event in conn.events():
                 dispatch(event)
+        self._dwell_until = max(self._dwell_until, self._pending_dwell_end(asked_at))
         if asked_at < self._dwell_until + self.reply_grace:
             return
         expired = False
@@ -459,6 +527,8 @@ class LineScheduler:
             self.slots.pop(oldest.id, None)
             if self._barrier == oldest.id:
                 self._barrier = None
+            if self._homing_line == oldest.id:
+                self._end_homing()
             self._wire.stats.replies_lost += 1
             expired = True
             self._guard.forget("lost")  # did it run? Unknown: forget position and modes
