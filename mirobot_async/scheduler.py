@@ -165,6 +165,9 @@ class LineScheduler:
         self._quiet_anchor: float | None = None
         self._last_write = -math.inf
         self._homing_line: int | None = None  # id of the homing line in flight
+        # A homing line was answered "ok": its return move runs, and the firmware zeroes the
+        # position when it ends, so nothing is written until a status shows the arm at rest.
+        self._homing_return = False
         self.liveness_interval = 1.0
         self.reply_grace = 0.5
         self.status_timeout = 2.0
@@ -195,6 +198,8 @@ class LineScheduler:
                 stats.lines_refused += 1
         else:
             stats.lines_rejected += 1
+        if self._homing_line == event.line.id and isinstance(event, LineAcknowledged):
+            self._homing_return = True
         slot = self._take(event.line.id)
         if slot is None:
             return
@@ -217,6 +222,7 @@ class LineScheduler:
         self._barrier = None
         self._dwell_until = -math.inf
         self._end_homing()  # a reset stops the homing search
+        self._homing_return = False
         for pending in event.in_doubt:
             slot = self.slots.get(pending.id)
             if slot is not None:
@@ -342,6 +348,11 @@ class LineScheduler:
         With ``idle`` the line is written only when nothing is in flight and a status received
         since shows the robot at rest (the firmware refuses ``$$`` with ``Not idle`` while the
         arm moves); nothing else is written in between (the send lock is held).
+
+        After a homing line's ``ok`` nothing is written until a status received since shows the
+        arm at rest: the firmware zeroes the position when the return move ends, and a line
+        queued behind that move is lost (oracle: a ``G0 X10`` sent right after the ``ok`` of
+        ``$H`` ends at 0).
         """
         condition, guard = self._condition, self._guard
         condition.check_sendable(command, motion=motion)
@@ -383,6 +394,11 @@ class LineScheduler:
                     verdict = found
                     checked_epoch = position_epoch
                     continue
+                if self._homing_return:
+                    limit.what = f"the arm to finish homing (its return move) before {command!r}"
+                    await self._await_homing_return(deadline)
+                    limit.what = room
+                    continue
                 if self._ready(exclusive, nbytes):
                     if idle and not at_rest:
                         limit.what = f"the robot to be at rest before sending {command!r}"
@@ -407,6 +423,17 @@ class LineScheduler:
                     )
                     return slot
                 await self.wait_progress(deadline)
+
+    async def _await_homing_return(self, deadline: float | None) -> None:
+        """One status (received after the homing line's ``ok``); the return move has ended if
+        it shows the robot quiet."""
+        report, _ = await self._poller.fetch(
+            fresh=False,
+            timeout=clip(self.status_timeout, deadline, self._now()),
+            what="a status report (the arm's return move after homing)",
+        )
+        if report.state in QUIET and not self._wire.conn.in_banner:
+            self._homing_return = False
 
     def _write(self, data: bytes, command: str, exclusive: bool, dwell: float | None) -> Slot:
         """Register ``data`` with the state machine and write it (synchronous: no gap)."""
