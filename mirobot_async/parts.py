@@ -22,7 +22,7 @@ from mirobot_async.condition import Firmware, HomingCycle, RobotCondition
 from mirobot_async.deadline import deadline_after
 from mirobot_async.errors import MirobotConnectionError, MirobotUsageError
 from mirobot_async.guard import make_guard
-from mirobot_async.line import parse_line
+from mirobot_async.line import ParsedLine, parse_line
 from mirobot_async.poller import StatusPoller
 from mirobot_async.router import EventRouter
 from mirobot_async.scheduler import LineScheduler
@@ -40,6 +40,7 @@ __all__ = [
     "RESET_TIMEOUT",
     "STATUS_TIMEOUT",
     "ClientParts",
+    "default_reply_timeout",
 ]
 
 # ---- documented defaults (seconds) --------------------------------------------------------
@@ -56,6 +57,23 @@ RESET_TIMEOUT: Final = 10.0
 """Default ``timeout`` of :meth:`Mirobot.reset` (the banner after ``%``)."""
 CONNECT_TIMEOUT: Final = 5.0
 """Default ``timeout`` of :meth:`Mirobot.connect` (opening the port and the first status)."""
+
+
+def default_reply_timeout(parsed: ParsedLine) -> float:
+    """The default ``timeout`` of a one-line call sending ``parsed`` (``send()``, the pump and
+    valve commands): :data:`HOME_TIMEOUT` for a homing line (the reply comes when the switch
+    search ends: 8-30 s); :data:`MOVE_TIMEOUT` plus its dwell for a line the firmware answers
+    only once the queued motion has ended (``G4``, the PWM lines ``M3``/``M4``/``M5``, ``M2``/
+    ``M30``; oracle: ``M3 S1000`` behind a 30-degree move at F1000 is answered 1.6 s later),
+    as a ``wait=True`` move waits for the same; else :data:`DEFAULT_TIMEOUT`."""
+    if parsed.is_homing:
+        return HOME_TIMEOUT
+    if parsed.dwell_seconds is not None:
+        return MOVE_TIMEOUT + max(0.0, parsed.dwell_seconds)
+    if parsed.program_end or any(code in (3, 4, 5) for code in parsed.m_codes):
+        return MOVE_TIMEOUT
+    return DEFAULT_TIMEOUT
+
 
 # Raw lines whose success clears a remembered alarm: $X, $H, $HH, $H0..$H7, $HE, M50.
 _UNLOCKING_RE: Final = re.compile(r"^(?:\$X|\$H[H0-7E]?|M0*50)$")

@@ -4,28 +4,18 @@ Lines are written in call order (one FIFO lock) and only when they fit in the ro
 receive buffer (GRBL character counting). ``$`` lines are written only when nothing else is in
 flight, and nothing follows them until they are answered (the ``$`` barrier). Each written line
 gets a :class:`Slot` whose future gets its reply. A call waiting for a reply checks the robot's
-liveness after :attr:`LineScheduler.liveness_interval` without progress: a quiet robot that
-answered a ``?`` written well after the oldest unanswered line has lost that line's reply, and
-the line is given up (:class:`MirobotTimeoutError`); the following replies keep their lines.
-
-Two silences are expected and never taken for a lost reply: a homing line (``$H``...) is
-answered when the switch search ends and the firmware answers no ``?`` until then
-(:class:`~mirobot_async.condition.HomingCycle`: no ``?`` is asked until its bound has passed),
-and a ``G4`` dwell is answered after the planner has emptied *and* the dwell has run, while the
-robot reports ``Idle`` (its lines keep their slots until the dwells could have ended, counted
-from the first quiet report). See ARCHITECTURE.md, "Timeouts and liveness".
+liveness after :attr:`LineScheduler.liveness_interval` without progress
+(:class:`~mirobot_async.liveness.ReplyWatch`: lost replies, homing, dwells).
 """
 
 from __future__ import annotations
 
 import asyncio
 import logging
-import math
 from collections.abc import Awaitable, Callable
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Final
 
-from mirobot_async.condition import HOMING_LINE_RE, HomingCycle, RobotCondition, homing_bound
+from mirobot_async.condition import RobotCondition
 from mirobot_async.deadline import clip, within
 from mirobot_async.errors import (
     MirobotAlarmError,
@@ -35,8 +25,9 @@ from mirobot_async.errors import (
     MirobotTimeoutError,
     MotionRefusedError,
 )
-from mirobot_async.guard import EnvelopeGuard, NeedPosition, NullGuard, Tracked
+from mirobot_async.guard import EnvelopeGuard, NeedPosition, NullGuard
 from mirobot_async.line import ParsedLine, parse_line
+from mirobot_async.liveness import QUIET, ReplyWatch, Slot
 from mirobot_async.poller import StatusPoller
 from mirobot_async.protocol import (
     DoubtResolved,
@@ -44,10 +35,9 @@ from mirobot_async.protocol import (
     LineAcknowledged,
     LineOutcomeUnknown,
     LineRejected,
-    PendingLine,
     ResetDetected,
 )
-from mirobot_async.replies import State, StatusReport
+from mirobot_async.replies import StatusReport
 from mirobot_async.validation import InvalidLineError, line_problems, validate_line
 from mirobot_async.wire import Wire
 
@@ -58,36 +48,9 @@ __all__ = ["QUIET", "LineScheduler", "Slot", "StreamStopped"]
 
 _log = logging.getLogger("mirobot_async.client")
 
-QUIET: Final = frozenset({State.IDLE, State.ALARM, State.CHECK})
 _PROFILES: Final = ("2021", "classic")
 
 Outcome = LineAcknowledged | LineRejected | BaseException
-
-
-@dataclass(slots=True, eq=False)
-class Slot:
-    """A line written to the robot and owed a reply; ``fut`` is cancelled if the caller leaves."""
-
-    pending: PendingLine
-    command: str
-    fut: asyncio.Future[Outcome]
-    sent_at: float
-    tracked: Tracked | None = None  # what the envelope guard assumed when it was written
-    dwell: float = 0.0  # seconds of G4 dwell the line holds the robot (after the planner empties)
-    reply_epoch: int = -1  # the reset epoch when its reply came (a line may run after a reset)
-    # Called synchronously when the reply (or failure) is settled, before anything else runs.
-    watch: Callable[[Slot], None] | None = None
-
-    @property
-    def check(self) -> LineCheck | None:
-        """The envelope's verdict on the line (its target), if it was checked."""
-        return None if self.tracked is None else self.tracked.check
-
-    def settle(self, outcome: Outcome) -> None:
-        """Give the slot its outcome and tell its watcher at once (no loop iteration between)."""
-        self.fut.set_result(outcome)
-        if self.watch is not None:
-            self.watch(self)
 
 
 class StreamStopped(Exception):
@@ -159,20 +122,28 @@ class LineScheduler:
         self.slots: dict[int, Slot] = {}
         self._send_lock = asyncio.Lock()
         self._barrier: int | None = None  # id of an in-flight "$" line (send-response)
-        self._dwell_until = -math.inf
-        # When a status first showed the robot quiet after the newest line was written (None:
-        # not seen, or seen busy since): pending dwells run from no earlier than that.
-        self._quiet_anchor: float | None = None
-        self._last_write = -math.inf
-        self._homing_line: int | None = None  # id of the homing line in flight
-        # A homing line was answered "ok": its return move runs, and the firmware zeroes the
-        # position when it ends, so nothing is written until a status shows the arm at rest.
-        self._homing_return = False
         self.liveness_interval = 1.0
-        self.reply_grace = 0.5
         self.status_timeout = 2.0
-        # The event router's dispatch, for the events of settling the lines in doubt.
-        self.dispatch: Callable[[Event], None] | None = None
+        self.watch = ReplyWatch(wire, condition, poller, guard, self.slots, self._take)
+
+    @property
+    def reply_grace(self) -> float:
+        """A line unanswered although a quiet robot answered a ``?`` sent this long after it
+        is lost (see :class:`~mirobot_async.liveness.ReplyWatch`)."""
+        return self.watch.reply_grace
+
+    @reply_grace.setter
+    def reply_grace(self, value: float) -> None:
+        self.watch.reply_grace = value
+
+    @property
+    def dispatch(self) -> Callable[[Event], None] | None:
+        """The event router's dispatch, for the events of settling the lines in doubt."""
+        return self.watch.dispatch
+
+    @dispatch.setter
+    def dispatch(self, value: Callable[[Event], None] | None) -> None:
+        self.watch.dispatch = value
 
     def start(self, loop: asyncio.AbstractEventLoop) -> None:
         """Use ``loop`` (the connection's)."""
@@ -198,8 +169,7 @@ class LineScheduler:
                 stats.lines_refused += 1
         else:
             stats.lines_rejected += 1
-        if self._homing_line == event.line.id and isinstance(event, LineAcknowledged):
-            self._homing_return = True
+        self.watch.replied(event.line.id, acknowledged=isinstance(event, LineAcknowledged))
         slot = self._take(event.line.id)
         if slot is None:
             return
@@ -220,9 +190,7 @@ class LineScheduler:
         their slots until their fate is known (:meth:`on_doubt_resolved`, or their replies)."""
         failed = event.failed
         self._barrier = None
-        self._dwell_until = -math.inf
-        self._end_homing()  # a reset stops the homing search
-        self._homing_return = False
+        self.watch.on_reset()
         for pending in event.in_doubt:
             slot = self.slots.get(pending.id)
             if slot is not None:
@@ -254,25 +222,10 @@ class LineScheduler:
         slot = self.slots.pop(line_id, None)
         if self._barrier == line_id:
             self._barrier = None
-        if self._homing_line == line_id:
-            self._end_homing()
+        self.watch.taken(line_id)
         if slot is not None:
             slot.reply_epoch = self._condition.reset_epoch
         return slot
-
-    def _end_homing(self) -> None:
-        """The homing line was answered (or a reset ended it): the robot answers ``?`` again;
-        the ``?`` written during the search were merged into the one report it printed then."""
-        if self._homing_line is None and self._condition.homing is None:
-            return
-        self._homing_line = None
-        self._condition.homing = None
-        self._poller.on_homing_end()
-
-    @property
-    def homing(self) -> HomingCycle | None:
-        """The homing line in flight, if any (the robot answers no ``?`` meanwhile)."""
-        return self._condition.homing
 
     def on_doubt_resolved(self, event: DoubtResolved) -> None:
         """Lines in doubt after a reset that did not run: they fail with MirobotResetError."""
@@ -394,9 +347,9 @@ class LineScheduler:
                     verdict = found
                     checked_epoch = position_epoch
                     continue
-                if self._homing_return:
+                if self.watch.homing_return:
                     limit.what = f"the arm to finish homing (its return move) before {command!r}"
-                    await self._await_homing_return(deadline)
+                    await self.watch.await_homing_return(deadline, self.status_timeout)
                     limit.what = room
                     continue
                 if self._ready(exclusive, nbytes):
@@ -424,17 +377,6 @@ class LineScheduler:
                     return slot
                 await self.wait_progress(deadline)
 
-    async def _await_homing_return(self, deadline: float | None) -> None:
-        """One status (received after the homing line's ``ok``); the return move has ended if
-        it shows the robot quiet."""
-        report, _ = await self._poller.fetch(
-            fresh=False,
-            timeout=clip(self.status_timeout, deadline, self._now()),
-            what="a status report (the arm's return move after homing)",
-        )
-        if report.state in QUIET and not self._wire.conn.in_banner:
-            self._homing_return = False
-
     def _write(self, data: bytes, command: str, exclusive: bool, dwell: float | None) -> Slot:
         """Register ``data`` with the state machine and write it (synchronous: no gap)."""
         assert self._loop is not None
@@ -442,21 +384,9 @@ class LineScheduler:
         now = self._loop.time()
         slot = Slot(pending, command, self._loop.create_future(), now)
         self.slots[pending.id] = slot
-        self._last_write = now
         if exclusive:
             self._barrier = pending.id
-            text = pending.line.decode("ascii", "replace").replace(" ", "").upper()
-            if HOMING_LINE_RE.match(text):
-                condition = self._condition
-                bound = homing_bound(text, condition.homing_rates, condition.homing_bounds)
-                condition.homing = HomingCycle(command, now, bound)
-                self._homing_line = pending.id
-                _log.info(
-                    "%r sent: the robot answers nothing until homing ends (<= %g s)", command, bound
-                )
-        if dwell is not None and dwell > 0:
-            slot.dwell = dwell
-            self._dwell_until = max(self._dwell_until, now) + dwell
+        self.watch.written(slot, now, dwell)
         return slot
 
     async def learn_position(self, command: str, deadline: float | None) -> None:
@@ -491,93 +421,8 @@ class LineScheduler:
             await self.check_liveness(deadline)
 
     async def check_liveness(self, deadline: float | None) -> None:
-        """Ask for a status; if the robot is quiet, give up on lines whose reply was lost.
-
-        While a homing line may still be searching (:meth:`RobotCondition.homing_silent`)
-        nothing is asked: the firmware answers no ``?`` then, and a closed port fails the call
-        anyway. Past the homing bound a status reply that does not come names homing."""
-        now = self._now()
-        if deadline is not None and deadline <= now:
-            return  # the caller's own deadline decides
-        if self._condition.homing_silent(now) is not None:
-            return
-        what = "a status reply (checking that the robot is alive while waiting for a reply)"
-        homing = self._condition.homing
-        if homing is not None:
-            what = (
-                f"a status reply: no reply to {homing.command!r} after "
-                f"{now - homing.started:.1f} s, longer than homing can take ({homing.bound:g} s; "
-                "the firmware answers no '?' while homing, so the link or the robot is dead)"
-            )
-        report, asked_at = await self._poller.fetch(
-            fresh=True, timeout=clip(self.status_timeout, deadline, now), what=what
-        )
-        if report.state in QUIET:
-            self._expire_lost_replies(asked_at, report.state)
-        else:
-            self._quiet_anchor = None  # busy: a dwell queued behind motion has not started
-
-    def _pending_dwell_end(self, asked_at: float) -> float:
-        """The latest the dwells of the pending lines can end, judged from a quiet report
-        answering a ``?`` written at ``asked_at`` (the firmware runs a ``G4`` only once its
-        planner is empty, and reports ``Idle`` during it: oracle, 1.8 s of ``Idle`` before the
-        ``ok`` of a ``G4 P2`` sent behind a 1.5 s move)."""
-        dwells = [slot.dwell for slot in self.slots.values() if slot.dwell > 0]
-        if not dwells:
-            return -math.inf
-        if self._quiet_anchor is None or self._quiet_anchor < self._last_write:
-            self._quiet_anchor = max(asked_at, self._last_write, self._now())
-        return self._quiet_anchor + math.fsum(dwells)
-
-    def _expire_lost_replies(self, asked_at: float, state: State) -> None:
-        conn = self._wire.conn
-        if conn.in_banner:
-            return
-        if conn.in_doubt_count and asked_at >= self._condition.banner_started + self.reply_grace:
-            # A quiet robot answered a "?" written well after the banner: every reply to a
-            # line that ran after the reset has come; the others were lost with its buffer.
-            conn.resolve_doubt()
-            dispatch = self.dispatch
-            assert dispatch is not None
-            for event in conn.events():
-                dispatch(event)
-        self._dwell_until = max(self._dwell_until, self._pending_dwell_end(asked_at))
-        if asked_at < self._dwell_until + self.reply_grace:
-            return
-        expired = False
-        while conn.pending_count:
-            oldest = conn.pending_lines[0]
-            slot = self.slots.get(oldest.id)
-            if slot is not None and asked_at - slot.sent_at < self.reply_grace:
-                break
-            conn.expire_oldest()
-            self.slots.pop(oldest.id, None)
-            if self._barrier == oldest.id:
-                self._barrier = None
-            if self._homing_line == oldest.id:
-                self._end_homing()
-            self._wire.stats.replies_lost += 1
-            expired = True
-            self._guard.forget("lost")  # did it run? Unknown: forget position and modes
-            command = oldest.line.decode("ascii", "replace")
-            _log.warning(
-                "no reply to %r although the robot is %s and answered a later status request: "
-                "giving up on it",
-                command,
-                state.value,
-            )
-            if slot is not None and not slot.fut.done():
-                elapsed = self._now() - slot.sent_at
-                slot.settle(
-                    MirobotTimeoutError(
-                        f"the reply to {command!r} (lost: the robot is {state.value} and answered "
-                        "a later status request)",
-                        round(elapsed, 3),
-                        command=command,
-                    )
-                )
-        if expired:
-            self._wire.notify()
+        """:meth:`ReplyWatch.check` with this scheduler's status timeout."""
+        await self.watch.check(deadline, self.status_timeout)
 
     async def await_slot(
         self, slot: Slot, deadline: float | None, timeout: float | None

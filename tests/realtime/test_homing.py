@@ -30,7 +30,7 @@ def at_zero(report: StatusReport) -> bool:
 async def homing_started(arm: Mirobot) -> None:
     """Returns once the client has written the homing line (it is silent from then on)."""
     async with asyncio.timeout(30):
-        while arm.homing is None:
+        while arm.homing is None:  # noqa: ASYNC110 - a property of the client, no event
             await asyncio.sleep(0.01)
 
 
