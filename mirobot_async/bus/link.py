@@ -206,6 +206,14 @@ class LinkSide:
         self._check_open()
         kind = _REALTIME[byte]
         node = self.node(address)
+        if kind is Kind.STATUS:
+            waiting = next((r for r in node.urgent if r.owed.kind is Kind.STATUS), None)
+            if waiting is not None and waiting.owed.for_client:
+                # A "?" still queued for this node answers this one too: its report will be
+                # printed after both were written. (One "?" per report on a slow, shared bus:
+                # a client polling faster than the bus answers would queue them without end.)
+                waiting.owed.copies += 1
+                return
         owed = Owed(kind, byte.decode(), self.ends, status_owed=kind is Kind.STATUS)
         request = _Request(owed, self._wire(address, byte))
         if byte == b"%":

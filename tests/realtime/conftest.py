@@ -26,9 +26,18 @@ from mirobot_async.testing import EmulatorPool, EmulatorProcess
 
 PROFILES = ("2021", "classic")
 REPO = Path(__file__).resolve().parents[2]
+_SOURCES = [
+    REPO.parent / "shared" / "firmware-oracle",
+    REPO.parents[1] / "shared" / "firmware-oracle",
+]
 ORACLE_SOURCE = Path(
-    os.environ.get("MIROBOT_ORACLE_SOURCE", str(REPO.parent / "shared" / "firmware-oracle"))
+    os.environ.get(
+        "MIROBOT_ORACLE_SOURCE",
+        str(next((path for path in _SOURCES if path.is_dir()), _SOURCES[0])),
+    )
 )
+"""As tests/oracle/harness.py finds it (``../shared`` next to the repository), also from a
+worktree one level deeper."""
 _CACHE = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache"))
 ORACLE_BUILD = Path(os.environ.get("MIROBOT_ORACLE_DIR", str(_CACHE / "mirobot-firmware-oracle")))
 
