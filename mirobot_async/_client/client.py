@@ -37,6 +37,11 @@ come for :attr:`Mirobot.liveness_interval` seconds polls the status. No status r
 that leaves the oldest line unanswered although it was sent more than
 :attr:`Mirobot.reply_grace` seconds before that status request has lost the reply: the line is
 given up (``MirobotTimeoutError`` naming it) and the following replies keep their lines.
+Two silences are expected: during the homing search the firmware answers nothing, not even
+``?``, so no ``?`` is asked until the homing bound (:attr:`Mirobot.homing_bounds`, from the
+homing settings) has passed; and lines behind a ``G4`` dwell keep their slots while the robot
+reports ``Idle`` for the dwell. After homing, nothing is written until the arm is back at zero.
+Every rule, with the robot behaviour it relies on: ARCHITECTURE.md, "Timeouts and liveness".
 
 Cancellation
 ------------
@@ -132,6 +137,7 @@ from mirobot_async._client.parts import (
     MOVE_TIMEOUT,
     RESET_TIMEOUT,
     STATUS_TIMEOUT,
+    default_reply_timeout,
 )
 from mirobot_async._client.path_commands import PathCommands, PathError
 from mirobot_async._client.router import url_text
@@ -139,6 +145,7 @@ from mirobot_async._client.status_commands import StatusCommands
 from mirobot_async._client.streaming import LineResult, Stream, StreamResult
 from mirobot_async._client.transport import Implementation
 from mirobot_async._client.wire import ClientStats, Transport, TransportOpener, serial_opener
+from mirobot_async._core.line import parse_line
 from mirobot_async._core.protocol import encode_line
 from mirobot_async._core.replies import StatusReport
 from mirobot_async.errors import MirobotConnectionError, MirobotTimeoutError, MirobotUsageError
@@ -349,7 +356,7 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
         except TimeoutError as err:
             raise MirobotConnectionError(
                 f"{url_text(self.url)} opened, but no Mirobot answered a status request within "
-                f"{timeout:g} s"
+                f"{timeout:g} s (an arm that is homing answers none until its switch search ends)"
             ) from err
         if self._guard.envelope is not None and self._condition.firmware is None:
             try:  # the envelope's kinematic model: waits for the arm to be at rest
@@ -484,10 +491,18 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
         ``Alarm lock``), :class:`MirobotUsageError` for a line that is not one ASCII line or
         contains a realtime byte (nothing is sent), :class:`MirobotTimeoutError` when no reply
         comes within ``timeout`` seconds (default :data:`DEFAULT_TIMEOUT`) or the reply was lost.
+        A ``timeout`` of :data:`DEFAULT_TIMEOUT` is raised for the lines the firmware answers
+        late (:func:`~mirobot_async._client.parts.default_reply_timeout`): :data:`HOME_TIMEOUT` for
+        a homing line, :data:`MOVE_TIMEOUT` (plus the dwell) for ``G4`` and the PWM lines
+        ``M3``/``M4``/``M5``, which are answered once the queued motion has ended. While the
+        arm homes the firmware answers nothing, not even ``?``: the call waits, and a link that
+        stays silent longer than homing can take fails naming homing.
         ``$`` commands wait until nothing else is in flight. Cancellation keeps the link in step:
         the reply is consumed and discarded.
         """
         data = encode_line(line, self._wire.rx_buffer_size)
+        if timeout == DEFAULT_TIMEOUT:
+            timeout = default_reply_timeout(parse_line(data))
         deadline = deadline_after(self._running_loop(), timeout)
         what = f"send({data.decode('ascii')!r})"
         if not validate:

@@ -16,7 +16,7 @@ import asyncio
 from typing import TYPE_CHECKING, Final
 
 from mirobot_async._client.completion import MotionCompletion
-from mirobot_async._client.condition import Firmware, RobotCondition
+from mirobot_async._client.condition import Firmware, HomingCycle, RobotCondition
 from mirobot_async._client.deadline import deadline_after
 from mirobot_async._client.guard import make_guard
 from mirobot_async._client.poller import StatusPoller
@@ -25,7 +25,7 @@ from mirobot_async._client.scheduler import LineScheduler
 from mirobot_async._client.transport import Implementation
 from mirobot_async._client.wire import ClientStats, Wire
 from mirobot_async._core import gcode
-from mirobot_async._core.line import parse_line
+from mirobot_async._core.line import ParsedLine, parse_line
 from mirobot_async._core.replies import parse_setting_line
 from mirobot_async.errors import MirobotConnectionError, MirobotUsageError
 
@@ -40,6 +40,7 @@ __all__ = [
     "RESET_TIMEOUT",
     "STATUS_TIMEOUT",
     "ClientParts",
+    "default_reply_timeout",
 ]
 
 # ---- documented defaults (seconds) --------------------------------------------------------
@@ -56,6 +57,22 @@ RESET_TIMEOUT: Final = 10.0
 """Default ``timeout`` of :meth:`Mirobot.reset` (the banner after ``%``)."""
 CONNECT_TIMEOUT: Final = 5.0
 """Default ``timeout`` of :meth:`Mirobot.connect` (opening the port and the first status)."""
+
+
+def default_reply_timeout(parsed: ParsedLine) -> float:
+    """The default ``timeout`` of a one-line call sending ``parsed`` (``send()``, the pump and
+    valve commands): :data:`HOME_TIMEOUT` for a homing line (the reply comes when the switch
+    search ends: 8-30 s); :data:`MOVE_TIMEOUT` plus its dwell for a line the firmware answers
+    only once the queued motion has ended (``G4``, the PWM lines ``M3``/``M4``/``M5``, ``M2``/
+    ``M30``; oracle: ``M3 S1000`` behind a 30-degree move at F1000 is answered 1.6 s later),
+    as a ``wait=True`` move waits for the same; else :data:`DEFAULT_TIMEOUT`."""
+    if parsed.is_homing:
+        return HOME_TIMEOUT
+    if parsed.dwell_seconds is not None:
+        return MOVE_TIMEOUT + max(0.0, parsed.dwell_seconds)
+    if parsed.program_end or any(code in (3, 4, 5) for code in parsed.m_codes):
+        return MOVE_TIMEOUT
+    return DEFAULT_TIMEOUT
 
 
 class ClientParts:
@@ -113,6 +130,20 @@ class ClientParts:
     @status_timeout.setter
     def status_timeout(self, value: float) -> None:
         self._lines.status_timeout = self._completion.status_timeout = value
+
+    @property
+    def homing(self) -> HomingCycle | None:
+        """The homing line in flight (``$H``...: the robot answers no ``?`` until its switch
+        search ends, at most ``homing.bound`` seconds after ``homing.started``), or ``None``."""
+        return self._condition.homing
+
+    @property
+    def homing_bounds(self) -> dict[str, float]:
+        """Seconds a homing line may go unanswered at the default homing rates: ``"$H"`` (also
+        ``$H0``..``$H7``) and ``"$HH"`` (also ``$HE``); slower ``$24``/``$25`` stretch them. Past
+        it a silent robot is taken for a dead link (see ARCHITECTURE.md, "Timeouts and
+        liveness"). A mutable mapping: tests may lower it."""
+        return self._condition.homing_bounds
 
     @property
     def liveness_interval(self) -> float:

@@ -8,6 +8,7 @@ from mirobot_async._client.client import Mirobot as AsyncMirobot
 from collections.abc import AsyncIterable, Callable, Iterable, Sequence
 from typing import Any, Self
 from mirobot_async import Firmware, Implementation, Point
+from mirobot_async._client.condition import HomingCycle
 from mirobot_async._client.streaming import LineResult, StreamResult
 from mirobot_async._client.wire import ClientStats, TransportOpener
 from mirobot_async._core.modal import LineCheck
@@ -78,6 +79,12 @@ class Mirobot(BlockingFacade, wraps=AsyncMirobot):
     def hold_on_exit(self) -> BlockingContextManager[None]: ...
 
     def home(self, sequential: bool = ..., *, timeout: float | None = ...) -> StatusReport: ...
+
+    @property
+    def homing(self) -> HomingCycle | None: ...
+
+    @property
+    def homing_bounds(self) -> dict[str, float]: ...
 
     @property
     def last_status(self) -> StatusReport | None: ...
