@@ -20,7 +20,20 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Final, Protocol
 
 from mirobot_async.condition import RobotCondition
-from mirobot_async.errors import MirobotUsageError
+from mirobot_async.errors import MirobotUsageError, RefusalReason
+from mirobot_async.firmware_memory import (
+    PARSER_UNKNOWN,
+    ZERO_OFFSET,
+    Offset,
+    changes_work_offsets,
+    parse_startup_lines,
+    parse_work_offsets,
+    reset_modes,
+    soft_limits_from_settings,
+    startup_lines_move,
+    state_after_refusal,
+    work_offset,
+)
 from mirobot_async.line import ParsedLine
 from mirobot_async.modal import LineCheck, MotionModes, update_modes
 from mirobot_async.replies import State, StatusReport
@@ -74,6 +87,7 @@ class Tracked:
     state_before: MachineState  # the predicted machine state before the line
     moved: bool
     modes_changed: bool
+    epoch: int = 0  # the guard's epoch when it was written (a later change: do not undo)
 
 
 class Guard(Protocol):
@@ -86,6 +100,10 @@ class Guard(Protocol):
 
     @property
     def wants_settings(self) -> bool: ...
+
+    def wanted_queries(self) -> tuple[str, ...]: ...
+
+    def adopt_query(self, query: str, output: Sequence[str]) -> None: ...
 
     def modal_state(self) -> ModalState: ...
 
@@ -111,7 +129,9 @@ class Guard(Protocol):
         warn_unchecked: bool,
     ) -> Tracked | None: ...
 
-    def line_failed(self, tracked: Tracked, *, rejected: bool) -> None: ...
+    def line_failed(
+        self, tracked: Tracked, *, rejected: bool, reason: RefusalReason | None = None
+    ) -> None: ...
 
     def forget(self, why: str) -> None: ...
 
@@ -136,6 +156,13 @@ class NullGuard:
     def wants_settings(self) -> bool:
         """Never: no settings are needed."""
         return False
+
+    def wanted_queries(self) -> tuple[str, ...]:
+        """None: nothing stored in the firmware is needed."""
+        return ()
+
+    def adopt_query(self, query: str, output: Sequence[str]) -> None:
+        """Nothing to learn."""
 
     def modal_state(self) -> ModalState:
         """The modal words stated by the lines written since connect (unknown before)."""
@@ -176,7 +203,9 @@ class NullGuard:
             self._modes = update_modes(parsed, self._modes)
         return None
 
-    def line_failed(self, tracked: Tracked, *, rejected: bool) -> None:
+    def line_failed(
+        self, tracked: Tracked, *, rejected: bool, reason: RefusalReason | None = None
+    ) -> None:
         """Nothing to undo."""
 
     def forget(self, why: str) -> None:
@@ -200,10 +229,17 @@ class EnvelopeGuard:
         self._classic: Envelope | None = None  # the envelope with dh=DH_CLASSIC
         self._condition = condition
         self._stats = stats
-        # Everything unknown at connect: the modes (units too), the position, the base offset.
-        self._state: MachineState = MachineState(MotionModes.unknown())
+        # Everything unknown at connect: the modes (units too), the position, the base offset,
+        # what the firmware stores (startup lines, work offsets, soft limits, $35).
+        self._state: MachineState = MachineState(
+            MotionModes.unknown(), startup_lines=None, work_offset=None, linear_g1=None
+        )
         self._base_offset: tuple[float, float, float] | None = None  # learned from $$ (2021)
         self._gate_lift: float | None = None
+        self._soft_read = False  # $20 and $130..$146 known (state.soft_limits, None if off)
+        self._systems: tuple[Offset, ...] | None = None  # G54..G59 from $#
+        self._g92: Offset | None = None
+        self._coordinate: int | None = None  # G54..G59 in effect (54 after a reset)
         self.epoch = 0  # bumped when the prediction or the modes are invalidated
         self._last_line_id: int | None = None
         self._moves = False  # whether the last prediction moves the arm
@@ -230,9 +266,32 @@ class EnvelopeGuard:
 
     @property
     def wants_settings(self) -> bool:
-        """True on a 2021 arm while the base offset ``$41..$43`` is unknown (a ``$$`` listing
-        handed to :meth:`adopt_settings` gives it)."""
-        return self._condition.firmware == "2021" and self._base_offset is None
+        """True while the soft limits ``$20``/``$130..$146`` or, on a 2021 arm, the base offset
+        ``$41..$43`` or ``$35`` are unknown (a ``$$`` listing handed to :meth:`adopt_settings`
+        gives them)."""
+        if not self._soft_read:
+            return True
+        return self._condition.firmware == "2021" and (
+            self._base_offset is None or self._state.linear_g1 is None
+        )
+
+    def wanted_queries(self) -> tuple[str, ...]:
+        """The ``$`` queries whose answers (:meth:`adopt_query`) the prediction still needs:
+        ``$N`` (stored startup lines) and ``$#`` (stored work offsets)."""
+        wanted = ("$N",) if self._state.startup_lines is None else ()
+        return (*wanted, "$#") if self._systems is None or self._g92 is None else wanted
+
+    def adopt_query(self, query: str, output: Sequence[str]) -> None:
+        """The answer to a :meth:`wanted_queries` query (its lines before ``ok``)."""
+        if query == "$N":
+            lines = parse_startup_lines(output)
+            if lines is not None:
+                self._state = replace(self._state, startup_lines=lines)
+        elif query == "$#":
+            offsets = parse_work_offsets(output)
+            if offsets is not None:
+                self._systems, self._g92 = offsets
+        self.epoch += 1
 
     def modal_state(self) -> ModalState:
         """The modal words :mod:`~mirobot_async.validation` needs, as predicted (a new object)."""
@@ -240,27 +299,27 @@ class EnvelopeGuard:
         return ModalState(modes.cartesian, modes.relative)
 
     def needs_firmware(self, parsed: ParsedLine) -> bool:
-        """True when the firmware (the kinematic model) or, for an absolute Cartesian line on a
-        2021 arm, its base offset (a ``$$`` listing at rest) must be known before checking it."""
+        """True when the firmware (the kinematic model) or, for a line with axis words, what the
+        firmware stores (settings, startup lines, work offsets: read at rest) must be known
+        before checking it."""
         if parsed.kind == "dollar":
             return False
         if self._condition.firmware is None:
             return True
-        if not self.wants_settings or self._state.base_offset is not None:
+        if not parsed.axis_words:
             return False
-        modes = self._state.modes
-        cartesian = parsed.coordinate_mode == 20 or (
-            parsed.coordinate_mode is None and modes.cartesian is not False
-        )
-        relative = parsed.distance == 91 or (parsed.distance is None and modes.relative is True)
-        axes = parsed.axis_words
-        return cartesian and not relative and any(k in axes for k in "XYZ")
+        return self.wants_settings or bool(self.wanted_queries())
 
-    def _machine(self) -> MachineState:
+    def _work_offset(self, parsed: ParsedLine | None) -> Offset | None:
+        """The work offset in effect for ``parsed`` (``G54..G59`` + ``G92``), or None."""
+        coordinate = 54 if parsed is not None and 54 in parsed.g_codes else self._coordinate
+        return work_offset(self._systems, self._g92, coordinate)
+
+    def _machine(self, parsed: ParsedLine | None = None) -> MachineState:
         """The predicted state with what the firmware profile decides filled in."""
         firmware = self._condition.firmware
-        state = self._state
-        if firmware == "classic":  # no base offset, no gate moves
+        state = replace(self._state, work_offset=self._work_offset(parsed))
+        if firmware == "classic":  # no base offset, no gate moves, M20 G1 in joint space
             return replace(state, base_offset=(0.0, 0.0, 0.0), gate_lift=None, firmware=firmware)
         if state.base_offset is None and self._base_offset is not None:
             state = replace(state, base_offset=self._base_offset)
@@ -282,7 +341,7 @@ class EnvelopeGuard:
         """The envelope's verdict on ``parsed`` from the predicted state, or
         :data:`NEED_POSITION`; raises :class:`MirobotUsageError` ("refused by the safety
         envelope ...; nothing was sent") for a line it refuses."""
-        state = self._machine()
+        state = self._machine(parsed)
         try:
             if state.joints is None and not parsed.is_homing:
                 # Lines that do not move need no position; the others wait for one.
@@ -312,6 +371,7 @@ class EnvelopeGuard:
             return NEED_POSITION
         checks: list[LineCheck] = []
         for index, parsed in enumerate(lines):
+            state = replace(state, work_offset=self._work_offset(parsed))
             result = predict(self.envelope, parsed, state, what=None)
             if not isinstance(result, Prediction):
                 self._stats.envelope_refusals += 1
@@ -335,7 +395,14 @@ class EnvelopeGuard:
         )
 
     def adopt_settings(self, settings: Mapping[int, float]) -> None:
-        """A ``$$`` listing: the 2021 base offset ``$41..$43`` and gate lift ``$49``."""
+        """A ``$$`` listing: the soft limits, the 2021 base offset ``$41..$43``, gate lift
+        ``$49`` and ``$35``."""
+        soft = soft_limits_from_settings(settings)
+        if soft is not None:
+            self._soft_read = True
+            self._state = replace(self._state, soft_limits=soft)
+        if 35 in settings:
+            self._state = replace(self._state, linear_g1=settings[35] != 0)
         if all(n in settings for n in (41, 42, 43)):
             offset = (float(settings[41]), float(settings[42]), float(settings[43]))
             self._base_offset = offset
@@ -370,14 +437,39 @@ class EnvelopeGuard:
             self._state = after
         else:
             modes = update_modes(parsed, before.modes)
-            self._state = replace(before, modes=modes, joints=None, pose=None, rail=None)
-            if _may_change_offset(parsed):
-                self._state = replace(self._state, base_offset=None, gate_lift=None)
-                self._base_offset = self._gate_lift = None
+            self._state = replace(
+                before, modes=modes, joints=None, pose=None, rail=None, parser=PARSER_UNKNOWN
+            )
+            self._forget_stored(parsed)
             moved = True
+        self._track_coordinates(parsed)
         self._last_line_id = line_id
         check = None if after is None else _line_check(after, moved)
-        return Tracked(line_id, check, before, moved, self._state.modes != before.modes)
+        changed = self._state.modes != before.modes
+        return Tracked(line_id, check, before, moved, changed, self.epoch)
+
+    def _track_coordinates(self, parsed: ParsedLine) -> None:
+        """The work coordinate system in effect: ``G54`` (also after homing, program end)."""
+        if parsed.is_homing:
+            self._coordinate, self._g92 = 54, ZERO_OFFSET if self._systems is not None else None
+        elif 54 in parsed.g_codes or parsed.program_end:
+            self._coordinate = 54
+
+    def _forget_stored(self, parsed: ParsedLine) -> None:
+        """An unchecked line that may change what the firmware stores: read it again."""
+        dollar = parsed.dollar
+        if _may_change_offset(parsed):
+            self._state = replace(self._state, base_offset=None, gate_lift=None)
+            self._base_offset = self._gate_lift = None
+        if dollar is not None and dollar.kind in ("restore", "unknown"):
+            self._soft_read = False
+            self._state = replace(self._state, linear_g1=None, soft_limits=None)
+        if dollar is not None and dollar.kind in ("startup", "restore", "unknown"):
+            self._state = replace(self._state, startup_lines=None)
+        if changes_work_offsets(parsed.source):
+            self._systems = self._g92 = None
+            if any(55 <= code <= 59 for code in parsed.g_codes):
+                self._coordinate = None
 
     def _follow(self, parsed: ParsedLine, what: str | None) -> MachineState | None:
         try:
@@ -420,28 +512,49 @@ class EnvelopeGuard:
             )
         return after
 
-    def line_failed(self, tracked: Tracked, *, rejected: bool) -> None:
-        """A line was rejected (error: nothing of it ran) or its motion refused (modes ran)."""
+    def line_failed(
+        self, tracked: Tracked, *, rejected: bool, reason: RefusalReason | None = None
+    ) -> None:
+        """A line was rejected (error: nothing of it ran) or its motion refused (modes ran).
+
+        A refused move leaves the arm where it was, but not always the parser (oracle): locked,
+        it moves the parser to the refused target (and so does an unreachable Cartesian
+        target, for the commanded pose); a soft limit leaves it."""
         if not tracked.moved and not (rejected and tracked.modes_changed):
             return
         before = tracked.state_before
-        if tracked.line_id == self._last_line_id:  # nothing was written after it: undo it
-            if rejected:
-                self._state = before
-            else:
-                self._state = replace(
-                    self._state, joints=before.joints, pose=before.pose, rail=before.rail
-                )
-            self.epoch += 1
+        last = tracked.line_id == self._last_line_id and tracked.epoch == self.epoch
+        if last and rejected:  # nothing was written after it: undo it
+            self._state = before
+        elif last:
+            state = replace(self._state, joints=before.joints, pose=before.pose, rail=before.rail)
+            self._state = state_after_refusal(state, before, tracked.check, reason)
         else:
             self._forget(MotionModes.unknown() if rejected else None)
+            if not rejected:
+                self._state = replace(self._state, parser=PARSER_UNKNOWN)
+        self.epoch += 1
 
     def forget(self, why: str) -> None:
         """The arm may be elsewhere than predicted: ``why`` is ``"alarm"`` (modes kept),
         ``"reset"`` (power-on modes: GRBL re-initialises the parser, G21 included) or ``"lost"``
         (a lost reply: modes unknown)."""
-        modes = {"reset": MotionModes(), "lost": MotionModes.unknown()}.get(why)
+        if why == "reset":
+            # GRBL re-initialises the parser (G54, no G92), then the stored startup lines run:
+            # on classic unless the reset ends in Alarm; on 2021 (Alarm after a reset) they may
+            # not, so the modes they change are unknown.
+            ran = None if self._condition.firmware != "classic" or self._condition.alarm else True
+            lines = self._state.startup_lines
+            self._coordinate = 54
+            self._g92 = ZERO_OFFSET if self._systems is not None else None
+            self._forget(reset_modes(lines, ran=ran))
+            self._state = replace(self._state, parser=None)
+            if lines and ran is not False and startup_lines_move(lines):
+                self._systems = self._g92 = None  # read them again
+            return
+        modes = {"lost": MotionModes.unknown()}.get(why)
         self._forget(modes)
+        self._state = replace(self._state, parser=PARSER_UNKNOWN)
 
     def _forget(self, modes: MotionModes | None) -> None:
         state = replace(self._state, joints=None, pose=None, rail=None)

@@ -214,6 +214,11 @@ class ClientParts:
         rest (the firmware refuses ``$$`` while it moves: ``Not idle``)."""
         if self._condition.firmware is None or self._guard.wants_settings:
             await self._settings(deadline, timeout, idle=True)
+        for query in self._guard.wanted_queries():  # what the firmware stores ($N, $#)
+            output = await self._command(
+                query.encode("ascii"), deadline=deadline, timeout=timeout, idle=True
+            )
+            self._guard.adopt_query(query, output)
         if self._condition.firmware is None:  # pragma: no cover - _settings always decides
             raise MirobotConnectionError("could not determine the firmware profile")
         return self._condition.firmware

@@ -29,6 +29,7 @@ PURE_CLIENT = [
     "paths",
     "cartesian",
     "prediction",
+    "firmware_memory",
     "envelope",
     "kinematics",
 ]
