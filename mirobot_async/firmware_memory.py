@@ -35,6 +35,7 @@ __all__ = [
     "ParserPosition",
     "apply_startup_lines",
     "changes_work_offsets",
+    "parse_coordinate_system",
     "parse_startup_lines",
     "parse_work_offsets",
     "soft_limit_ranges",
@@ -68,6 +69,7 @@ PARSER_UNKNOWN: Final = ParserPosition(None)
 
 _STARTUP_RE: Final = re.compile(r"^\$N(\d+)=(.*)$")
 _OFFSET_RE: Final = re.compile(r"^\[(G5[4-9]|G92|G28|G30):([-0-9.,]+)\]$")
+_SYSTEM_RE: Final = re.compile(r"^G5[4-9]$")
 _REPORT_ORDER: Final = "ABCDXYZ"  # $# prints the firmware's axis order a..g
 _WORD_ORDER: Final = "XYZABCD"
 # firmware axis letters a..g are J4, J5, J6, D, J1, J2, J3 (index into J1..J6, rail = 6)
@@ -110,6 +112,17 @@ def parse_work_offsets(output: Iterable[str]) -> tuple[tuple[Offset, ...], Offse
     if not all(name in rows for name in [*names, "G92"]):
         return None
     return tuple(rows[name] for name in names), rows["G92"]
+
+
+def parse_coordinate_system(output: Iterable[str]) -> int | None:
+    """The work coordinate system in effect (54..59) from a ``$G`` listing, or None."""
+    for raw in output:
+        text = raw.strip()
+        if text.startswith("[") and text.endswith("]"):
+            codes = [int(w[1:]) for w in text[1:-1].split() if _SYSTEM_RE.match(w)]
+            if len(codes) == 1:
+                return codes[0]
+    return None
 
 
 def changes_work_offsets(text: str) -> bool:

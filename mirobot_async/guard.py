@@ -26,6 +26,7 @@ from mirobot_async.firmware_memory import (
     ZERO_OFFSET,
     Offset,
     changes_work_offsets,
+    parse_coordinate_system,
     parse_startup_lines,
     parse_work_offsets,
     reset_modes,
@@ -277,9 +278,12 @@ class EnvelopeGuard:
 
     def wanted_queries(self) -> tuple[str, ...]:
         """The ``$`` queries whose answers (:meth:`adopt_query`) the prediction still needs:
-        ``$N`` (stored startup lines) and ``$#`` (stored work offsets)."""
+        ``$N`` (stored startup lines), ``$#`` (stored work offsets) and ``$G`` (which of them
+        is in effect)."""
         wanted = ("$N",) if self._state.startup_lines is None else ()
-        return (*wanted, "$#") if self._systems is None or self._g92 is None else wanted
+        if self._systems is None or self._g92 is None:
+            wanted = (*wanted, "$#")
+        return (*wanted, "$G") if self._coordinate is None else wanted
 
     def adopt_query(self, query: str, output: Sequence[str]) -> None:
         """The answer to a :meth:`wanted_queries` query (its lines before ``ok``)."""
@@ -291,6 +295,8 @@ class EnvelopeGuard:
             offsets = parse_work_offsets(output)
             if offsets is not None:
                 self._systems, self._g92 = offsets
+        elif query == "$G":
+            self._coordinate = parse_coordinate_system(output)
         self.epoch += 1
 
     def modal_state(self) -> ModalState:

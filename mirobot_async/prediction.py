@@ -395,8 +395,8 @@ def _add_work_offset(axes: dict[str, float], offset: tuple[float, ...] | None) -
     """Absolute words: the firmware adds the work offset in effect (``G54..G59`` + ``G92``)."""
     if offset is None:
         raise _Refuse(
-            "an absolute move needs the work offset (G54..G59, G92), which is unknown; "
-            "read it with $# first"
+            "an absolute move needs the work offset in effect (G54..G59 + G92), which is "
+            "unknown; it is read ($#, $G) before a move (or state G54 in the line)"
         )
     for k, delta in zip("XYZABCD", offset, strict=True):
         if k in axes:
