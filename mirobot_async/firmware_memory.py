@@ -19,7 +19,7 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Final, TypeAlias
 
 from mirobot_async.errors import RefusalReason
-from mirobot_async.line import parse_line
+from mirobot_async.line import ParsedLine, parse_line
 from mirobot_async.modal import LineCheck, MotionModes, update_modes
 
 if TYPE_CHECKING:
@@ -34,6 +34,7 @@ __all__ = [
     "Offset",
     "ParserPosition",
     "apply_startup_lines",
+    "changes_base_offset",
     "changes_work_offsets",
     "parse_coordinate_system",
     "parse_startup_lines",
@@ -123,6 +124,16 @@ def parse_coordinate_system(output: Iterable[str]) -> int | None:
             if len(codes) == 1:
                 return codes[0]
     return None
+
+
+def changes_base_offset(parsed: ParsedLine) -> bool:
+    """An unchecked ``$`` line that may change the base offset or the gate lift."""
+    dollar = parsed.dollar
+    if dollar is None:
+        return False
+    if dollar.kind in ("restore", "unknown"):
+        return True
+    return dollar.kind == "setting" and dollar.number in (41, 42, 43, 49)
 
 
 def changes_work_offsets(text: str) -> bool:

@@ -6,10 +6,14 @@ before it (:class:`~mirobot_async.prediction.MachineState`: modal words includin
 position, the 2021 base offset ``$41..$43`` and gate lift ``$49``), and keeps that prediction up
 to date. The check is default-deny (:func:`~mirobot_async.prediction.predict`): a line passes
 only when its exact effect is predicted. What is unknown at connect stays unknown until a line
-states it (``G21``, ``M20``...), a status at rest shows it (the position) or a settings listing
-gives it (the base offset). :class:`NullGuard` is the same interface when there is no envelope:
-every line passes and nothing is tracked. No I/O here: the line scheduler learns the position (a
-status at rest) when :meth:`EnvelopeGuard.verdict` asks for it.
+states it (``G21``, ``M20``...), a status at rest shows it (the position) or a listing gives it:
+before the first line that moves the arm the guard asks (:meth:`EnvelopeGuard.wanted_queries`)
+for ``$$`` (soft limits, base offset, ``$35``), ``$N`` (startup lines, applied after every reset
+and homing), ``$#`` and ``$G`` (work offsets); an unchecked line that changes one makes it
+unknown again. The parser's position is kept apart from the arm's after a move the firmware
+refused (locked: the parser moved to the target). :class:`NullGuard` is the same interface
+without an envelope: every line passes, nothing is tracked. No I/O here: the scheduler learns
+the position (a status at rest) when :meth:`EnvelopeGuard.verdict` asks for it.
 """
 
 from __future__ import annotations
@@ -25,6 +29,7 @@ from mirobot_async.firmware_memory import (
     PARSER_UNKNOWN,
     ZERO_OFFSET,
     Offset,
+    changes_base_offset,
     changes_work_offsets,
     parse_coordinate_system,
     parse_startup_lines,
@@ -89,6 +94,7 @@ class Tracked:
     moved: bool
     modes_changed: bool
     epoch: int = 0  # the guard's epoch when it was written (a later change: do not undo)
+    coordinate: int | None = None  # the work coordinate system in effect before it
 
 
 class Guard(Protocol):
@@ -448,23 +454,26 @@ class EnvelopeGuard:
             )
             self._forget_stored(parsed)
             moved = True
+        coordinate = self._coordinate
         self._track_coordinates(parsed)
         self._last_line_id = line_id
         check = None if after is None else _line_check(after, moved)
         changed = self._state.modes != before.modes
-        return Tracked(line_id, check, before, moved, changed, self.epoch)
+        return Tracked(line_id, check, before, moved, changed, self.epoch, coordinate)
 
     def _track_coordinates(self, parsed: ParsedLine) -> None:
         """The work coordinate system in effect: ``G54`` (also after homing, program end)."""
-        if parsed.is_homing:
+        if parsed.is_homing:  # the parser is re-initialised, then the startup lines run
             self._coordinate, self._g92 = 54, ZERO_OFFSET if self._systems is not None else None
+            if startup_lines_move(self._state.startup_lines):
+                self._systems = self._g92 = None  # read them again
         elif 54 in parsed.g_codes or parsed.program_end:
             self._coordinate = 54
 
     def _forget_stored(self, parsed: ParsedLine) -> None:
         """An unchecked line that may change what the firmware stores: read it again."""
         dollar = parsed.dollar
-        if _may_change_offset(parsed):
+        if changes_base_offset(parsed):
             self._state = replace(self._state, base_offset=None, gate_lift=None)
             self._base_offset = self._gate_lift = None
         if dollar is not None and dollar.kind in ("restore", "unknown"):
@@ -531,7 +540,7 @@ class EnvelopeGuard:
         before = tracked.state_before
         last = tracked.line_id == self._last_line_id and tracked.epoch == self.epoch
         if last and rejected:  # nothing was written after it: undo it
-            self._state = before
+            self._state, self._coordinate = before, tracked.coordinate
         elif last:
             state = replace(self._state, joints=before.joints, pose=before.pose, rail=before.rail)
             self._state = state_after_refusal(state, before, tracked.check, reason)
@@ -555,7 +564,7 @@ class EnvelopeGuard:
             self._g92 = ZERO_OFFSET if self._systems is not None else None
             self._forget(reset_modes(lines, ran=ran))
             self._state = replace(self._state, parser=None)
-            if lines and ran is not False and startup_lines_move(lines):
+            if ran is not False and startup_lines_move(lines):
                 self._systems = self._g92 = None  # read them again
             return
         modes = {"lost": MotionModes.unknown()}.get(why)
@@ -579,16 +588,6 @@ class EnvelopeGuard:
 
 def _line_check(state: MachineState, moves: bool) -> LineCheck:
     return LineCheck(state.modes, moves, state.joints, state.pose, state.rail, state.base_offset)
-
-
-def _may_change_offset(parsed: ParsedLine) -> bool:
-    """An unchecked ``$`` line that may change the base offset or the gate lift."""
-    dollar = parsed.dollar
-    if dollar is None:
-        return False
-    if dollar.kind in ("restore", "unknown"):
-        return True
-    return dollar.kind == "setting" and dollar.number in (41, 42, 43, 49)
 
 
 def make_guard(

@@ -10,16 +10,25 @@ through only when its effect is modelled; everything else is refused:
   words, unknown codes and letters, lines the firmware would reject (modal group violations,
   ``G21 M21``/``M21 M3`` orders, arcs without R, ``F0`` with a feed move);
 - moves that rely on an unknown mode (M20/M21, G90/G91, G0..G5, **G20/G21 units**), on an
-  unknown position, or (absolute ``M20`` on 2021) on an unknown base offset ``$41..$43``;
+  unknown position or parser position (:class:`ParserPosition`), on an unknown work offset
+  (absolute moves), or (absolute ``M20`` on 2021) on an unknown base offset ``$41..$43``;
+  a 2021 ``M20 G1`` while ``$35`` is unknown;
 - settings that change the geometry or the meaning of numbers (DH lengths, tool offset, steps
-  per unit, direction inversion, report units...), startup lines (``$N0=``), ``$RST``, jogs;
+  per unit, direction inversion, report units...), storing startup lines (``$N0=``), ``$RST``,
+  jogs;
 - paths that need more than :data:`~mirobot_async.paths.MAX_PATH_SAMPLES` check samples.
 
 Modelled: units (``G20`` scales every axis word by 25.4, angles too), relative and absolute
-words, missing words keeping their value, the base offset added to absolute ``M20`` X/Y/Z, the
-firmware's IK branch and the rapid joint move ("wrist snap") to it before an ``M20``
-``G1``/``G2``/``G3``/``G5`` path, J4/J6 kept continuous along a path, ``G5`` gate moves (with
-``$49`` known), every ``$H...`` variant as homing, ``$M``, program end. Pure module.
+words, missing words keeping their value, the parser's own position (a move refused as locked
+moves it; a line with ``M20``/``M21`` re-reads the arm's), the work offset (``G54..G59`` +
+``G92``) added to absolute words in both modes, the base offset added to absolute ``M20`` X/Y/Z,
+the firmware's IK branch and the rapid joint move ("wrist snap") to it before an ``M20``
+``G1``/``G2``/``G3``/``G5`` path, the classic ``M20 G1`` (2021: with ``$35=0``) as a joint-space
+move, J4/J6 kept continuous along a path, ``G5`` gate moves (with ``$49`` known), the soft limits
+``$20``/``$130..$146`` (the envelope narrowed to them: no line it passes is dropped by the
+firmware, so the next line starts where predicted), every ``$H...`` variant as homing (then the
+stored startup lines run), ``$M``, program end. What the firmware stores is read by the guard
+(:mod:`mirobot_async.firmware_memory`). Pure module.
 """
 
 from __future__ import annotations
