@@ -286,10 +286,11 @@ class EnvelopeGuard:
         """The ``$`` queries whose answers (:meth:`adopt_query`) the prediction still needs:
         ``$N`` (stored startup lines), ``$#`` (stored work offsets) and ``$G`` (which of them
         is in effect)."""
-        wanted = ("$N",) if self._state.startup_lines is None else ()
-        if self._systems is None or self._g92 is None:
-            wanted = (*wanted, "$#")
-        return (*wanted, "$G") if self._coordinate is None else wanted
+        systems = self._systems
+        wanted: tuple[str, ...] = ("$N",) if self._state.startup_lines is None else ()
+        wanted += ("$#",) if systems is None or self._g92 is None else ()
+        which = systems is None or any(row != systems[0] for row in systems)
+        return (*wanted, "$G") if self._coordinate is None and which else wanted
 
     def adopt_query(self, query: str, output: Sequence[str]) -> None:
         """The answer to a :meth:`wanted_queries` query (its lines before ``ok``)."""

@@ -487,6 +487,7 @@ FAKE_ANSWERS = {
     ),
     b"$N": b"$N0=\r\n$N1=\r\n",
     b"$#": b"".join(b"[G%d:" % n + _ZERO_ROW for n in (54, 55, 56, 57, 58, 59, 28, 30, 92)),
+    b"$G": b"[G0 G54 G17 G21 G90 G94 M0 M5 M9 T0 F200. S0.]\r\n",
 }
 
 
