@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Final, TypeAlias
 
 from mirobot_async.errors import RefusalReason
@@ -33,6 +33,7 @@ __all__ = [
     "ZERO_OFFSET",
     "Offset",
     "ParserPosition",
+    "WorkCoordinates",
     "apply_startup_lines",
     "changes_base_offset",
     "changes_work_offsets",
@@ -263,3 +264,58 @@ def state_after_refusal(
     if reason is RefusalReason.LOCKED and check.joints is not None:
         return replace(state, parser=ParserPosition(check.joints, check.rail))
     return replace(state, parser=PARSER_UNKNOWN)
+
+
+@dataclass
+class WorkCoordinates:
+    """What the client knows of the work offsets: ``G54..G59`` (``$#``, stored), ``G92``
+    (``$#``; cleared by a reset and homing), the system in effect (``$G``; ``G54`` after a
+    reset, homing, program end or a line stating it), and the queries the firmware refused
+    (not asked again: what they would give stays unknown)."""
+
+    systems: tuple[Offset, ...] | None = None
+    g92: Offset | None = None
+    coordinate: int | None = None
+    refused: set[str] = field(default_factory=set)
+
+    def wanted(self, startup_known: bool) -> tuple[str, ...]:
+        """The queries still needed: ``$N`` (unless ``startup_known``), ``$#``, ``$G``."""
+        systems = self.systems
+        wanted: tuple[str, ...] = () if startup_known else ("$N",)
+        wanted += ("$#",) if systems is None or self.g92 is None else ()
+        which = systems is None or any(row != systems[0] for row in systems)
+        wanted += ("$G",) if self.coordinate is None and which else ()
+        return tuple(q for q in wanted if q not in self.refused)
+
+    def adopt(self, query: str, output: Sequence[str] | None) -> None:
+        """The answer to ``$#`` or ``$G`` (None: the firmware refused the query)."""
+        if output is None:
+            self.refused.add(query)
+        elif query == "$#" and (offsets := parse_work_offsets(output)) is not None:
+            self.systems, self.g92 = offsets
+        elif query == "$G":
+            self.coordinate = parse_coordinate_system(output)
+
+    def offset(self, parsed: ParsedLine | None) -> Offset | None:
+        """The offset in effect for ``parsed`` (a ``G54`` in it selects ``G54`` first)."""
+        g54 = parsed is not None and 54 in parsed.g_codes
+        return work_offset(self.systems, self.g92, 54 if g54 else self.coordinate)
+
+    def reinitialised(self, startup_lines: Sequence[str] | None, *, ran: bool) -> None:
+        """A reset or homing: ``G54``, no ``G92``; the startup lines (may have) run."""
+        self.coordinate, self.g92 = 54, ZERO_OFFSET if self.systems is not None else None
+        if ran and startup_lines_move(startup_lines):
+            self.systems = self.g92 = None  # read them again
+
+    def follow(self, parsed: ParsedLine) -> None:
+        """A line written: ``G54`` and program end select ``G54``; a line the client could
+        not follow that changes the offsets makes them unknown."""
+        if 54 in parsed.g_codes or parsed.program_end:
+            self.coordinate = 54
+
+    def forget_after(self, parsed: ParsedLine) -> None:
+        """An unfollowed line that may change the offsets or the system in effect."""
+        if changes_work_offsets(parsed.source):
+            self.systems = self.g92 = None
+            if any(55 <= code <= 59 for code in parsed.g_codes):
+                self.coordinate = None

@@ -27,18 +27,13 @@ from mirobot_async.condition import RobotCondition
 from mirobot_async.errors import MirobotUsageError, RefusalReason
 from mirobot_async.firmware_memory import (
     PARSER_UNKNOWN,
-    ZERO_OFFSET,
     Offset,
+    WorkCoordinates,
     changes_base_offset,
-    changes_work_offsets,
-    parse_coordinate_system,
     parse_startup_lines,
-    parse_work_offsets,
     reset_modes,
     soft_limits_from_settings,
-    startup_lines_move,
     state_after_refusal,
-    work_offset,
 )
 from mirobot_async.line import ParsedLine
 from mirobot_async.modal import LineCheck, MotionModes, update_modes
@@ -110,7 +105,7 @@ class Guard(Protocol):
 
     def wanted_queries(self) -> tuple[str, ...]: ...
 
-    def adopt_query(self, query: str, output: Sequence[str]) -> None: ...
+    def adopt_query(self, query: str, output: Sequence[str] | None) -> None: ...
 
     def modal_state(self) -> ModalState: ...
 
@@ -168,7 +163,7 @@ class NullGuard:
         """None: nothing stored in the firmware is needed."""
         return ()
 
-    def adopt_query(self, query: str, output: Sequence[str]) -> None:
+    def adopt_query(self, query: str, output: Sequence[str] | None) -> None:
         """Nothing to learn."""
 
     def modal_state(self) -> ModalState:
@@ -244,9 +239,7 @@ class EnvelopeGuard:
         self._base_offset: tuple[float, float, float] | None = None  # learned from $$ (2021)
         self._gate_lift: float | None = None
         self._soft_read = False  # $20 and $130..$146 known (state.soft_limits, None if off)
-        self._systems: tuple[Offset, ...] | None = None  # G54..G59 from $#
-        self._g92: Offset | None = None
-        self._coordinate: int | None = None  # G54..G59 in effect (54 after a reset)
+        self._work = WorkCoordinates()  # $#, $G
         self.epoch = 0  # bumped when the prediction or the modes are invalidated
         self._last_line_id: int | None = None
         self._moves = False  # whether the last prediction moves the arm
@@ -286,24 +279,15 @@ class EnvelopeGuard:
         """The ``$`` queries whose answers (:meth:`adopt_query`) the prediction still needs:
         ``$N`` (stored startup lines), ``$#`` (stored work offsets) and ``$G`` (which of them
         is in effect)."""
-        systems = self._systems
-        wanted: tuple[str, ...] = ("$N",) if self._state.startup_lines is None else ()
-        wanted += ("$#",) if systems is None or self._g92 is None else ()
-        which = systems is None or any(row != systems[0] for row in systems)
-        return (*wanted, "$G") if self._coordinate is None and which else wanted
+        return self._work.wanted(self._state.startup_lines is not None)
 
-    def adopt_query(self, query: str, output: Sequence[str]) -> None:
-        """The answer to a :meth:`wanted_queries` query (its lines before ``ok``)."""
-        if query == "$N":
-            lines = parse_startup_lines(output)
-            if lines is not None:
-                self._state = replace(self._state, startup_lines=lines)
-        elif query == "$#":
-            offsets = parse_work_offsets(output)
-            if offsets is not None:
-                self._systems, self._g92 = offsets
-        elif query == "$G":
-            self._coordinate = parse_coordinate_system(output)
+    def adopt_query(self, query: str, output: Sequence[str] | None) -> None:
+        """The answer to a :meth:`wanted_queries` query (its lines before ``ok``; None: the
+        firmware refused it, and what it gives stays unknown)."""
+        lines = None if query != "$N" or output is None else parse_startup_lines(output)
+        if lines is not None:
+            self._state = replace(self._state, startup_lines=lines)
+        self._work.adopt(query, output)
         self.epoch += 1
 
     def modal_state(self) -> ModalState:
@@ -325,8 +309,7 @@ class EnvelopeGuard:
 
     def _work_offset(self, parsed: ParsedLine | None) -> Offset | None:
         """The work offset in effect for ``parsed`` (``G54..G59`` + ``G92``), or None."""
-        coordinate = 54 if parsed is not None and 54 in parsed.g_codes else self._coordinate
-        return work_offset(self._systems, self._g92, coordinate)
+        return self._work.offset(parsed)
 
     def _machine(self, parsed: ParsedLine | None = None) -> MachineState:
         """The predicted state with what the firmware profile decides filled in."""
@@ -455,7 +438,7 @@ class EnvelopeGuard:
             )
             self._forget_stored(parsed)
             moved = True
-        coordinate = self._coordinate
+        coordinate = self._work.coordinate
         self._track_coordinates(parsed)
         self._last_line_id = line_id
         check = None if after is None else _line_check(after, moved)
@@ -463,13 +446,10 @@ class EnvelopeGuard:
         return Tracked(line_id, check, before, moved, changed, self.epoch, coordinate)
 
     def _track_coordinates(self, parsed: ParsedLine) -> None:
-        """The work coordinate system in effect: ``G54`` (also after homing, program end)."""
+        """The work coordinate system in effect (``G54`` after homing, program end)."""
         if parsed.is_homing:  # the parser is re-initialised, then the startup lines run
-            self._coordinate, self._g92 = 54, ZERO_OFFSET if self._systems is not None else None
-            if startup_lines_move(self._state.startup_lines):
-                self._systems = self._g92 = None  # read them again
-        elif 54 in parsed.g_codes or parsed.program_end:
-            self._coordinate = 54
+            self._work.reinitialised(self._state.startup_lines, ran=True)
+        self._work.follow(parsed)
 
     def _forget_stored(self, parsed: ParsedLine) -> None:
         """An unchecked line that may change what the firmware stores: read it again."""
@@ -482,10 +462,7 @@ class EnvelopeGuard:
             self._state = replace(self._state, linear_g1=None, soft_limits=None)
         if dollar is not None and dollar.kind in ("startup", "restore", "unknown"):
             self._state = replace(self._state, startup_lines=None)
-        if changes_work_offsets(parsed.source):
-            self._systems = self._g92 = None
-            if any(55 <= code <= 59 for code in parsed.g_codes):
-                self._coordinate = None
+        self._work.forget_after(parsed)
 
     def _follow(self, parsed: ParsedLine, what: str | None) -> MachineState | None:
         try:
@@ -541,7 +518,7 @@ class EnvelopeGuard:
         before = tracked.state_before
         last = tracked.line_id == self._last_line_id and tracked.epoch == self.epoch
         if last and rejected:  # nothing was written after it: undo it
-            self._state, self._coordinate = before, tracked.coordinate
+            self._state, self._work.coordinate = before, tracked.coordinate
         elif last:
             state = replace(self._state, joints=before.joints, pose=before.pose, rail=before.rail)
             self._state = state_after_refusal(state, before, tracked.check, reason)
@@ -561,12 +538,9 @@ class EnvelopeGuard:
             # not, so the modes they change are unknown.
             ran = None if self._condition.firmware != "classic" or self._condition.alarm else True
             lines = self._state.startup_lines
-            self._coordinate = 54
-            self._g92 = ZERO_OFFSET if self._systems is not None else None
+            self._work.reinitialised(lines, ran=ran is not False)
             self._forget(reset_modes(lines, ran=ran))
             self._state = replace(self._state, parser=None)
-            if ran is not False and startup_lines_move(lines):
-                self._systems = self._g92 = None  # read them again
             return
         modes = {"lost": MotionModes.unknown()}.get(why)
         self._forget(modes)

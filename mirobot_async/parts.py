@@ -20,7 +20,12 @@ from mirobot_async import gcode
 from mirobot_async.completion import MotionCompletion
 from mirobot_async.condition import Firmware, RobotCondition
 from mirobot_async.deadline import deadline_after
-from mirobot_async.errors import MirobotConnectionError, MirobotUsageError
+from mirobot_async.errors import (
+    MirobotAlarmError,
+    MirobotCommandError,
+    MirobotConnectionError,
+    MirobotUsageError,
+)
 from mirobot_async.guard import make_guard
 from mirobot_async.line import parse_line
 from mirobot_async.poller import StatusPoller
@@ -214,10 +219,16 @@ class ClientParts:
         rest (the firmware refuses ``$$`` while it moves: ``Not idle``)."""
         if self._condition.firmware is None or self._guard.wants_settings:
             await self._settings(deadline, timeout, idle=True)
-        for query in self._guard.wanted_queries():  # what the firmware stores ($N, $#)
-            output = await self._command(
-                query.encode("ascii"), deadline=deadline, timeout=timeout, idle=True
-            )
+        for query in self._guard.wanted_queries():  # what the firmware stores ($N, $#, $G)
+            output: tuple[str, ...] | None
+            try:
+                output = await self._command(
+                    query.encode("ascii"), deadline=deadline, timeout=timeout, idle=True
+                )
+            except MirobotAlarmError:
+                raise
+            except MirobotCommandError:  # the firmware does not know it: it stays unknown
+                output = None
             self._guard.adopt_query(query, output)
         if self._condition.firmware is None:  # pragma: no cover - _settings always decides
             raise MirobotConnectionError("could not determine the firmware profile")

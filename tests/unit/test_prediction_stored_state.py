@@ -13,6 +13,7 @@ from mirobot_async.errors import RefusalReason
 from mirobot_async.firmware_memory import (
     PARSER_UNKNOWN,
     ParserPosition,
+    WorkCoordinates,
     apply_startup_lines,
     parse_coordinate_system,
     parse_startup_lines,
@@ -23,6 +24,7 @@ from mirobot_async.firmware_memory import (
     work_offset,
 )
 from mirobot_async.kinematics import DH_CLASSIC, forward
+from mirobot_async.line import parse_line
 from mirobot_async.modal import LineCheck, MotionModes
 from mirobot_async.prediction import MachineState, Prediction, Refusal, predict
 
@@ -201,3 +203,23 @@ def test_soft_limit_ranges() -> None:
     assert ranges is not None
     assert ranges[0] == (-20, 160) and ranges[3] == (-350, 350) and ranges[6] == (-1000, 1000)
     assert soft_limit_ranges((0.0, *SOFT[1:])) is None
+
+
+def test_work_coordinates_bookkeeping() -> None:
+    work = WorkCoordinates()
+    assert work.wanted(startup_known=False) == ("$N", "$#", "$G")
+    zero = "0.000,0.000,0.000,0.000,0.000,0.000,0.000"
+    work.adopt("$#", [f"[G{n}:{zero}]" for n in (54, 55, 56, 57, 58, 59, 28, 30, 92)])
+    assert work.wanted(startup_known=True) == ()  # all six equal: which one does not matter
+    assert work.offset(None) == (0.0,) * 7
+    work.forget_after(parse_line("G10 L2 P2 X5"))
+    assert work.systems is None and work.wanted(startup_known=True) == ("$#", "$G")
+    work.adopt("$#", None)  # the firmware refused it: not asked again, stays unknown
+    assert work.wanted(startup_known=True) == ("$G",)
+    assert work.offset(None) is None
+    work.forget_after(parse_line("G55"))
+    assert work.coordinate is None
+    work.follow(parse_line("G54 G90"))
+    assert work.coordinate == 54
+    work.reinitialised(("G0 X10",), ran=True)  # a startup line that moves: read again
+    assert work.systems is None and work.g92 is None
