@@ -136,6 +136,22 @@ async def test_startup_lines_are_read_and_predicted_after_a_reset(emu: EmulatorP
         assert await _j1(arm) == pytest.approx(40, abs=STEP)
 
 
+@only_classic
+@pytest.mark.mirobot_emulator(extra_args=("--reset-on-open",), fresh=True)
+async def test_startup_lines_after_a_reset_on_open(emu: EmulatorProcess) -> None:
+    async with Mirobot.connect(emu.url) as other:
+        await other.unlock()
+        await other.move_joints(j1=30)
+        await other.send("$N0=G91")
+    spy = WireSpy()
+    async with Mirobot.connect(emu.url, envelope=J1_50, open_transport=spy.opener) as arm:
+        # the open reset the arm and ran G91; the client has not read $N yet: unknown
+        await arm.send("M50")
+        await _refused(arm, spy, "M21 G0 G21 X40", "distance mode")
+        await arm.send("M21 G90 G0 G21 X40")
+        assert await _j1(arm) == pytest.approx(40, abs=STEP)
+
+
 async def test_a_startup_line_stored_meanwhile_makes_its_modes_unknown(
     emu: EmulatorProcess,
 ) -> None:
