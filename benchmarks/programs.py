@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 from mirobot_emulator.firmware import Firmware
 
-from mirobot_async import gcode
+from mirobot_async._core import gcode
 
 RX_RING_BYTES = 128
 """The firmware's receive ring: a character-counting host keeps at most this many bytes

@@ -446,9 +446,10 @@ def render_item10(config: Item10Config, runs: list[Run], lat: dict[int, LatencyF
         "- Tail: the client's return minus the last end of motion. The wait loop also gives one "
         "tail per move. Second table: tail of two streamed 0.75 deg joint moves, ended by "
         "`stream(wait=True)` (a `G4 P0` barrier) or by `stream()` + `wait_idle()` (status "
-        f"polling) ({config.tail_reps} runs each) and `send('G90')` round trips ({config.ok_samples}), "
+        f"polling) ({config.tail_reps} runs each) and `send('G90')` round trips "
+        f"({config.ok_samples}), "
         "without and with a concurrent `statuses(interval=0.1)` consumer; target: one status "
-        "report's wire time (~190 B, 16.5 ms) + the USB latency + 5 ms (issue 12).",
+        "report's wire time (~190 B, 16.5 ms) + the USB latency + 5 ms.",
         "- Load: the 1-minute load average when the run started (shared machine).",
         "- The firmware model fed one line at a time, each after the previous motion ended (the "
         "best a wait=True loop can do) takes, in wall seconds, x its motion time (x1.000: the "

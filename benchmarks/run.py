@@ -40,8 +40,8 @@ from real_program import Item10Config, measure_item10, render_item10
 from sansio import item_sansio
 
 from mirobot_async import LineResult, Mirobot, StreamResult
+from mirobot_async._client.transport import Implementation
 from mirobot_async.testing import EmulatorProcess, start_emulator
-from mirobot_async.transport import Implementation
 
 WIRE_BYTES_PER_S = 115200 / 10  # 8N1: 10 bits per byte
 

@@ -8,9 +8,9 @@ from collections.abc import Callable
 
 from figures import Config, Stat, Table, fmt_rate, rate, repeat
 
-from mirobot_async import gcode
-from mirobot_async.protocol import MirobotConnection
-from mirobot_async.replies import State, StatusReport, format_status, parse_status
+from mirobot_async._core import gcode
+from mirobot_async._core.protocol import MirobotConnection
+from mirobot_async._core.replies import State, StatusReport, format_status, parse_status
 
 # ---- item 1: sans-IO core -------------------------------------------------------------------
 

@@ -38,24 +38,36 @@ from mirobot_async.errors import (
 )
 
 if TYPE_CHECKING:
-    from mirobot_async.client import (
+    from mirobot_async._client.client import (
         ClientStats,
+        Connector,
         LineResult,
         Mirobot,
         PathError,
         Stream,
         StreamResult,
     )
-    from mirobot_async.envelope import Envelope
-    from mirobot_async.replies import State, StatusReport, parse_status
+    from mirobot_async._client.condition import Firmware
+    from mirobot_async._client.path_commands import Point
+    from mirobot_async._client.transport import Implementation
+    from mirobot_async._client.wire import DataCallback, LostCallback, Transport, TransportOpener
+    from mirobot_async._core.modal import LineCheck, MotionModes
+    from mirobot_async._core.replies import Refusal, State, StatusReport, parse_status
+    from mirobot_async._core.validation import InvalidLineError
+    from mirobot_async._safety.envelope import Envelope
     from mirobot_async.testing import start_emulator
-    from mirobot_async.validation import InvalidLineError
 
 __all__ = [
     "ClientStats",
+    "Connector",
+    "DataCallback",
     "Envelope",
+    "Firmware",
+    "Implementation",
     "InvalidLineError",
+    "LineCheck",
     "LineResult",
+    "LostCallback",
     "Mirobot",
     "MirobotAlarmError",
     "MirobotCommandError",
@@ -67,13 +79,18 @@ __all__ = [
     "MirobotResetError",
     "MirobotTimeoutError",
     "MirobotUsageError",
+    "MotionModes",
     "MotionRefusedError",
     "PathError",
+    "Point",
+    "Refusal",
     "RefusalReason",
     "State",
     "StatusReport",
     "Stream",
     "StreamResult",
+    "Transport",
+    "TransportOpener",
     "parse_status",
     "start_emulator",
 ]
@@ -81,18 +98,29 @@ __all__ = [
 __version__ = "0.1.0"
 
 _LAZY: dict[str, str] = {
-    "ClientStats": "mirobot_async.client",
-    "LineResult": "mirobot_async.client",
-    "Mirobot": "mirobot_async.client",
-    "PathError": "mirobot_async.client",
-    "Stream": "mirobot_async.client",
-    "StreamResult": "mirobot_async.client",
-    "State": "mirobot_async.replies",
-    "StatusReport": "mirobot_async.replies",
-    "parse_status": "mirobot_async.replies",
+    "ClientStats": "mirobot_async._client.client",
+    "Connector": "mirobot_async._client.client",
+    "LineResult": "mirobot_async._client.client",
+    "Mirobot": "mirobot_async._client.client",
+    "PathError": "mirobot_async._client.client",
+    "Stream": "mirobot_async._client.client",
+    "StreamResult": "mirobot_async._client.client",
+    "Firmware": "mirobot_async._client.condition",
+    "Point": "mirobot_async._client.path_commands",
+    "Implementation": "mirobot_async._client.transport",
+    "DataCallback": "mirobot_async._client.wire",
+    "LostCallback": "mirobot_async._client.wire",
+    "Transport": "mirobot_async._client.wire",
+    "TransportOpener": "mirobot_async._client.wire",
+    "Refusal": "mirobot_async._core.replies",
+    "LineCheck": "mirobot_async._core.modal",
+    "MotionModes": "mirobot_async._core.modal",
+    "State": "mirobot_async._core.replies",
+    "StatusReport": "mirobot_async._core.replies",
+    "parse_status": "mirobot_async._core.replies",
     "start_emulator": "mirobot_async.testing",
-    "Envelope": "mirobot_async.envelope",
-    "InvalidLineError": "mirobot_async.validation",
+    "Envelope": "mirobot_async._safety.envelope",
+    "InvalidLineError": "mirobot_async._core.validation",
 }
 
 

@@ -22,7 +22,7 @@ from typing import Literal, TypeAlias
 import numpy as np
 import numpy.typing as npt
 
-from .errors import MirobotUsageError
+from mirobot_async.errors import MirobotUsageError
 
 __all__ = [
     "BEHIND_SHOULDER_TOL",

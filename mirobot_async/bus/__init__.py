@@ -39,7 +39,7 @@ status report is ~190 bytes: ~50 ms on the bus at 38400 baud, shared by every ar
 on the wire (a collision) holds the bus; the arm's call times out.
 """
 
-from mirobot_async.bus.controller import (
+from mirobot_async.bus._controller import (
     BAUD_CODES,
     CONTROLLER_TIMEOUT,
     PINS,
@@ -48,16 +48,25 @@ from mirobot_async.bus.controller import (
     ControllerCommandError,
     ControllerVersion,
 )
-from mirobot_async.bus.controller_bus import ArmTransport, ControllerBus, connect
-from mirobot_async.bus.link import DEFAULT_BUS_BAUD, BusStats, BusTiming, NodeSilentError
+from mirobot_async.bus._controller_bus import (
+    ArmConnector,
+    ArmTransport,
+    BusOpener,
+    ControllerBus,
+    SingleArmConnector,
+    connect,
+)
+from mirobot_async.bus._link import DEFAULT_BUS_BAUD, BusStats, BusTiming, NodeSilentError
 
 __all__ = [
     "BAUD_CODES",
     "CONTROLLER_TIMEOUT",
     "DEFAULT_BUS_BAUD",
     "PINS",
+    "ArmConnector",
     "ArmState",
     "ArmTransport",
+    "BusOpener",
     "BusStats",
     "BusTiming",
     "Controller",
@@ -65,5 +74,6 @@ __all__ = [
     "ControllerCommandError",
     "ControllerVersion",
     "NodeSilentError",
+    "SingleArmConnector",
     "connect",
 ]

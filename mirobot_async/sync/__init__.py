@@ -43,8 +43,8 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 from mirobot_async import Mirobot as AsyncMirobot
-from mirobot_async.sync.facade import BlockingContextManager, BlockingFacade, BlockingIterator
-from mirobot_async.sync.loop import EventLoopThread
+from mirobot_async.sync._facade import BlockingContextManager, BlockingFacade, BlockingIterator
+from mirobot_async.sync._loop import EventLoopThread
 
 __all__ = [
     "BlockingContextManager",

@@ -60,7 +60,7 @@ from collections.abc import AsyncIterator, Iterator, Sequence
 from typing import TYPE_CHECKING, Any
 
 from mirobot_async.errors import MirobotTimeoutError, MirobotUsageError
-from mirobot_async.testing.control import (
+from mirobot_async.testing._control import (
     CONTROL_TIMEOUT,
     DEFAULT_FIRMWARE,
     DEFAULT_TIME_SCALE,
@@ -76,24 +76,29 @@ from mirobot_async.testing.control import (
     renewed_command,
     renewed_url,
 )
-from mirobot_async.testing.sync import SyncEmulatorProcess, run_emulator
+from mirobot_async.testing._sync import SyncEmulatorProcess, run_emulator
 
 _log = logging.getLogger("mirobot_async.testing")
 
 if TYPE_CHECKING:
     import pytest
 
-    from mirobot_async.testing.pool import BorrowedEmulatorProcess, EmulatorPool
-    from mirobot_async.testing.spy import WireSpy
+    from mirobot_async.testing._pool import BorrowedEmulatorProcess, EmulatorPool
+    from mirobot_async.testing._spy import WireSpy
+    from mirobot_async.testing._virtual import InProcessArm
 
 
 def __getattr__(name: str) -> Any:
     if name == "WireSpy":  # imported on first use (it needs the client's wire module)
-        from mirobot_async.testing.spy import WireSpy
+        from mirobot_async.testing._spy import WireSpy
 
         return WireSpy
+    if name == "InProcessArm":  # imported on first use (it loads the firmware model)
+        from mirobot_async.testing._virtual import InProcessArm
+
+        return InProcessArm
     if name in ("EmulatorPool", "BorrowedEmulatorProcess"):  # it builds on EmulatorProcess
-        from mirobot_async.testing import pool
+        from mirobot_async.testing import _pool as pool
 
         return getattr(pool, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
@@ -104,6 +109,7 @@ __all__ = [
     "EmulatorError",
     "EmulatorPool",
     "EmulatorProcess",
+    "InProcessArm",
     "SyncEmulatorProcess",
     "WireSpy",
     "emulator_command",
@@ -339,6 +345,7 @@ async def start_emulator(
     extra_args: Sequence[str] = (),
     startup_timeout: float = STARTUP_TIMEOUT,
     listen: str | None = None,
+    in_process: bool = False,
 ) -> AsyncIterator[str]:
     """Run a virtual Mirobot for the duration of the block; yields its port URL.
 
@@ -350,7 +357,23 @@ async def start_emulator(
     Startup waits at most ``startup_timeout`` s (:class:`EmulatorError`); on exit the process is
     stopped and reaped even if the block was cancelled. Use :class:`EmulatorProcess` for a
     handle with the fault-injection channel.
+
+    ``in_process=True`` runs the firmware model inside this process instead
+    (:class:`~mirobot_async.testing._virtual.InProcessArm`, a ``virtual://N`` URL for
+    ``Mirobot.connect``): no subprocess and no pty, a test costs milliseconds; ``extra_args``
+    and ``listen`` are then refused (the process's options: pacing, faults, links).
     """
+    if in_process:
+        if extra_args or listen is not None:
+            raise MirobotUsageError(
+                "start_emulator(in_process=True) takes no extra_args or listen: those are "
+                "options of the emulator process"
+            )
+        from mirobot_async.testing._virtual import InProcessArm
+
+        with InProcessArm(firmware, time_scale) as arm:
+            yield arm.url
+        return
     emulator = await EmulatorProcess.start(
         firmware,
         time_scale,
@@ -474,8 +497,8 @@ def _define_fixtures() -> None:
     @pytest.fixture(scope="session")
     def mirobot_emulator_pool(request: Any) -> Iterator[EmulatorPool]:
         """Emulator processes renewed between this session's tests (every one stopped at its
-        end; see :mod:`mirobot_async.testing.pool`). Size: ``--mirobot-pool-size``."""
-        from mirobot_async.testing.pool import DEFAULT_MAX_IDLE, EmulatorPool
+        end; see :mod:`mirobot_async.testing._pool`). Size: ``--mirobot-pool-size``."""
+        from mirobot_async.testing._pool import DEFAULT_MAX_IDLE, EmulatorPool
 
         size = request.config.getoption("--mirobot-pool-size")
         with EmulatorPool(DEFAULT_MAX_IDLE if size is None else size) as pool:

@@ -33,7 +33,7 @@ from typing import Any
 import pytest
 
 from mirobot_async import Mirobot, State
-from mirobot_async.cli import main
+from mirobot_async._cli import main
 from mirobot_async.testing import EmulatorPool, EmulatorProcess, WireSpy
 
 PROFILES = ("2021", "classic")

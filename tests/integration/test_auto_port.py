@@ -17,7 +17,7 @@ import serial.tools.list_ports
 from serial.tools.list_ports_common import ListPortInfo
 
 from mirobot_async import Mirobot, MirobotConnectionError
-from mirobot_async.ports import AUTO_PORTS_ENV, find_mirobot
+from mirobot_async._client.ports import AUTO_PORTS_ENV, find_mirobot
 from mirobot_async.testing import EmulatorPool, SyncEmulatorProcess
 
 PROBE = 0.5  # seconds a probe of a port that never answers a status takes

@@ -313,7 +313,7 @@ async def test_a_lost_link_fails_every_pending_call_of_every_arm(own_bus: BusEmu
     async with ControllerBus.open(own_bus.path) as bus:
         arms = [await bus.connect_arm(n) for n in (1, 2, 3)]
         await arms[0].send("$X")
-        calls = [asyncio.create_task(arms[0].send("G4 P5"))]
+        calls: list[asyncio.Task[object]] = [asyncio.create_task(arms[0].send("G4 P5"))]
         calls += [asyncio.create_task(arm.status()) for arm in arms[1:]]
         calls.append(asyncio.create_task(bus.controller(4).arm_state()))
         await wait_until(lambda: arms[0].pending_count > 0)

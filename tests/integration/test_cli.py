@@ -1,6 +1,6 @@
 """The ``mirobot`` command line: ``main(argv)`` in this process, and as a user runs it.
 
-Most tests run ``mirobot_async.cli.main(argv)`` in the test's process (the ``cli`` fixture:
+Most tests run ``mirobot_async._cli.main(argv)`` in the test's process (the ``cli`` fixture:
 stdout and stderr captured at the file descriptors, so an embedded emulator's output is seen
 too, as in a terminal): the subcommands' logic without an interpreter start per command. The
 entry point itself (``python -m mirobot_async``: exit statuses 0, 1, 2 and 130, signals, Ctrl-C,
@@ -36,7 +36,7 @@ import psutil
 import pytest
 import serial
 
-from mirobot_async.plotting import read_trace
+from mirobot_async._cli.plotting import read_trace
 from mirobot_async.testing import EmulatorPool, SyncEmulatorProcess
 
 pytestmark = pytest.mark.timeout(60)

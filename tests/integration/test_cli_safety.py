@@ -21,7 +21,7 @@ from pathlib import Path
 import pytest
 import serial
 
-from mirobot_async.replies import State, StatusReport, parse_status
+from mirobot_async._core.replies import State, StatusReport, parse_status
 from mirobot_async.testing import EmulatorPool, SyncEmulatorProcess
 
 pytestmark = pytest.mark.timeout(60)

@@ -142,9 +142,9 @@ async def test_original_pyserial_asyncio_implementation_works(emu: EmulatorProce
 
 async def test_bad_connect_arguments() -> None:
     with pytest.raises(MirobotUsageError):
-        Mirobot.connect("/dev/null", firmware="2019")  # type: ignore[arg-type]
+        Mirobot.connect("/dev/null", firmware="2019")  # type: ignore[call-overload]
     with pytest.raises(MirobotUsageError):
-        Mirobot.connect("/dev/null", implementation="slow")  # type: ignore[arg-type]
+        Mirobot.connect("/dev/null", implementation="slow")  # type: ignore[call-overload]
 
 
 @pytest.mark.mirobot_emulator(extra_args=["--reset-on-open"])
@@ -170,7 +170,7 @@ async def test_streaming_at_the_real_line_speed_loses_nothing(ready_arm: Mirobot
 
 
 async def test_loop_url_transport_echoes() -> None:
-    from mirobot_async.transport import SerialLink
+    from mirobot_async._client.transport import SerialLink
 
     received = bytearray()
     lost: list[BaseException | None] = []

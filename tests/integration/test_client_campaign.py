@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import functools
 import random
 import time
 from collections.abc import Awaitable, Callable
@@ -88,14 +89,15 @@ class Campaign:
     def running(self) -> bool:
         return time.monotonic() < self.end
 
+    async def send_pwm(self, value: int) -> tuple[str, ...]:
+        return await self.arm.send(f"M3 S{value}", timeout=CALL_TIMEOUT)
+
     async def sender(self, name: str) -> None:
         while self.running():
             pick = self.rng.random()
             if pick < 0.6:
                 value = self.rng.randrange(1, 1000)
-                got = await self.timed(
-                    f"{name} M3", lambda v=value: self.arm.send(f"M3 S{v}", timeout=CALL_TIMEOUT)
-                )
+                got = await self.timed(f"{name} M3", functools.partial(self.send_pwm, value))
                 if isinstance(got, tuple) and got != ():
                     self.problems.append(f"{name}: 'M3 S{value}' returned {got!r}")
                 if isinstance(got, MirobotCommandError) and not isinstance(got, MirobotAlarmError):

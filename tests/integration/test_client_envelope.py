@@ -32,8 +32,9 @@ from mirobot_async import (
     MirobotUsageError,
     MotionRefusedError,
     StatusReport,
-    gcode,
 )
+from mirobot_async._client.transport import SerialLink
+from mirobot_async._core import gcode
 from mirobot_async.kinematics import (
     DH_2021,
     DH_CLASSIC,
@@ -43,7 +44,6 @@ from mirobot_async.kinematics import (
     inverse,
 )
 from mirobot_async.testing import EmulatorProcess
-from mirobot_async.transport import SerialLink
 
 pytestmark = [pytest.mark.timeout(60)]
 emulated = pytest.mark.usefixtures("no_leftover_tasks")

@@ -1,7 +1,8 @@
 """Moves, paths and raw-line validation of the client over the real emulator.
 
 * ``move_pose(wait=True)`` completes when the 2021 base offset ``$41..$43`` is not zero;
-* ``send()``/``stream()`` refuse what :func:`mirobot_async.validation.check_line` flags, before
+* ``send()``/``stream()`` refuse what :func:`mirobot_async._core.validation.check_line` flags,
+before
   writing a byte (issue 15 item 3);
 * ``move_path``/``move_joint_path`` (issue 12 item 2).
 """
@@ -22,8 +23,8 @@ from mirobot_async import (
     MotionRefusedError,
     PathError,
 )
+from mirobot_async._core.validation import ModalState, check_line
 from mirobot_async.testing import EmulatorProcess, WireSpy
-from mirobot_async.validation import ModalState, check_line
 
 pytestmark = [pytest.mark.timeout(60), pytest.mark.usefixtures("no_leftover_tasks")]
 only_2021 = pytest.mark.parametrize("profile", ["2021"])

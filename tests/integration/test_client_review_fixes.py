@@ -180,7 +180,7 @@ class _PortSpy:
 async def test_a_port_is_closed_when_building_its_transport_fails(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    from mirobot_async import transport
+    from mirobot_async._client import transport
 
     spy = _PortSpy(monkeypatch)
 
@@ -197,7 +197,7 @@ async def test_a_port_is_closed_when_building_its_transport_fails(
 async def test_a_port_opened_after_the_open_timed_out_is_closed(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    from mirobot_async import transport
+    from mirobot_async._client import transport
 
     spy = _PortSpy(monkeypatch, delay=0.3)
     with pytest.raises(MirobotConnectionError, match="within"):
@@ -215,7 +215,7 @@ async def test_a_port_opened_after_the_open_timed_out_is_closed(
 async def test_a_port_opened_after_the_open_was_cancelled_is_closed(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    from mirobot_async import transport
+    from mirobot_async._client import transport
 
     spy = _PortSpy(monkeypatch, delay=0.3)
     opening = asyncio.create_task(

@@ -28,7 +28,7 @@ async def test_ten_thousand_lines_each_acknowledged_once_in_order(ready_arm: Mir
     acked_before = arm.stats.lines_acknowledged
     numbers: list[int] = []
     stream = arm.stream(lines)
-    async with contextlib.aclosing(aiter(stream)) as results:
+    async with contextlib.aclosing(aiter(stream)) as results:  # type: ignore[type-var]
         async for result in results:
             assert result.ok, result
             assert result.line == lines[result.number - 1]

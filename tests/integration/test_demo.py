@@ -10,7 +10,7 @@ import subprocess
 from collections.abc import Callable
 from pathlib import Path
 
-from mirobot_async.cli.demo import example_files, find_example
+from mirobot_async._cli.demo import example_files, find_example
 
 Cli = Callable[..., subprocess.CompletedProcess[str]]
 
@@ -20,7 +20,7 @@ EXAMPLES |= {"status_monitor"}
 
 
 def test_every_example_is_found() -> None:
-    """In a checkout (examples/) and in an installed copy (mirobot_async.examples) alike."""
+    """In a checkout (examples/) and in an installed copy (mirobot_async._examples) alike."""
     found = example_files()
     assert set(found) == EXAMPLES
     assert all(path.is_file() for path in found.values())

@@ -23,6 +23,7 @@ import socket
 import subprocess
 import sys
 import time
+import typing
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
@@ -123,8 +124,9 @@ class Emulator:
         self.proc.stdin.flush()
         return self.stdout_line(timeout)
 
-    def port(self, timeout: float = 0.05) -> serial.SerialBase:
-        return serial.serial_for_url(self.path, 115200, timeout=timeout)
+    def port(self, timeout: float = 0.05) -> serial.Serial:
+        # A pty opens as serial.Serial, socket:// as its own class with the same reading API.
+        return typing.cast(serial.Serial, serial.serial_for_url(self.path, 115200, timeout=timeout))
 
     def stop(self, sig: int = signal.SIGTERM, timeout: float = 5.0) -> tuple[int, str]:
         """Signal the process, wait for it; return (exit status, stderr)."""
@@ -218,7 +220,7 @@ def renewed(processes: dict[str, Emulator]) -> Iterator[Callable[..., Emulator]]
 
 # ----------------------------------------------------------------------------- serial helpers
 def read_until(
-    port: serial.SerialBase, predicate: Callable[[str], bool], timeout: float = 3.0
+    port: serial.Serial, predicate: Callable[[str], bool], timeout: float = 3.0
 ) -> list[str]:
     """Read lines until one satisfies ``predicate``; return all lines read (without endings)."""
     lines: list[str] = []
@@ -239,7 +241,7 @@ def is_status(line: str) -> bool:
     return line.startswith("<") and line.endswith(">")
 
 
-def status(port: serial.SerialBase, timeout: float = 3.0) -> re.Match[str]:
+def status(port: serial.Serial, timeout: float = 3.0) -> re.Match[str]:
     port.write(b"?")
     line = read_until(port, is_status, timeout)[-1]
     match = STATUS_RE.fullmatch(line)
@@ -253,7 +255,7 @@ def joints(match: re.Match[str]) -> list[float]:
     return [a[-3], a[-2], a[-1], a[0], a[1], a[2]]
 
 
-def wait_idle(port: serial.SerialBase, timeout: float = 5.0) -> re.Match[str]:
+def wait_idle(port: serial.Serial, timeout: float = 5.0) -> re.Match[str]:
     deadline = time.monotonic() + timeout
     while True:
         match = status(port)
@@ -262,7 +264,7 @@ def wait_idle(port: serial.SerialBase, timeout: float = 5.0) -> re.Match[str]:
         assert time.monotonic() < deadline, f"not Idle within {timeout} s: {match[0]}"
 
 
-def command(port: serial.SerialBase, line: str, timeout: float = 3.0) -> list[str]:
+def command(port: serial.Serial, line: str, timeout: float = 3.0) -> list[str]:
     """Send a line, read until its final reply (ok or an error); return the lines read."""
     port.write(line.encode() + b"\n")
     return read_until(
@@ -272,7 +274,7 @@ def command(port: serial.SerialBase, line: str, timeout: float = 3.0) -> list[st
     )
 
 
-def unlock(port: serial.SerialBase, profile: str) -> None:
+def unlock(port: serial.Serial, profile: str) -> None:
     if profile == "2021":  # starts in Alarm: $X leaves it
         command(port, "$X")
     replies = command(port, "M50")
@@ -493,7 +495,7 @@ def test_bad_arguments_exit_2(cli: Callable[..., tuple[object, str, str]]) -> No
 
 
 # ----------------------------------------------------------------------------- wire timing
-def _received_rate(port: serial.SerialBase, expected: int, timeout: float) -> tuple[float, bytes]:
+def _received_rate(port: serial.Serial, expected: int, timeout: float) -> tuple[float, bytes]:
     """Read ``expected`` bytes; return (bytes per second after the first chunk, data)."""
     data = b""
     first = last = 0.0

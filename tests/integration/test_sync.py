@@ -17,7 +17,7 @@ import pytest
 
 from mirobot_async import LineResult, MirobotLinkLostError, State
 from mirobot_async.sync import Mirobot
-from mirobot_async.sync.loop import LOOP_THREAD_NAME
+from mirobot_async.sync._loop import LOOP_THREAD_NAME
 from mirobot_async.testing import EmulatorPool, SyncEmulatorProcess
 
 pytestmark = pytest.mark.timeout(60)

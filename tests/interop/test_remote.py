@@ -29,8 +29,8 @@ from typing import Any
 import pytest
 
 from mirobot_async import Mirobot, MirobotConnectionError, MirobotError
+from mirobot_async._client.transport import SerialLink
 from mirobot_async.testing import EmulatorProcess
-from mirobot_async.transport import SerialLink
 
 pytestmark = [
     pytest.mark.timeout(60),
@@ -381,10 +381,15 @@ async def test_original_implementation_releases_a_socket_the_peer_reset() -> Non
         lost: asyncio.Future[None] = asyncio.get_running_loop().create_future()
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", ResourceWarning)
+
+            def on_lost(exc: BaseException | None) -> None:  # (exc holds the port)
+                if not lost.done():
+                    lost.set_result(None)
+
             link = await SerialLink.open(
                 url,
                 on_data=lambda data: None,
-                on_lost=lambda exc: lost.done() or lost.set_result(None),  # (exc holds the port)
+                on_lost=on_lost,
                 implementation="original",
             )
             link.write(b"?")  # answered by a reset

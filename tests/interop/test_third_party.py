@@ -34,8 +34,8 @@ from typing import Any
 
 import pytest
 
+from mirobot_async._core.replies import parse_status
 from mirobot_async.kinematics import DH_2021, DH_CLASSIC, forward
-from mirobot_async.replies import parse_status
 from mirobot_async.testing import run_emulator
 
 pytestmark = pytest.mark.timeout(300)  # the first run builds the venv (PyPI); later ones < 30 s

@@ -13,26 +13,23 @@ SOURCES = sorted(
     [*ROOT.joinpath("mirobot_async").rglob("*.py"), *ROOT.joinpath("emulator").rglob("*.py")]
 )
 
-# Modules that may not touch asyncio, the OS, the clock or the serial port.
-PURE_CLIENT = [
-    "errors",
-    "events",
-    "outgoing",
-    "protocol",
-    "replies",
-    "line",
-    "validation",
-    "gcode",
-    "values",
-    "settings",
-    "modal",
-    "paths",
-    "cartesian",
-    "prediction",
-    "firmware_memory",
-    "envelope",
-    "kinematics",
-]
+# The layers are directories: the pure core (_core, _safety, and the two public pure modules)
+# may not touch asyncio, the OS, the clock or the serial port; each layer imports only the
+# layers below it.
+PACKAGE = ROOT / "mirobot_async"
+PURE = sorted(
+    [
+        PACKAGE / "errors.py",
+        PACKAGE / "kinematics.py",
+        *PACKAGE.joinpath("_core").glob("*.py"),
+        *PACKAGE.joinpath("_safety").glob("*.py"),
+    ]
+)
+LAYERS = {  # a directory -> the mirobot_async modules and packages it may import
+    "_core": {"errors", "_core"},
+    "_safety": {"errors", "kinematics", "_core", "_safety"},
+    "_client": {"errors", "kinematics", "_core", "_safety", "_client"},
+}
 IMPURE_MODULES = {
     "asyncio",
     "os",
@@ -81,10 +78,58 @@ def test_module_and_classes_are_small(path: Path) -> None:
             assert size <= 400, f"class {node.name}: {size} lines"
 
 
-@pytest.mark.parametrize("name", PURE_CLIENT)
-def test_sans_io_core_is_pure(name: str) -> None:
-    imported = {module.split(".")[0] for module in _imports(ROOT / "mirobot_async" / f"{name}.py")}
+@pytest.mark.parametrize("path", PURE, ids=lambda p: str(p.relative_to(ROOT)))
+def test_sans_io_core_is_pure(path: Path) -> None:
+    imported = {module.split(".")[0] for module in _imports(path)}
     assert not imported & IMPURE_MODULES
+
+
+def _top_level_imports(path: Path) -> set[str]:
+    """mirobot_async modules imported at module level (not inside a function or TYPE_CHECKING)."""
+    tree = ast.parse(path.read_text())
+    names: set[str] = set()
+    for node in tree.body:
+        if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            parts = node.module.split(".")
+            if parts[0] == "mirobot_async":
+                names.update([parts[1]] if len(parts) > 1 else [a.name for a in node.names])
+        elif isinstance(node, ast.Import):
+            for alias in node.names:
+                parts = alias.name.split(".")
+                if parts[0] == "mirobot_async" and len(parts) > 1:
+                    names.add(parts[1])
+    return names
+
+
+@pytest.mark.parametrize(
+    "path",
+    sorted(p for layer in LAYERS for p in PACKAGE.joinpath(layer).glob("*.py")),
+    ids=lambda p: str(p.relative_to(ROOT)),
+)
+def test_each_layer_imports_only_the_layers_below(path: Path) -> None:
+    layer = path.parent.name
+    assert _top_level_imports(path) <= LAYERS[layer]
+
+
+def test_every_module_is_in_a_layer_or_public() -> None:
+    """A new module goes into a layer (a private directory) or is one of the few public ones."""
+    public = {
+        p.relative_to(PACKAGE).as_posix()
+        for p in PACKAGE.rglob("*.py")
+        if not any(
+            part.startswith("_") and part not in ("__init__.py", "__main__.py")
+            for part in p.relative_to(PACKAGE).parts
+        )
+    }
+    assert public <= {
+        "__init__.py",
+        "__main__.py",
+        "errors.py",
+        "kinematics.py",
+        "bus/__init__.py",
+        "sync/__init__.py",
+        "testing/__init__.py",
+    }, public
 
 
 EMULATOR_PURE = sorted(

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from mirobot_async.cli import (
+from mirobot_async._cli import (
     EXIT_FAILED,
     EXIT_OK,
     EXIT_USAGE,
@@ -28,10 +28,11 @@ from mirobot_async.cli import (
     parse_assignments,
     read_program,
 )
-from mirobot_async.cli.arguments import DEFAULT_MONITOR_INTERVAL
-from mirobot_async.cli.programs import ProgramLine
-from mirobot_async.cli.rendering import describe_failures, describe_interrupted_run, line_ranges
-from mirobot_async.cli.session import background_jobs
+from mirobot_async._cli.arguments import DEFAULT_MONITOR_INTERVAL
+from mirobot_async._cli.programs import ProgramLine
+from mirobot_async._cli.rendering import describe_failures, describe_interrupted_run, line_ranges
+from mirobot_async._cli.session import background_jobs
+from mirobot_async._core.replies import State, StatusReport
 from mirobot_async.errors import (
     MirobotAlarmError,
     MirobotCommandError,
@@ -40,7 +41,6 @@ from mirobot_async.errors import (
     MirobotTimeoutError,
     MirobotUsageError,
 )
-from mirobot_async.replies import State, StatusReport
 
 REPORT = StatusReport(
     State.IDLE,
@@ -419,7 +419,7 @@ class FakeTerminal(io.StringIO):
 
 
 async def test_progress_bar_on_a_terminal_is_drawn_by_rich_in_place() -> None:
-    from mirobot_async.cli.rendering import progress_bar
+    from mirobot_async._cli.rendering import progress_bar
 
     out = FakeTerminal()
     bar = progress_bar(40, out)
@@ -585,7 +585,7 @@ async def test_cancelling_the_caller_during_background_clean_up_propagates() -> 
 def test_live_view_draws_a_table_on_a_terminal_and_lines_otherwise() -> None:
     import datetime
 
-    from mirobot_async.cli.rendering import LiveView
+    from mirobot_async._cli.rendering import LiveView
 
     when = datetime.datetime(2025, 1, 1, 12, 0, 0)
     terminal = FakeTerminal()

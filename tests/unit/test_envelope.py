@@ -1,4 +1,4 @@
-"""Unit tests of mirobot_async.envelope: construction, target and path checks, raw lines.
+"""Unit tests of mirobot_async._safety.envelope: construction, target and path checks, raw lines.
 
 The oracles are independent of the module under test: forward kinematics is a plain product of
 modified-DH matrices written here, boxes are compared by hand, and paths are sampled here at a much
@@ -17,7 +17,7 @@ import pytest
 from hypothesis import assume, event, given, settings
 from hypothesis import strategies as st
 
-from mirobot_async.envelope import Envelope, LineCheck, MotionModes, update_modes
+from mirobot_async._safety.envelope import Envelope, LineCheck, MotionModes, update_modes
 from mirobot_async.errors import MirobotUsageError
 from mirobot_async.kinematics import (
     DH,

@@ -296,7 +296,7 @@ def test_corruption_duplicates_a_fragment_and_is_unparsable(seed: int) -> None:
 
 
 def test_corruption_is_unparsable_for_the_client_parser() -> None:
-    replies = pytest.importorskip("mirobot_async.replies")
+    replies = pytest.importorskip("mirobot_async._core.replies")
     errors = pytest.importorskip("mirobot_async.errors")
     rng = random.Random(3)
     for line in _status_lines():

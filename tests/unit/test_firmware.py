@@ -77,7 +77,7 @@ def send(fw: Firmware, data: bytes | str, dt: float = 0.0) -> list[str]:
 
 
 def boot(profile: str, *, unlocked: bool = False, homed: bool = False, **kw: float) -> Firmware:
-    fw = Firmware(profile, **kw)  # type: ignore[arg-type]
+    fw = Firmware(profile, **kw)
     fw.read_output()
     if homed:
         send(fw, "$H\n", math.inf)

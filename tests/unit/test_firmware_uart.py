@@ -10,7 +10,7 @@ from mirobot_emulator.firmware import Firmware
 from mirobot_emulator.firmware.uart import ORACLE_BYTE_SECONDS, Transmitter
 from mirobot_emulator.server.clock import Simulation
 
-from mirobot_async.poller import pipeline_gap
+from mirobot_async._client.poller import pipeline_gap
 
 
 def powered_on(profile: str = "classic") -> Firmware:

@@ -1,4 +1,5 @@
-"""Unit tests for mirobot_async.gcode: exact bytes, validation, formatting, offline checking."""
+"""Unit tests for mirobot_async._core.gcode: exact bytes, validation, formatting, offline
+checking."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from mirobot_async import gcode
+from mirobot_async._core import gcode
 from mirobot_async.errors import MirobotUsageError
 
 # --------------------------------------------------------------------------------------------

@@ -6,9 +6,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mirobot_async import MirobotUsageError, gcode
-from mirobot_async.line import parse_line, read_number
-from mirobot_async.values import fmt_number
+from mirobot_async import MirobotUsageError
+from mirobot_async._core import gcode
+from mirobot_async._core.line import parse_line, read_number
+from mirobot_async._core.values import fmt_number
 
 
 @settings(max_examples=2000)

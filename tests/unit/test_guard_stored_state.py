@@ -5,14 +5,14 @@ from __future__ import annotations
 
 import pytest
 
-from mirobot_async.condition import Firmware, RobotCondition
-from mirobot_async.envelope import Envelope
+from mirobot_async._client.condition import Firmware, RobotCondition
+from mirobot_async._client.guard import EnvelopeGuard, Tracked
+from mirobot_async._client.wire import ClientStats
+from mirobot_async._core.line import parse_line
+from mirobot_async._core.modal import LineCheck
+from mirobot_async._core.replies import parse_status
+from mirobot_async._safety.envelope import Envelope
 from mirobot_async.errors import MirobotUsageError, RefusalReason
-from mirobot_async.guard import EnvelopeGuard, Tracked
-from mirobot_async.line import parse_line
-from mirobot_async.modal import LineCheck
-from mirobot_async.replies import parse_status
-from mirobot_async.wire import ClientStats
 
 AT_REST = (
     "<Idle,Angle(ABCDXYZ):0.000,0.000,0.000,0.000,0.000,0.000,0.000,Cartesian coordinate(XYZ "

@@ -1,5 +1,5 @@
-"""The one parse of a line (:mod:`mirobot_async.line`) and the one validation
-(:mod:`mirobot_async.validation`).
+"""The one parse of a line (:mod:`mirobot_async._core.line`) and the one validation
+(:mod:`mirobot_async._core.validation`).
 
 Every grammar corner asserted here was observed on the firmware oracle (the vendor's firmware
 20191228_2 in an AVR simulator, driven as a black box): the line, what the firmware answered and
@@ -12,10 +12,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mirobot_async import gcode
+from mirobot_async._core import gcode
+from mirobot_async._core.line import CodeWord, parse_line, read_number
+from mirobot_async._core.validation import check_line, validate_line
 from mirobot_async.errors import MirobotUsageError
-from mirobot_async.line import CodeWord, parse_line, read_number
-from mirobot_async.validation import check_line, validate_line
 
 # (number text, value the firmware moved to, digits dropped that changed it)
 NUMBERS = [
@@ -168,7 +168,7 @@ def test_validate_refuses_what_check_reports(line: str) -> None:
 
 def test_unknown_modes_check_only_what_the_line_states() -> None:
     """For a client on an arm in use: ``X500`` may be mm (M20) or degrees (M21)."""
-    from mirobot_async.validation import ModalState
+    from mirobot_async._core.validation import ModalState
 
     assert check_line("G0 X500", state=ModalState.unknown()) == []
     assert check_line("M21 G90 G0 X500", state=ModalState.unknown()) == [

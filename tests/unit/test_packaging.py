@@ -20,7 +20,7 @@ def _on_disk() -> set[str]:
     for directory, import_name in (
         ("mirobot_async", "mirobot_async"),
         ("emulator", "mirobot_emulator"),
-        ("examples", "mirobot_async.examples"),
+        ("examples", "mirobot_async._examples"),
     ):
         base = ROOT / directory
         for init in base.rglob("__init__.py"):

@@ -234,7 +234,8 @@ def test_hold_brakes_across_block_ends_after_the_latency_and_resumes() -> None:
     planner.resume()
     assert planner.state == "run"
     run_all(planner)
-    assert (planner.state, planner.position) == ("idle", pytest.approx(vec(48)))
+    assert planner.state == "idle"
+    assert planner.position == pytest.approx(vec(48))
 
 
 # ---- whole steps --------------------------------------------------------------------------------
@@ -317,7 +318,7 @@ def test_path_blocks_cut_a_path_into_blending_joint_blocks() -> None:
     for block in blocks[: Planner.CAPACITY]:
         planner.push(block)
     planner.advance(0.5)
-    speeds = []
+    speeds: list[float] = []
     while planner.busy and len(speeds) < 12:
         planner.advance(planner.time_to_next_change() or 0.0)
         speeds.append(planner.speed)

@@ -9,11 +9,11 @@ import time
 import numpy as np
 import pytest
 
-from mirobot_async.envelope import Envelope
+from mirobot_async._core.modal import MotionModes
+from mirobot_async._safety.envelope import Envelope
+from mirobot_async._safety.prediction import MachineState, Prediction, Refusal, predict
 from mirobot_async.errors import MirobotUsageError
 from mirobot_async.kinematics import DH_2021, forward, forward_many
-from mirobot_async.modal import MotionModes
-from mirobot_async.prediction import MachineState, Prediction, Refusal, predict
 
 Firmware = pytest.importorskip("mirobot_emulator.firmware").Firmware
 

@@ -8,9 +8,10 @@ from dataclasses import replace
 
 import pytest
 
-from mirobot_async.envelope import Envelope
-from mirobot_async.errors import RefusalReason
-from mirobot_async.firmware_memory import (
+from mirobot_async._core.line import parse_line
+from mirobot_async._core.modal import LineCheck, MotionModes
+from mirobot_async._safety.envelope import Envelope
+from mirobot_async._safety.firmware_memory import (
     PARSER_UNKNOWN,
     ParserPosition,
     WorkCoordinates,
@@ -23,10 +24,9 @@ from mirobot_async.firmware_memory import (
     state_after_refusal,
     work_offset,
 )
+from mirobot_async._safety.prediction import MachineState, Prediction, Refusal, predict
+from mirobot_async.errors import RefusalReason
 from mirobot_async.kinematics import DH_CLASSIC, forward
-from mirobot_async.line import parse_line
-from mirobot_async.modal import LineCheck, MotionModes
-from mirobot_async.prediction import MachineState, Prediction, Refusal, predict
 
 HOME = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 JOINT = MotionModes(cartesian=False, relative=True, motion=0, inches=False)

@@ -16,9 +16,9 @@ import pytest
 from hypothesis import HealthCheck, event, example, given, settings
 from hypothesis import strategies as st
 
-from mirobot_async.envelope import Envelope
+from mirobot_async._safety.envelope import Envelope
+from mirobot_async._safety.prediction import MachineState, Prediction, predict
 from mirobot_async.kinematics import forward
-from mirobot_async.prediction import MachineState, Prediction, predict
 
 Firmware = pytest.importorskip("mirobot_emulator.firmware").Firmware
 default_settings = pytest.importorskip("mirobot_emulator.settings").default_settings
@@ -26,7 +26,7 @@ default_settings = pytest.importorskip("mirobot_emulator.settings").default_sett
 BOX = {"x": (100.0, 300.0), "y": (-160.0, 160.0), "z": (150.0, 320.0)}
 TOOL = (0.0, 60.0, 0.0)
 """A tool sticking out sideways: a wrist snap swings it through a wide arc."""
-ENVELOPE = Envelope(**BOX, tool=TOOL)
+ENVELOPE = Envelope(x=BOX["x"], y=BOX["y"], z=BOX["z"], tool=TOOL)
 _SETTINGS = default_settings("2021")
 STEP = np.array([1.0 / _SETTINGS[100 + k] + 0.01 for k in (4, 5, 6, 0, 1, 2)])
 """Joint tolerance (deg), J1..J6: one whole motor step of that axis ($104, $105, $106, $100..$102;

@@ -1,4 +1,5 @@
-"""Unit tests of mirobot_async.protocol: the sans-IO connection state machine (no event loop)."""
+"""Unit tests of mirobot_async._core.protocol: the sans-IO connection state machine (no event
+loop)."""
 
 from __future__ import annotations
 
@@ -22,8 +23,7 @@ from hypothesis.stateful import (
 )
 from mirobot_emulator.settings import PROFILES, default_settings, format_dump
 
-from mirobot_async.errors import MirobotProtocolError, MirobotUsageError, RefusalReason
-from mirobot_async.protocol import (
+from mirobot_async._core.protocol import (
     AlarmRaised,
     BannerReceived,
     ConnectionClosed,
@@ -40,7 +40,8 @@ from mirobot_async.protocol import (
     StatusReceived,
     UnsolicitedText,
 )
-from mirobot_async.replies import ReplyKind, find_refusal, parse_status
+from mirobot_async._core.replies import ReplyKind, find_refusal, parse_status
+from mirobot_async.errors import MirobotProtocolError, MirobotUsageError, RefusalReason
 
 VECTORS: dict[str, Any] = json.loads(
     (Path(__file__).parent.parent / "data" / "vectors.json").read_text(encoding="utf-8")

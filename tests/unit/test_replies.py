@@ -1,4 +1,5 @@
-"""Unit tests of mirobot_async.replies: status parsing/formatting, line classification, refusals."""
+"""Unit tests of mirobot_async._core.replies: status parsing/formatting, line classification,
+refusals."""
 
 from __future__ import annotations
 
@@ -11,8 +12,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mirobot_async.errors import MirobotProtocolError, RefusalReason
-from mirobot_async.replies import (
+from mirobot_async._core.replies import (
     Refusal,
     Reply,
     ReplyKind,
@@ -23,6 +23,7 @@ from mirobot_async.replies import (
     format_status,
     parse_status,
 )
+from mirobot_async.errors import MirobotProtocolError, RefusalReason
 
 VECTORS: dict[str, Any] = json.loads(
     (Path(__file__).parent.parent / "data" / "vectors.json").read_text(encoding="utf-8")

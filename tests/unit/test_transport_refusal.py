@@ -6,9 +6,9 @@ from typing import Any
 
 import pytest
 
+from mirobot_async._client.transport import refusal_error
+from mirobot_async._client.wire import ClientStats, Wire
 from mirobot_async.errors import MirobotConnectionError
-from mirobot_async.transport import refusal_error
-from mirobot_async.wire import ClientStats, Wire
 
 URL = "socket://127.0.0.1:4000"
 

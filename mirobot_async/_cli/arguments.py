@@ -1,0 +1,356 @@
+"""The arguments of ``mirobot``: KEY=VALUE targets, number types, and the argparse parser.
+
+Subcommands that talk to an arm take the robot connection options (``--port``, ``--firmware``,
+``--time-scale``, ``-v``); the offline ones (``check``, ``plot``) take none of them. Commands
+that move the arm take ``--on-interrupt hold|reset``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+from typing import Final, NoReturn
+
+from mirobot_async._cli import commands
+from mirobot_async._cli.demo import DEFAULT_EXAMPLE, cmd_demo
+from mirobot_async._cli.exits import EXIT_USAGE, PROG
+from mirobot_async._core import gcode
+
+__all__ = ["DEFAULT_MONITOR_INTERVAL", "build_parser"]
+
+DEFAULT_MONITOR_INTERVAL: Final = 0.5
+PORT_ENV: Final = "MIROBOT_PORT"
+"""Environment variable: the default of ``--port`` (a port, a URL or ``auto``)."""
+_DEFAULT_TIME_SCALE_TEXT: Final = "10"  # session.DEFAULT_TIME_SCALE, without importing asyncio
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"{text!r} must be a number > 0")
+    return value
+
+
+def _time_scale(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"{text!r} must be a number >= 0 (0: moves end at once)")
+    return value
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"{text!r} must be > 0")
+    return value
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, but a usage error is ONE line: ``mirobot: error: ... (see 'mirobot X --help')``."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_USAGE, f"{PROG}: error: {message} (see '{self.prog} --help')\n")
+
+
+def _robot_options() -> _Parser:
+    robot = _Parser(add_help=False)
+    group = robot.add_argument_group("robot connection")
+    where = group.add_mutually_exclusive_group()
+    where.add_argument(
+        "--port",
+        metavar="URL",
+        default=os.environ.get(PORT_ENV) or None,
+        help="the arm's serial port or pyserial URL (/dev/ttyUSB0, COM3, socket://host:port), "
+        f"or 'auto' (default: ${PORT_ENV}); without either an embedded virtual Mirobot is "
+        "started for this command",
+    )
+    where.add_argument(
+        "--auto",
+        dest="port",
+        action="store_const",
+        const="auto",
+        help="find the arm: the one port that answers as a Mirobot (see 'mirobot ports'; "
+        "sends only ? and $$); several answering is an error",
+    )
+    group.add_argument(
+        "--firmware",
+        choices=gcode.FIRMWARE_PROFILES,
+        help="firmware profile of the embedded virtual Mirobot (default: 2021); with --port, "
+        "the arm's firmware (default: detected)",
+    )
+    group.add_argument(
+        "--time-scale",
+        type=_time_scale,
+        default=None,
+        metavar="X",
+        help="speed of the embedded virtual Mirobot in simulated seconds per wall second "
+        f"(default: {_DEFAULT_TIME_SCALE_TEXT}; 0: every move ends at once)",
+    )
+    group.add_argument(
+        "-v",
+        "--verbose",
+        action="count",
+        default=argparse.SUPPRESS,
+        help="log the wire traffic (every line sent and received) to stderr",
+    )
+    return robot
+
+
+def _add_prepare_options(parser: argparse.ArgumentParser, embedded: str) -> None:
+    """``--home`` / ``--unlock`` / ``--no-home``; ``embedded`` is what the embedded virtual
+    Mirobot gets by default (it starts locked, like an arm after power-on)."""
+    done = "homed" if embedded == "home" else "unlocked"
+    group = parser.add_argument_group(
+        "before starting",
+        f"an arm is locked after power-on: by default the embedded virtual Mirobot is {done} "
+        "first and a real arm (--port) is used as it is",
+    )
+    choice = group.add_mutually_exclusive_group()
+    choice.add_argument(
+        "--home", dest="prepare", action="store_const", const="home", help="home the arm first"
+    )
+    choice.add_argument(
+        "--unlock",
+        dest="prepare",
+        action="store_const",
+        const="unlock",
+        help="unlock the axes first, without homing ($X, M50)",
+    )
+    choice.add_argument(
+        "--no-home",
+        "--as-is",
+        dest="prepare",
+        action="store_const",
+        const="none",
+        help="use the arm as it is, even the embedded virtual one",
+    )
+    parser.set_defaults(prepare=None, embedded_prepare=embedded)
+
+
+def _add_interrupt_option(parser: argparse.ArgumentParser) -> None:
+    """``--on-interrupt hold|reset`` for a command that moves the arm."""
+    parser.add_argument(
+        "--on-interrupt",
+        choices=("hold", "reset"),
+        default="hold",
+        help="what Ctrl-C or SIGTERM does to the moving arm: 'hold' sends feed hold (!): it "
+        "decelerates and stops, queued moves stay in it; 'reset' sends soft reset (%%): it "
+        "stops at once and its queue is cleared (default: hold). Exit status 130 either way",
+    )
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("mirobot-async")
+    except PackageNotFoundError:  # pragma: no cover - running from a source tree
+        from mirobot_async import __version__
+
+        return __version__
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``mirobot`` (each subcommand sets ``handler``)."""
+    robot = _robot_options()
+    parser = _Parser(
+        prog=PROG,
+        description="Drive a WLKATA Mirobot, or the virtual one: status, monitoring, homing,\n"
+        "jogging, running and checking G-code programs, tracing and plotting.\n"
+        "Without --port, a virtual Mirobot is started for the duration of the command.",
+        epilog="examples:\n"
+        "  mirobot demo                                   (an example on a virtual Mirobot)\n"
+        "  mirobot run examples/pick_and_place.gcode      (on an embedded virtual Mirobot)\n"
+        "  mirobot status --port /dev/ttyUSB0\n"
+        "  mirobot run examples/square.gcode --trace square.csv && mirobot plot square.csv\n"
+        "  cat program.gcode | mirobot run -\n\n"
+        "Ctrl-C (or SIGTERM) while the arm moves sends feed hold (!) at once, says what was\n"
+        "still queued and exits 130 (--on-interrupt reset sends soft reset instead).\n\n"
+        "exit status: 0 done; 1 the robot refused or failed, the arm is locked, or 'check'\n"
+        "found problems; 2 bad argument, file or port; 130 interrupted (Ctrl-C, SIGTERM)",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument(
+        "-v",
+        "--verbose",
+        action="count",
+        default=0,
+        help="log the wire traffic (every line sent and received) to stderr",
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    commands_parser = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+
+    def add(name: str, handler: object, help_text: str, *, talks: bool = True) -> _Parser:
+        sub = commands_parser.add_parser(
+            name, help=help_text, description=help_text, parents=[robot] if talks else []
+        )
+        sub.set_defaults(handler=handler)
+        assert isinstance(sub, _Parser)
+        return sub
+
+    add("status", commands.cmd_status, "print one status report as a table")
+
+    monitor = add("monitor", commands.cmd_monitor, "watch the status live until Ctrl-C")
+    monitor.add_argument(
+        "--interval",
+        type=_positive_float,
+        default=DEFAULT_MONITOR_INTERVAL,
+        metavar="S",
+        help=f"seconds between samples (default: {DEFAULT_MONITOR_INTERVAL:g})",
+    )
+    monitor.add_argument(
+        "--csv", metavar="FILE", help="also append every sample to this CSV file (a trace)"
+    )
+    monitor.add_argument("--samples", type=_positive_int, metavar="N", help="stop after N samples")
+
+    home = add(
+        "home",
+        commands.cmd_home,
+        "run the homing cycle ($H); Ctrl-C stops it with a soft reset (%%), the only thing "
+        "that stops homing",
+    )
+    home.add_argument(
+        "--sequential", action="store_true", help="home the axes one after another ($HH)"
+    )
+    add("unlock", commands.cmd_unlock, "unlock the axes without homing (clears an alarm)")
+    add("reset", commands.cmd_reset, "soft-reset the controller (the arm is locked afterwards)")
+
+    move = add("move", None, "move the arm: 'move joints ...' or 'move pose ...'")
+    move_kinds = move.add_subparsers(dest="kind", metavar="KIND", required=True)
+    joints = move_kinds.add_parser(
+        "joints",
+        help="joint-space move, e.g. j1=30 j2=10",
+        description="Joint-space move to angles in degrees (j1..j6) and rail position in mm.",
+        parents=[robot],
+    )
+    joints.add_argument("targets", nargs="*", metavar="JOINT=DEG", help="j1..j6 (deg), rail (mm)")
+    joints.add_argument(
+        "--speed", type=_positive_float, metavar="DEG_PER_MIN", help="speed (default: the fastest)"
+    )
+    joints.add_argument("--relative", action="store_true", help="angles are increments")
+    joints.set_defaults(handler=commands.cmd_move_joints)
+    _add_prepare_options(joints, "home")
+    _add_interrupt_option(joints)
+    pose = move_kinds.add_parser(
+        "pose",
+        help="Cartesian move, e.g. x=200 y=0 z=150",
+        description="Cartesian move of the tool to x, y, z (mm) and rx, ry, rz (deg).",
+        parents=[robot],
+    )
+    pose.add_argument("targets", nargs="*", metavar="AXIS=VALUE", help="x y z (mm), rx ry rz (deg)")
+    pose.add_argument("--linear", action="store_true", help="move in a straight line (G1)")
+    pose.add_argument(
+        "--speed",
+        type=_positive_float,
+        metavar="MM_PER_MIN",
+        help="speed (required with --linear, default 2000 there)",
+    )
+    pose.add_argument("--relative", action="store_true", help="values are increments")
+    pose.set_defaults(handler=commands.cmd_move_pose)
+    _add_prepare_options(pose, "home")
+    _add_interrupt_option(pose)
+
+    pump = add("pump", commands.cmd_pump, "air pump of the suction cup: on (suck), blow, off")
+    pump.add_argument("action", choices=("on", "blow", "off"))
+    _add_prepare_options(pump, "unlock")
+    gripper = add("gripper", commands.cmd_gripper, "open or close the gripper")
+    gripper.add_argument("action", choices=("open", "close"))
+    gripper.add_argument(
+        "--legacy",
+        action="store_true",
+        help="the older gripper on PWM 2 (M4 E65/E40) instead of the servo gripper (M3 S40/S60)",
+    )
+    _add_prepare_options(gripper, "unlock")
+    _add_interrupt_option(gripper)
+
+    run = add("run", commands.cmd_run, "stream a G-code program with a progress bar")
+    run.add_argument(
+        "file", metavar="FILE", help="G-code program (one command per line); - reads stdin"
+    )
+    run.add_argument(
+        "--trace", metavar="FILE.csv", help="record status samples (every 50 ms of robot time)"
+    )
+    run.add_argument(
+        "--continue-on-error",
+        action="store_true",
+        help="report refused lines and go on (exit status 1 at the end)",
+    )
+    run.add_argument(
+        "--no-check",
+        action="store_true",
+        help="do not check the whole program before sending it (as 'mirobot check' does); "
+        "a line the check refuses then stops the run where it is",
+    )
+    _add_prepare_options(run, "home")
+    _add_interrupt_option(run)
+
+    demo = add(
+        "demo",
+        cmd_demo,
+        "run one of the example programs shipped with mirobot-async (default: "
+        f"{DEFAULT_EXAMPLE}) on the embedded virtual Mirobot, or on --port",
+    )
+    demo.add_argument(
+        "name", nargs="?", default=DEFAULT_EXAMPLE, metavar="NAME", help="the example to run"
+    )
+    demo.add_argument("--list", action="store_true", help="list the examples and exit")
+    demo.add_argument("--trace", metavar="FILE.csv", help="record status samples (G-code examples)")
+    demo.set_defaults(continue_on_error=False, no_check=False, file=None)
+    _add_prepare_options(demo, "home")
+    _add_interrupt_option(demo)
+
+    check = add("check", commands.cmd_check, "validate a G-code program offline", talks=False)
+    check.add_argument("file", metavar="FILE", help="G-code program; - reads stdin")
+    check.add_argument(
+        "--firmware",
+        choices=gcode.FIRMWARE_PROFILES,
+        default="2021",
+        help="firmware profile to check against (default: 2021)",
+    )
+
+    plot = add(
+        "plot", commands.cmd_plot, "plot a trace: tool path (top, side), joints", talks=False
+    )
+    plot.add_argument("trace", metavar="TRACE.csv", help="from 'run --trace' or 'monitor --csv'")
+    plot.add_argument(
+        "-o", "--output", metavar="FILE.png", help="PNG to write (default: TRACE with .png)"
+    )
+    plot.add_argument("--title", help="title of the figure")
+
+    ports = add(
+        "ports",
+        commands.cmd_ports,
+        "list serial ports and probe each for a Mirobot (sends only ? and $$)",
+        talks=False,
+    )
+    ports.add_argument(
+        "devices", nargs="*", metavar="DEVICE", help="probe these (default: every port found)"
+    )
+    ports.add_argument(
+        "--timeout",
+        type=_positive_float,
+        default=3.0,
+        metavar="S",
+        help="seconds to wait for each port's status reply (default: 3)",
+    )
+    ports.add_argument("--no-probe", action="store_true", help="only list, open nothing")
+
+    emulator = commands_parser.add_parser(
+        "emulator",
+        help="run the virtual Mirobot on a pty (same as mirobot-emulator; see "
+        "'mirobot emulator --help')",
+        add_help=False,
+    )
+    emulator.add_argument("arguments", nargs=argparse.REMAINDER)
+    emulator.set_defaults(handler=commands.cmd_emulator)
+    return parser

@@ -1,0 +1,1 @@
+"""Private: client modules of mirobot_async (import from the package root)."""

@@ -1,0 +1,278 @@
+"""Motion commands of :class:`~mirobot_async._client.client.Mirobot` (a mixin): ``move_joints``,
+``move_pose``, ``home``, ``unlock``, ``clear_alarm``."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+from mirobot_async._client.completion import Target
+from mirobot_async._client.condition import RobotCondition
+from mirobot_async._client.deadline import deadline_after
+from mirobot_async._client.parts import DEFAULT_TIMEOUT, HOME_TIMEOUT, MOVE_TIMEOUT, ClientParts
+from mirobot_async._core import gcode
+from mirobot_async._core.replies import StatusReport
+
+if TYPE_CHECKING:
+    from mirobot_async._safety.envelope import LineCheck
+
+__all__ = ["MotionCommands", "absolute_pose"]
+
+
+class MotionCommands(ClientParts):
+    """Structured moves, homing and unlocking."""
+
+    async def _move(
+        self,
+        data: bytes,
+        *,
+        target: Callable[[StatusReport | None, LineCheck | None], Target | None],
+        relative: bool,
+        wait: bool,
+        deadline: float | None,
+        timeout: float | None,
+        what: str,
+    ) -> StatusReport | None:
+        """Send a motion line; with ``wait`` await its completion at ``target``.
+
+        ``target(baseline, check)`` gives the goal; for relative moves from ``check`` (the
+        envelope's verdict: the absolute target) or else ``baseline`` (a status read before
+        sending while the arm was at rest), or ``None`` (completion = Idle after the ``ok``).
+        """
+        data = data.rstrip(b"\n")
+        command = data.decode("ascii").strip()
+        condition = self._condition
+        condition.check_sendable(command, motion=True)
+        use_baseline = wait and relative and self._guard.envelope is None
+        baseline = await self._lines.baseline(deadline) if use_baseline else None
+        epoch, alarm_epoch = condition.reset_epoch, condition.alarm_epoch
+        slot = await self._lines.submit(
+            data,
+            command,
+            deadline=deadline,
+            timeout=timeout,
+            motion=True,
+            what=f"{what} {command!r}",
+        )
+        await self._lines.await_slot(slot, deadline, timeout)
+        if not wait:
+            return None
+        epoch = slot.reply_epoch  # (a line in doubt after a reset ran after it)
+        known = not relative or baseline is not None or slot.check is not None
+        goal = target(baseline, slot.check) if known else None
+        return await self._completion.wait(
+            command,
+            goal,
+            deadline=deadline,
+            timeout=timeout,
+            epoch=epoch,
+            alarm_epoch=alarm_epoch,
+        )
+
+    async def move_joints(
+        self,
+        j1: float | None = None,
+        j2: float | None = None,
+        j3: float | None = None,
+        j4: float | None = None,
+        j5: float | None = None,
+        j6: float | None = None,
+        rail: float | None = None,
+        *,
+        speed: float | None = None,
+        relative: bool = False,
+        wait: bool = True,
+        timeout: float | None = MOVE_TIMEOUT,
+    ) -> StatusReport | None:
+        """Joint move (degrees; ``rail`` in mm); omitted joints stay where they are.
+
+        ``speed`` in deg/min (``None``: every joint at its max rate, ``G0``). ``relative`` adds
+        to the current angles. The line states its units (``G21``, millimetres and degrees), so
+        an earlier ``G20`` (inches) cannot change its meaning. Absolute targets outside the
+        joint (and rail) ranges raise :class:`MirobotUsageError` before anything is sent, and so
+        does a move that leaves the safety envelope (target, or the tool point along the
+        joint-space path from the predicted position; see the module docstring).
+
+        With ``wait`` (default) returns the status report that shows the move finished: ``ok``
+        received and a later status ``Idle`` at the target (within 0.05 deg, half a motor
+        step), or ``Idle`` after the arm was seen moving; for relative moves the target is the
+        envelope's predicted one, or without an envelope computed from a status read just
+        before sending when the arm is at rest (else completion is ``Idle`` after the ``ok``).
+        Without ``wait`` returns ``None`` once the line is queued (``ok``).
+
+        Raises :class:`MotionRefusedError` (locked, soft limit...), :class:`MirobotAlarmError`
+        (an alarm is remembered or raised meanwhile), :class:`MirobotResetError`,
+        :class:`MirobotTimeoutError` after ``timeout`` seconds (default :data:`MOVE_TIMEOUT`).
+        Cancelling keeps the link in step (as :meth:`send`) but does not stop the arm (use
+        :meth:`hold`, :meth:`reset` or :meth:`hold_on_exit`).
+        """
+        values = (j1, j2, j3, j4, j5, j6)
+        deadline = deadline_after(self._running_loop(), timeout)
+        # Argument errors first (the rail range depends on the firmware: checked below).
+        if rail is None or any(v is not None for v in values):
+            gcode.move_joints(j1, j2, j3, j4, j5, j6, speed=speed, relative=relative)
+        if rail is not None:
+            gcode.move_joints(rail=rail, speed=speed, relative=True)  # a finite number
+        firmware: str = self._condition.firmware or "2021"
+        if rail is not None and self._condition.firmware is None and not relative:
+            firmware = await self._require_firmware(deadline, timeout)
+        data = _with_units(
+            gcode.move_joints(
+                j1, j2, j3, j4, j5, j6, rail, speed=speed, relative=relative, firmware=firmware
+            )
+        )
+
+        def target(base: StatusReport | None, check: LineCheck | None) -> Target:
+            if not relative:
+                return Target(joints=values, rail=rail)
+            if check is not None and check.joints is not None:
+                joints = tuple(
+                    None if v is None else q for v, q in zip(values, check.joints, strict=True)
+                )
+                return Target(joints=joints, rail=None if rail is None else check.rail)
+            assert base is not None
+            joints = tuple(
+                None if v is None else b + v for v, b in zip(values, base.joints, strict=True)
+            )
+            new_rail = None if rail is None or base.rail is None else base.rail + rail
+            return Target(joints=joints, rail=new_rail)
+
+        return await self._move(
+            data,
+            target=target,
+            relative=relative,
+            wait=wait,
+            deadline=deadline,
+            timeout=timeout,
+            what="move_joints",
+        )
+
+    async def move_pose(
+        self,
+        x: float | None = None,
+        y: float | None = None,
+        z: float | None = None,
+        rx: float | None = None,
+        ry: float | None = None,
+        rz: float | None = None,
+        *,
+        speed: float | None = None,
+        linear: bool = False,
+        relative: bool = False,
+        wait: bool = True,
+        timeout: float | None = MOVE_TIMEOUT,
+    ) -> StatusReport | None:
+        """Cartesian move of the tool point (mm) and orientation (roll, pitch, yaw in degrees).
+
+        ``linear=False``: point to point (``G0``); ``linear=True``: straight line (``G1``) at
+        ``speed`` mm/min, which is then required. ``relative`` adds to the current pose
+        (orientation component-wise, as the firmware does). Omitted coordinates stay. The line
+        states ``G21`` (millimetres). With a safety envelope the target (``G0``: and the
+        joint-space path to it) or the sampled straight line is checked first:
+        :class:`MirobotUsageError`, nothing sent.
+
+        ``wait`` as in :meth:`move_joints` (the pose must read back within 0.1 mm / 0.1 deg).
+        Unreachable targets raise :class:`MotionRefusedError` (``reason`` UNREACHABLE or
+        ANGLE_OUT_OF_LIMIT); other errors and ``timeout`` (default :data:`MOVE_TIMEOUT`) as in
+        :meth:`move_joints`.
+        """
+        values = (x, y, z, rx, ry, rz)
+        deadline = deadline_after(self._running_loop(), timeout)
+        data = _with_units(
+            gcode.move_pose(x, y, z, rx, ry, rz, speed=speed, linear=linear, relative=relative)
+        )
+
+        def target(base: StatusReport | None, check: LineCheck | None) -> Target:
+            if not relative:
+                return Target(pose=absolute_pose(values, check, self._condition))
+            if check is not None and check.pose is not None:
+                pose = tuple(
+                    None if v is None else p for v, p in zip(values, check.pose, strict=True)
+                )
+                return Target(pose=pose)
+            assert base is not None
+            pose = tuple(
+                None if v is None else b + v for v, b in zip(values, base.pose, strict=True)
+            )
+            return Target(pose=pose)
+
+        return await self._move(
+            data,
+            target=target,
+            relative=relative,
+            wait=wait,
+            deadline=deadline,
+            timeout=timeout,
+            what="move_pose",
+        )
+
+    async def home(
+        self, sequential: bool = False, *, timeout: float | None = HOME_TIMEOUT
+    ) -> StatusReport:
+        """Home the arm (``$H``; ``sequential=True``: ``$HH``, one axis after another).
+
+        Returns when a status after the ``ok`` shows ``Idle`` with all joints at zero. Homing
+        unlocks the axes and clears a remembered alarm. Raises :class:`MirobotTimeoutError`
+        after ``timeout`` seconds (default :data:`HOME_TIMEOUT`), :class:`MirobotAlarmError` if
+        homing fails, :class:`MirobotResetError` on a reset. Cancelling does not stop homing.
+        """
+        data = gcode.home(sequential)
+        deadline = deadline_after(self._running_loop(), timeout)
+        condition = self._condition
+        condition.check_sendable("$HH" if sequential else "$H", motion=False)
+        epoch, alarm_epoch = condition.reset_epoch, condition.alarm_epoch
+        await self._command(data, deadline=deadline, timeout=timeout)
+        return await self._completion.wait(
+            data.decode("ascii").strip(),
+            None,
+            deadline=deadline,
+            timeout=timeout,
+            epoch=epoch,
+            alarm_epoch=alarm_epoch,
+            homing=True,
+        )
+
+    async def unlock(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """Release the axis lock without homing: ``$X`` (leave Alarm), then ``M50`` (unlock).
+
+        Clears a remembered alarm (not a hard limit: that needs :meth:`reset`). Errors and
+        cancellation as in :meth:`send`; ``timeout`` (default :data:`DEFAULT_TIMEOUT`) covers both
+        lines.
+        """
+        deadline = deadline_after(self._running_loop(), timeout)
+        self._condition.check_sendable("$X", motion=False)
+        await self._command(gcode.clear_alarm(), deadline=deadline, timeout=timeout)
+        await self._command(gcode.unlock_axes(), deadline=deadline, timeout=timeout)
+
+    async def clear_alarm(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+        """``$X``: leave Alarm (the power-on axis lock stays: see :meth:`unlock`).
+
+        Clears a remembered alarm (not a hard limit). Errors, ``timeout`` (default
+        :data:`DEFAULT_TIMEOUT`) and cancellation as in :meth:`send`.
+        """
+        await self._command_within(gcode.clear_alarm(), timeout)
+
+
+def absolute_pose(
+    values: tuple[float | None, ...], check: LineCheck | None, condition: RobotCondition
+) -> tuple[float | None, ...]:
+    """Where an absolute ``M20`` move reads back: the firmware adds the 2021 base offset
+    ``$41..$43`` to X/Y/Z. Known from the envelope's prediction, a ``$$`` listing, or zero on a
+    classic arm; otherwise X/Y/Z are not checked (completion: ``Idle`` after the arm moved)."""
+    if check is not None and check.base_offset is not None:
+        offset: tuple[float, ...] = check.base_offset
+    elif condition.firmware == "classic":
+        offset = (0.0, 0.0, 0.0)
+    elif condition.base_offset is not None:
+        offset = condition.base_offset
+    else:
+        return (None, None, None, *values[3:])
+    xyz = tuple(None if v is None else v + o for v, o in zip(values[:3], offset, strict=True))
+    return (*xyz, *values[3:])
+
+
+def _with_units(data: bytes) -> bytes:
+    """A structured move stating ``G21`` (millimetres): ``G20`` left by an earlier session
+    would make the firmware read its numbers as inches."""
+    line = data.rstrip(b"\n")
+    return line if b"G21" in line.split() else line + b" G21"

@@ -1,0 +1,171 @@
+"""Paths of :class:`~mirobot_async._client.client.Mirobot` (a mixin): ``move_path``,
+``move_joint_path``.
+
+A path is one modal line (``M20``/``M21 G90 G0|G1 G21 F..``,
+:func:`~mirobot_async._core.gcode.path_header`) and then one bare ``G1 X.. Y..`` line per point
+(:func:`~mirobot_async._core.gcode.path_point`), streamed with character counting so that the
+firmware's planner blends them; the call returns when a status shows the arm at rest at the
+last point.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from typing import TYPE_CHECKING
+
+from mirobot_async._client.completion import Target
+from mirobot_async._client.deadline import deadline_after
+from mirobot_async._client.guard import NeedPosition, PathRefused
+from mirobot_async._client.motion_commands import absolute_pose
+from mirobot_async._client.parts import MOVE_TIMEOUT, ClientParts
+from mirobot_async._client.streaming import Stream
+from mirobot_async._core import gcode
+from mirobot_async._core.line import parse_line
+from mirobot_async._core.replies import StatusReport
+from mirobot_async.errors import MirobotError, MirobotUsageError
+
+if TYPE_CHECKING:
+    from mirobot_async._safety.envelope import LineCheck
+
+__all__ = ["PathCommands", "PathError"]
+
+Point = Sequence[float | None]
+
+
+class PathError(MirobotError):
+    """A path failed at one point: :attr:`index` (0-based) and :attr:`point`; the robot's own
+    error (a :class:`MotionRefusedError`, :class:`MirobotCommandError`, a reset...) is
+    :attr:`error` (also the ``__cause__``)."""
+
+    def __init__(self, index: int, point: tuple[float | None, ...], error: BaseException) -> None:
+        super().__init__(f"path point {index} {point}: {error}")
+        self.index = index
+        self.point = point
+        self.error = error
+
+
+class PathCommands(ClientParts):
+    """Blended paths through many points."""
+
+    async def move_path(
+        self,
+        poses: Iterable[Point],
+        *,
+        speed: float | None = None,
+        linear: bool = True,
+        timeout: float | None = MOVE_TIMEOUT,
+    ) -> StatusReport:
+        """Move the tool through ``poses`` (each ``(x, y, z[, rx, ry, rz])`` in mm and degrees,
+        ``None`` entries stay), blending the moves: straight lines (``G1``) at ``speed`` mm/min
+        with ``linear`` (then required), else point to point (``G0``).
+
+        Every point is checked before the first byte is written (numbers, line length and, with
+        a safety envelope, the whole path predicted from where the arm will be): a bad point
+        raises :class:`MirobotUsageError` naming its index and nothing is written. The lines are
+        then streamed with character counting (the planner never starves); the modes are stated
+        once, in the first line. Returns the status that shows the arm at rest at the last point.
+
+        A line the robot refuses or rejects stops the path: :class:`PathError` names the point
+        (lines already in the robot's buffer still run). ``timeout`` (default
+        :data:`MOVE_TIMEOUT`) bounds the whole call (:class:`MirobotTimeoutError`). Cancelling
+        stops sending at once; the lines already written still run: the arm keeps moving to
+        the last point written (use :meth:`hold` or :meth:`hold_on_exit` to stop it).
+        """
+        points = [tuple(point) for point in poses]
+        header = gcode.path_header(joints=False, speed=speed, linear=linear)
+        return await self._path(points, header, joints=False, timeout=timeout)
+
+    async def move_joint_path(
+        self,
+        points: Iterable[Point],
+        *,
+        speed: float | None = None,
+        timeout: float | None = MOVE_TIMEOUT,
+    ) -> StatusReport:
+        """Move through joint-space ``points`` (each ``(j1, ..., j6[, rail])`` in degrees and mm,
+        ``None`` entries stay), blending the moves: ``G1`` at ``speed`` deg/min, or ``G0`` (every
+        joint at its max rate) without it.
+
+        Checks (joint and rail ranges, the envelope), streaming, the result, errors, ``timeout``
+        and cancellation as in :meth:`move_path`.
+        """
+        listed = [tuple(point) for point in points]
+        header = gcode.path_header(joints=True, speed=speed)
+        return await self._path(listed, header, joints=True, timeout=timeout)
+
+    async def _path(
+        self,
+        points: list[tuple[float | None, ...]],
+        header: bytes,
+        *,
+        joints: bool,
+        timeout: float | None,
+    ) -> StatusReport:
+        deadline = deadline_after(self._running_loop(), timeout)
+        if not points:
+            raise MirobotUsageError("a path needs at least one point")
+        motion = header.split()[2].decode("ascii")
+        firmware = self._condition.firmware or "2021"
+        lines = [header.rstrip(b"\n")]
+        for index, point in enumerate(points):
+            try:
+                lines.append(
+                    gcode.path_point(point, joints=joints, motion=motion, firmware=firmware).rstrip(
+                        b"\n"
+                    )
+                )
+            except MirobotUsageError as err:
+                raise MirobotUsageError(f"path point {index} {point}: {err}") from None
+        checks = await self._preview(lines, points, deadline, timeout)
+        condition = self._condition
+        condition.check_sendable(lines[0].decode("ascii"), motion=True)
+        epoch, alarm_epoch = condition.reset_epoch, condition.alarm_epoch
+        stream = Stream(
+            (self._lines, self._condition, self._guard), lines, None, False, timeout, True, True
+        )
+        result = await stream.run()
+        for line_result in result.errors:
+            index = max(0, line_result.number - 2)
+            assert line_result.error is not None
+            raise PathError(index, points[index], line_result.error) from line_result.error
+        last = points[-1]
+        if joints:
+            rail = last[6] if len(last) > 6 else None
+            target = Target(joints=(*last[:6], *(None,) * (6 - len(last[:6]))), rail=rail)
+        else:
+            padded = (*last, *(None,) * (6 - len(last)))
+            target = Target(pose=absolute_pose(padded, checks[-1] if checks else None, condition))
+        return await self._completion.wait(
+            f"path of {len(points)} points",
+            target,
+            deadline=deadline,
+            timeout=timeout,
+            epoch=epoch,
+            alarm_epoch=alarm_epoch,
+        )
+
+    async def _preview(
+        self,
+        lines: list[bytes],
+        points: list[tuple[float | None, ...]],
+        deadline: float | None,
+        timeout: float | None,
+    ) -> list[LineCheck]:
+        """The envelope's verdicts on the whole path, predicted before anything is written."""
+        guard = self._guard
+        if guard.envelope is None:
+            return []
+        parsed = [parse_line(line) for line in lines]
+        if any(guard.needs_firmware(line) for line in parsed):
+            await self._require_firmware(deadline, timeout)
+        while True:
+            try:
+                found = guard.preview(parsed)
+            except PathRefused as err:
+                if err.index == 0:
+                    raise MirobotUsageError(f"path header {lines[0]!r}: {err}") from None
+                index = err.index - 1
+                raise MirobotUsageError(f"path point {index} {points[index]}: {err}") from None
+            if not isinstance(found, NeedPosition):
+                return found
+            await self._lines.learn_position("a path", deadline)

@@ -1,0 +1,1 @@
+"""Private: core modules of mirobot_async (import from the package root)."""

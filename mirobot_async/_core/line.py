@@ -1,0 +1,467 @@
+"""One parse of a raw line, reading every word exactly as the firmware (GRBL 0.9j) reads it.
+
+:func:`parse_line` turns a raw line into an immutable :class:`ParsedLine` once; the offline
+checker (:mod:`mirobot_async._core.validation`), the safety envelope's predictor
+(:mod:`mirobot_async._safety.prediction`), the modal tracker (:mod:`mirobot_async._core.modal`) and
+the client's scheduler all read that value instead of re-parsing the text.
+
+Numbers are read as the firmware's ``read_float`` does (confirmed on the firmware oracle): an
+optional sign, digits with at most one point, **only the first 8 digits kept, counting leading
+zeros** (``X0000000030`` is 0, ``X123456789`` is 123456780); no
+exponent (``X1e1`` is ``X1`` then the word ``E1``). ``G``/``M`` numbers are truncated to a byte
+(``M16404`` and ``M20.001`` are ``M20``) and refused when their hundredths are not zero
+(``M20.5``, ``M276``: ``Invalid gcode ID:23``). Pure module: no I/O.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import struct
+from collections.abc import Mapping
+from dataclasses import dataclass
+from types import MappingProxyType
+from typing import Final, Literal
+
+__all__ = [
+    "MAX_INT_DIGITS",
+    "MAX_LINE_LENGTH",
+    "REALTIME_BYTES",
+    "CodeWord",
+    "DollarLine",
+    "FirmwareNumber",
+    "ParsedLine",
+    "Word",
+    "normalize_line",
+    "parse_line",
+    "read_number",
+]
+
+MAX_LINE_LENGTH: Final = 80
+"""Longest line the firmware accepts after dropping spaces and comments (``Line overflow``)."""
+MAX_INT_DIGITS: Final = 8
+"""Digits of a number the firmware keeps (GRBL 0.9j ``MAX_INT_DIGITS``), leading zeros count."""
+REALTIME_BYTES: Final = "?!~%"
+"""Bytes the firmware takes at once (status, hold, start, reset) and removes from the line."""
+
+AXIS_LETTERS: Final = "XYZABCD"
+"""Axis words: J1..J6 and the rail D in ``M21``; x y z and roll pitch yaw (and D) in ``M20``."""
+
+
+_F32: Final = struct.Struct("<f")
+
+
+def _f32(value: float) -> float:
+    """``value`` rounded to single precision (the AVR's ``float``, and its ``double``)."""
+    try:
+        return float(_F32.unpack(_F32.pack(value))[0])
+    except OverflowError:
+        return math.copysign(math.inf, value)
+
+
+def normalize_line(line: str | bytes) -> str:
+    """The line as the firmware's parser sees it: bytes <= 0x20 and ``/`` dropped, letters upper
+    case, ``( ... )`` and ``; ...`` comments removed. Realtime bytes (``? ! ~ %``) are removed too.
+    """
+    text = line.decode("latin-1") if isinstance(line, bytes) else line
+    return normalize_text(text)[0]
+
+
+def normalize_text(text: str) -> tuple[str, bool]:
+    """(normalized text, True if a ``(`` comment was left open)."""
+    out: list[str] = []
+    in_comment = False
+    for char in text:
+        if char in REALTIME_BYTES:
+            continue
+        if in_comment:
+            if char == ")":
+                in_comment = False
+            continue
+        if char == ";":
+            break
+        if char == "(":
+            in_comment = True
+        elif ord(char) <= 0x20 or char == "/":
+            continue
+        elif "a" <= char <= "z":
+            out.append(char.upper())
+        else:
+            out.append(char)
+    return "".join(out), in_comment
+
+
+@dataclass(frozen=True, slots=True)
+class FirmwareNumber:
+    """A number as the firmware's ``read_float`` reads it from a normalized line."""
+
+    value: float
+    """The value of the digits kept (the firmware rounds it to single precision)."""
+    end: int
+    """Index just after the number."""
+    digits: int
+    """How many digits were written."""
+    lossy: bool
+    """True when a dropped digit (beyond the 8th) was not zero: the value differs from the text."""
+    single: float = 0.0
+    """The value as the firmware computes it, in single precision (for command numbers)."""
+
+
+def read_number(text: str, start: int) -> FirmwareNumber | None:
+    """Read a number at ``text[start:]`` as GRBL 0.9j does; None when no digit follows."""
+    i = start
+    n = len(text)
+    negative = False
+    if i < n and text[i] in "+-":
+        negative = text[i] == "-"
+        i += 1
+    intval = 0
+    exp = 0
+    ndigit = 0
+    lossy = False
+    decimal = False
+    while i < n:
+        char = text[i]
+        if "0" <= char <= "9":
+            ndigit += 1
+            if ndigit <= MAX_INT_DIGITS:
+                if decimal:
+                    exp -= 1
+                intval = intval * 10 + (ord(char) - 48)
+            else:
+                lossy = lossy or char != "0"
+                if not decimal:
+                    exp += 1
+        elif char == "." and not decimal:
+            decimal = True
+        else:
+            break
+        i += 1
+    if ndigit == 0:
+        return None
+    # The firmware computes in single precision; the value here is the exact decimal number of
+    # the kept digits (they differ by less than a micrometre in any reachable range).
+    value = intval / 10 ** (-exp) if exp < 0 else float(intval * 10**exp)
+    single = _f32(float(intval))
+    if single != 0.0:
+        while exp <= -2:
+            single = _f32(single * _f32(0.01))
+            exp += 2
+        if exp < 0:
+            single = _f32(single * _f32(0.1))
+        while exp > 0:
+            single = _f32(single * 10.0)
+            exp -= 1
+    if negative:
+        value, single = -value, -single
+    return FirmwareNumber(value, i, ndigit, lossy, single)
+
+
+def _c_round(x: float) -> int:
+    """C ``round``: half away from zero."""
+    return math.floor(x + 0.5) if x >= 0 else -math.floor(-x + 0.5)
+
+
+_INTEGER_TEXT: Final = re.compile(r"\d+(?:\.0*)?")
+
+
+@dataclass(frozen=True, slots=True)
+class Word:
+    """One word of a G-code line: a letter and its number, as written and as the firmware reads."""
+
+    letter: str
+    text: str
+    """The number as written (after normalization)."""
+    value: float
+    """The number as the firmware reads it (its first 8 digits)."""
+    lossy: bool = False
+    """The firmware drops a non-zero digit of it (more than 8 digits)."""
+
+    def __str__(self) -> str:
+        return self.letter + self.text
+
+
+@dataclass(frozen=True, slots=True)
+class CodeWord(Word):
+    """A ``G`` or ``M`` word: the command number the firmware executes."""
+
+    code: int = 0
+    """The firmware's command number: the value truncated to a byte (``M16404`` is 20)."""
+    fraction_error: bool = False
+    """The firmware refuses it: hundredths not zero (``Invalid gcode ID:23``, e.g. ``M20.5``)."""
+
+    @property
+    def canonical(self) -> bool:
+        """True when the word is written as the plain integer it means (``G01``, ``M3``)."""
+        return (
+            not self.fraction_error
+            and _INTEGER_TEXT.fullmatch(self.text) is not None
+            and int(self.text.split(".")[0]) == self.code
+        )
+
+
+def _code_word(letter: str, text: str, number: FirmwareNumber) -> CodeWord:
+    value = number.value
+    single = number.single
+    if not math.isfinite(single):
+        return CodeWord(letter, text, value, number.lossy, 0, True)
+    code = math.trunc(single) % 256
+    mantissa = _c_round(_f32(_f32(single - code) * 100.0)) % 65536
+    # G90.1/G91.x etc. take a fraction in GRBL; none is a Mirobot command, so any is an error here.
+    return CodeWord(letter, text, value, number.lossy, code, mantissa != 0)
+
+
+DollarKind = Literal[
+    "help", "query", "homing", "setting", "unlock", "zero", "startup", "restore", "jog", "unknown"
+]
+
+
+@dataclass(frozen=True, slots=True)
+class DollarLine:
+    """A ``$`` system command, classified."""
+
+    kind: DollarKind
+    """``homing`` is any ``$H...`` (the firmware homes for ``$H8`` too); ``query`` is ``$$``,
+    ``$#``, ``$G``, ``$I``, ``$N``, ``$C``; ``startup`` stores a line run at every reset."""
+    number: int | None = None
+    """Setting number as the firmware reads it (``$041=1`` and ``$41.4=1`` are ``$41``)."""
+    value: float | None = None
+    """Setting value as the firmware reads it."""
+    canonical: bool = True
+    """False when the setting is written in an odd form the firmware reads differently."""
+    error: str | None = None
+    """The firmware's error for a malformed ``$`` line, when known."""
+
+
+_QUERIES: Final = frozenset({"$$", "$#", "$G", "$I", "$N", "$C"})
+
+
+def _dollar(text: str) -> DollarLine:
+    if text == "$":
+        return DollarLine("help")
+    if text in _QUERIES:
+        return DollarLine("query")
+    if text == "$X":
+        return DollarLine("unlock")
+    if text.startswith("$H"):
+        return DollarLine("homing")
+    if text == "$M":
+        return DollarLine("zero")
+    if text.startswith("$J"):
+        return DollarLine("jog")
+    if text.startswith("$RST="):
+        return DollarLine("restore")
+    if text.startswith("$N"):
+        return DollarLine("startup")
+    number = read_number(text, 1)
+    if number is None:
+        return DollarLine("unknown", error="Bad number format")
+    if number.end >= len(text) or text[number.end] != "=":
+        return DollarLine("unknown", error="Invalid statement")
+    value = read_number(text, number.end + 1)
+    if value is None:
+        return DollarLine("unknown", error="Bad number format")
+    if value.end != len(text) or not 0 <= number.value <= 255:
+        return DollarLine("unknown", error="Invalid statement")
+    parameter = math.trunc(number.value)
+    written = text[1 : number.end]
+    canonical = (
+        written.isdigit()
+        and int(written) == parameter
+        and not value.lossy
+        and math.isfinite(value.value)
+    )
+    return DollarLine("setting", parameter, value.value, canonical)
+
+
+@dataclass(frozen=True, slots=True)
+class ParsedLine:
+    """A raw line parsed once: what the firmware will read from it (immutable).
+
+    Syntax the firmware refuses as a whole (``Bad number format``, ``Expected command letter``,
+    ``Line overflow``) is in :attr:`syntax_error`; deeper rules (modal groups, unused words) are
+    judged by the checker and the predictor from the words.
+    """
+
+    source: str
+    """The raw text without its line ending (decoded as latin-1)."""
+    text: str
+    """The normalized text the firmware parses (see :func:`normalize_line`)."""
+    open_comment: bool
+    """A ``(`` comment was not closed: the rest of the line is ignored."""
+    kind: Literal["empty", "gcode", "dollar"]
+    words: tuple[Word, ...] = ()
+    """Every word in order (``G``/``M`` words are :class:`CodeWord`)."""
+    dollar: DollarLine | None = None
+    syntax_error: str | None = None
+
+    # ---- the words -------------------------------------------------------------------------
+
+    @property
+    def codes(self) -> tuple[CodeWord, ...]:
+        """The ``G`` and ``M`` words."""
+        return tuple(w for w in self.words if isinstance(w, CodeWord))
+
+    @property
+    def g_codes(self) -> tuple[int, ...]:
+        """The ``G`` numbers as the firmware reads them."""
+        return tuple(w.code for w in self.codes if w.letter == "G")
+
+    @property
+    def m_codes(self) -> tuple[int, ...]:
+        """The ``M`` numbers as the firmware reads them."""
+        return tuple(w.code for w in self.codes if w.letter == "M")
+
+    @property
+    def values(self) -> Mapping[str, float]:
+        """Value words (not ``G``/``M``) by letter, first occurrence (see :attr:`repeated`)."""
+        out: dict[str, float] = {}
+        for w in self.words:
+            if not isinstance(w, CodeWord):
+                out.setdefault(w.letter, w.value)
+        return MappingProxyType(out)
+
+    @property
+    def repeated(self) -> tuple[str, ...]:
+        """Value letters written more than once (the firmware: ``Invalid gcode ID:25``)."""
+        seen: set[str] = set()
+        twice: list[str] = []
+        for w in self.words:
+            if isinstance(w, CodeWord):
+                continue
+            if w.letter in seen and w.letter not in twice:
+                twice.append(w.letter)
+            seen.add(w.letter)
+        return tuple(twice)
+
+    def value(self, letter: str) -> float | None:
+        """The value of word ``letter`` as the firmware reads it, or None."""
+        return self.values.get(letter)
+
+    @property
+    def axis_words(self) -> Mapping[str, float]:
+        """The axis words ``X Y Z A B C D`` present, as the firmware reads them."""
+        values = self.values
+        return MappingProxyType({k: values[k] for k in AXIS_LETTERS if k in values})
+
+    def _first(self, letter: str, choices: frozenset[int]) -> int | None:
+        for w in self.codes:
+            if w.letter == letter and w.code in choices:
+                return w.code
+        return None
+
+    @property
+    def motion(self) -> int | None:
+        """The motion code stated in the line (G0 G1 G2 G3 G5 G80), or None."""
+        return self._first("G", frozenset({0, 1, 2, 3, 5, 80}))
+
+    @property
+    def distance(self) -> int | None:
+        """90 (absolute) or 91 (relative) when stated."""
+        return self._first("G", frozenset({90, 91}))
+
+    @property
+    def units(self) -> int | None:
+        """20 (inches) or 21 (mm) when stated."""
+        return self._first("G", frozenset({20, 21}))
+
+    @property
+    def coordinate_mode(self) -> int | None:
+        """20 (Cartesian, ``M20``) or 21 (joints, ``M21``) when stated."""
+        return self._first("M", frozenset({20, 21}))
+
+    @property
+    def dwell_seconds(self) -> float | None:
+        """Seconds of a ``G4 P..`` dwell, or None when the line has no complete dwell."""
+        if 4 not in self.g_codes:
+            return None
+        return self.value("P")
+
+    @property
+    def program_end(self) -> bool:
+        """``M2`` or ``M30``: waits for the queue, then resets some modes."""
+        return any(code in (2, 30) for code in self.m_codes)
+
+    @property
+    def is_homing(self) -> bool:
+        """Any ``$H...`` line (the firmware homes for every variant it accepts)."""
+        return self.dollar is not None and self.dollar.kind == "homing"
+
+    @property
+    def has_odd_numbers(self) -> bool:
+        """A word the firmware reads differently from its text (digits dropped, odd G/M form)."""
+        return any(w.lossy or (isinstance(w, CodeWord) and not w.canonical) for w in self.words)
+
+    @property
+    def coordinate_conflict(self) -> str | None:
+        """Why the firmware refuses this line's ``M20``/``M21`` word by its neighbours, or None.
+
+        Seen on the firmware oracle: ``G21 M21`` (a units word before it) and ``M21 M3`` (another
+        M word in the line) give ``Modal group violation``, yet the M20/M21 takes effect.
+        """
+        if self.coordinate_mode is None:
+            return None
+        seen = False
+        for word in self.codes:
+            if word.letter == "M" and word.code in (20, 21):
+                seen = True
+            elif word.letter == "G" and word.code in (20, 21) and not seen:
+                return f"{word} before the M20/M21 word"
+            elif word.letter == "M" and word.code not in (20, 21):
+                return f"{word} in the same line as M20/M21"
+        return None
+
+    @property
+    def may_move(self) -> bool:
+        """True unless the line certainly does not move the arm (conservative)."""
+        if self.kind == "empty":
+            return False
+        if self.dollar is not None:
+            return self.dollar.kind in ("homing", "zero", "jog", "startup", "restore", "unknown")
+        if self.syntax_error is not None:
+            return False  # the firmware rejects the whole line
+        return bool(self.axis_words) or any(code not in _STILL_G for code in self.g_codes)
+
+    def __str__(self) -> str:
+        return self.text
+
+
+_STILL_G: Final = frozenset({0, 1, 2, 3, 4, 5, 17, 20, 21, 40, 54, 61, 80, 90, 91, 93, 94})
+"""G codes that do not move by themselves (motion codes move only with axis words)."""
+
+
+def _scan(text: str) -> tuple[tuple[Word, ...], str | None]:
+    words: list[Word] = []
+    pos = 0
+    while pos < len(text):
+        letter = text[pos]
+        if not "A" <= letter <= "Z":
+            return tuple(words), "Expected command letter"
+        number = read_number(text, pos + 1)
+        if number is None:
+            return tuple(words), "Bad number format"
+        written = text[pos + 1 : number.end]
+        if letter in "GM":
+            words.append(_code_word(letter, written, number))
+        else:
+            words.append(Word(letter, written, number.value, number.lossy))
+        pos = number.end
+    return tuple(words), None
+
+
+def parse_line(line: str | bytes | bytearray | memoryview) -> ParsedLine:
+    """Parse one raw line (one line ending at most) into a :class:`ParsedLine`; never raises for
+    the line's content (the result says what the firmware would refuse)."""
+    raw = bytes(line).decode("latin-1") if not isinstance(line, str) else line
+    source = raw.rstrip("\r\n")
+    text, open_comment = normalize_text(source)
+    if not text:
+        return ParsedLine(source, text, open_comment, "empty")
+    if len(text) > MAX_LINE_LENGTH:
+        kind: Literal["gcode", "dollar"] = "dollar" if text.startswith("$") else "gcode"
+        return ParsedLine(source, text, open_comment, kind, syntax_error="Line overflow")
+    if text.startswith("$"):
+        dollar = _dollar(text)
+        return ParsedLine(source, text, open_comment, "dollar", dollar=dollar, syntax_error=None)
+    words, error = _scan(text)
+    return ParsedLine(source, text, open_comment, "gcode", words, syntax_error=error)

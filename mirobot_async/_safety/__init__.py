@@ -1,0 +1,1 @@
+"""Private: safety modules of mirobot_async (import from the package root)."""
