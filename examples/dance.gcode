@@ -1,7 +1,7 @@
 ; A joint-space dance: every joint swings within its range (M21: X Y Z A B C = J1..J6, degrees).
 ;
 ;   mirobot run examples/dance.gcode
-M21 G90                       ; joint angles, absolute
+M21 G90 G21                   ; joint angles, absolute, degrees (G21)
 G0 X0 Y0 Z0 A0 B0 C0          ; start straight
 G0 X45 Y20 Z-20               ; lean left
 G0 X-45 Y20 Z-20              ; lean right

@@ -5,7 +5,7 @@
 ;   mirobot run examples/pick_and_place.gcode --port /dev/ttyUSB0 --home
 ;
 ; The arm must be homed (or unlocked) first. Check offline with: mirobot check FILE
-M20 G90                       ; Cartesian coordinates, absolute
+M20 G90 G21                   ; Cartesian coordinates, absolute, millimetres
 G0 X200 Y0 Z230 A0 B0 C0      ; start above the table, tool pointing down
 G0 X200 Y-100 Z120            ; above the part
 G1 X200 Y-100 Z60 F2000       ; straight down onto it (linear, 2000 mm/min)

@@ -2,7 +2,7 @@
 ;
 ;   mirobot run examples/square.gcode --trace square.csv
 ;   mirobot plot square.csv -o square.png
-M20 G90                       ; Cartesian coordinates, absolute
+M20 G90 G21                   ; Cartesian coordinates, absolute, millimetres
 G0 X170 Y-30 Z150 A0 B0 C0    ; above the first corner
 G1 Z120 F1500                 ; pen down (1500 mm/min)
 G1 X230 Y-30                  ; side 1

@@ -7,10 +7,14 @@ machine state predicted from every line written before it
 position, the 2021 base offset ``$41..$43`` and gate lift ``$49``), and keeps that prediction up to
 date. The check is default-deny (:func:`~mirobot_async._safety.prediction.predict`): a line passes
 only when its exact effect is predicted. What is unknown at connect stays unknown until a line
-states it (``G21``, ``M20``...), a status at rest shows it (the position) or a settings listing
-gives it (the base offset). :class:`NullGuard` is the same interface when there is no envelope:
-every line passes and nothing is tracked. No I/O here: the line scheduler learns the position (a
-status at rest) when :meth:`EnvelopeGuard.verdict` asks for it.
+states it (``G21``, ``M20``...), a status at rest shows it (the position) or a listing gives it:
+before the first line that moves the arm the guard asks (:meth:`EnvelopeGuard.wanted_queries`)
+for ``$$`` (soft limits, base offset, ``$35``), ``$N`` (startup lines, applied after every reset
+and homing), ``$#`` and ``$G`` (work offsets); an unchecked line that changes one makes it
+unknown again. The parser's position is kept apart from the arm's after a move the firmware
+refused (locked: the parser moved to the target). :class:`NullGuard` is the same interface
+without an envelope: every line passes, nothing is tracked. No I/O here: the scheduler learns
+the position (a status at rest) when :meth:`EnvelopeGuard.verdict` asks for it.
 """
 
 from __future__ import annotations
@@ -26,7 +30,17 @@ from mirobot_async._core.line import ParsedLine
 from mirobot_async._core.modal import LineCheck, MotionModes, update_modes
 from mirobot_async._core.replies import State, StatusReport
 from mirobot_async._core.validation import ModalState
-from mirobot_async.errors import MirobotUsageError
+from mirobot_async._safety.firmware_memory import (
+    PARSER_UNKNOWN,
+    Offset,
+    WorkCoordinates,
+    changes_base_offset,
+    parse_startup_lines,
+    reset_modes,
+    soft_limits_from_settings,
+    state_after_refusal,
+)
+from mirobot_async.errors import MirobotUsageError, RefusalReason
 
 if TYPE_CHECKING:  # imported when an envelope is used (it needs numpy)
     from mirobot_async._safety.envelope import Envelope
@@ -75,6 +89,8 @@ class Tracked:
     state_before: MachineState  # the predicted machine state before the line
     moved: bool
     modes_changed: bool
+    epoch: int = 0  # the guard's epoch when it was written (a later change: do not undo)
+    coordinate: int | None = None  # the work coordinate system in effect before it
 
 
 class Guard(Protocol):
@@ -87,6 +103,10 @@ class Guard(Protocol):
 
     @property
     def wants_settings(self) -> bool: ...
+
+    def wanted_queries(self) -> tuple[str, ...]: ...
+
+    def adopt_query(self, query: str, output: Sequence[str] | None) -> None: ...
 
     def modal_state(self) -> ModalState: ...
 
@@ -112,7 +132,9 @@ class Guard(Protocol):
         warn_unchecked: bool,
     ) -> Tracked | None: ...
 
-    def line_failed(self, tracked: Tracked, *, rejected: bool) -> None: ...
+    def line_failed(
+        self, tracked: Tracked, *, rejected: bool, reason: RefusalReason | None = None
+    ) -> None: ...
 
     def forget(self, why: str) -> None: ...
 
@@ -137,6 +159,13 @@ class NullGuard:
     def wants_settings(self) -> bool:
         """Never: no settings are needed."""
         return False
+
+    def wanted_queries(self) -> tuple[str, ...]:
+        """None: nothing stored in the firmware is needed."""
+        return ()
+
+    def adopt_query(self, query: str, output: Sequence[str] | None) -> None:
+        """Nothing to learn."""
 
     def modal_state(self) -> ModalState:
         """The modal words stated by the lines written since connect (unknown before)."""
@@ -177,7 +206,9 @@ class NullGuard:
             self._modes = update_modes(parsed, self._modes)
         return None
 
-    def line_failed(self, tracked: Tracked, *, rejected: bool) -> None:
+    def line_failed(
+        self, tracked: Tracked, *, rejected: bool, reason: RefusalReason | None = None
+    ) -> None:
         """Nothing to undo."""
 
     def forget(self, why: str) -> None:
@@ -201,10 +232,15 @@ class EnvelopeGuard:
         self._classic: Envelope | None = None  # the envelope with dh=DH_CLASSIC
         self._condition = condition
         self._stats = stats
-        # Everything unknown at connect: the modes (units too), the position, the base offset.
-        self._state: MachineState = MachineState(MotionModes.unknown())
+        # Everything unknown at connect: the modes (units too), the position, the base offset,
+        # what the firmware stores (startup lines, work offsets, soft limits, $35).
+        self._state: MachineState = MachineState(
+            MotionModes.unknown(), startup_lines=None, work_offset=None, linear_g1=None
+        )
         self._base_offset: tuple[float, float, float] | None = None  # learned from $$ (2021)
         self._gate_lift: float | None = None
+        self._soft_read = False  # $20 and $130..$146 known (state.soft_limits, None if off)
+        self._work = WorkCoordinates()  # $#, $G
         self.epoch = 0  # bumped when the prediction or the modes are invalidated
         self._last_line_id: int | None = None
         self._moves = False  # whether the last prediction moves the arm
@@ -231,9 +267,29 @@ class EnvelopeGuard:
 
     @property
     def wants_settings(self) -> bool:
-        """True on a 2021 arm while the base offset ``$41..$43`` is unknown (a ``$$`` listing
-        handed to :meth:`adopt_settings` gives it)."""
-        return self._condition.firmware == "2021" and self._base_offset is None
+        """True while the soft limits ``$20``/``$130..$146`` or, on a 2021 arm, the base offset
+        ``$41..$43`` or ``$35`` are unknown (a ``$$`` listing handed to :meth:`adopt_settings`
+        gives them)."""
+        if not self._soft_read:
+            return True
+        return self._condition.firmware == "2021" and (
+            self._base_offset is None or self._state.linear_g1 is None
+        )
+
+    def wanted_queries(self) -> tuple[str, ...]:
+        """The ``$`` queries whose answers (:meth:`adopt_query`) the prediction still needs:
+        ``$N`` (stored startup lines), ``$#`` (stored work offsets) and ``$G`` (which of them
+        is in effect)."""
+        return self._work.wanted(self._state.startup_lines is not None)
+
+    def adopt_query(self, query: str, output: Sequence[str] | None) -> None:
+        """The answer to a :meth:`wanted_queries` query (its lines before ``ok``; None: the
+        firmware refused it, and what it gives stays unknown)."""
+        lines = None if query != "$N" or output is None else parse_startup_lines(output)
+        if lines is not None:
+            self._state = replace(self._state, startup_lines=lines)
+        self._work.adopt(query, output)
+        self.epoch += 1
 
     def modal_state(self) -> ModalState:
         """The modal words :mod:`~mirobot_async._core.validation` needs, as predicted (a new
@@ -242,27 +298,26 @@ class EnvelopeGuard:
         return ModalState(modes.cartesian, modes.relative)
 
     def needs_firmware(self, parsed: ParsedLine) -> bool:
-        """True when the firmware (the kinematic model) or, for an absolute Cartesian line on a
-        2021 arm, its base offset (a ``$$`` listing at rest) must be known before checking it."""
+        """True when the firmware (the kinematic model) or, for a line with axis words, what the
+        firmware stores (settings, startup lines, work offsets: read at rest) must be known
+        before checking it."""
         if parsed.kind == "dollar":
             return False
         if self._condition.firmware is None:
             return True
-        if not self.wants_settings or self._state.base_offset is not None:
+        if not parsed.axis_words:
             return False
-        modes = self._state.modes
-        cartesian = parsed.coordinate_mode == 20 or (
-            parsed.coordinate_mode is None and modes.cartesian is not False
-        )
-        relative = parsed.distance == 91 or (parsed.distance is None and modes.relative is True)
-        axes = parsed.axis_words
-        return cartesian and not relative and any(k in axes for k in "XYZ")
+        return self.wants_settings or bool(self.wanted_queries())
 
-    def _machine(self) -> MachineState:
+    def _work_offset(self, parsed: ParsedLine | None) -> Offset | None:
+        """The work offset in effect for ``parsed`` (``G54..G59`` + ``G92``), or None."""
+        return self._work.offset(parsed)
+
+    def _machine(self, parsed: ParsedLine | None = None) -> MachineState:
         """The predicted state with what the firmware profile decides filled in."""
         firmware = self._condition.firmware
-        state = self._state
-        if firmware == "classic":  # no base offset, no gate moves
+        state = replace(self._state, work_offset=self._work_offset(parsed))
+        if firmware == "classic":  # no base offset, no gate moves, M20 G1 in joint space
             return replace(state, base_offset=(0.0, 0.0, 0.0), gate_lift=None, firmware=firmware)
         if state.base_offset is None and self._base_offset is not None:
             state = replace(state, base_offset=self._base_offset)
@@ -284,7 +339,7 @@ class EnvelopeGuard:
         """The envelope's verdict on ``parsed`` from the predicted state, or
         :data:`NEED_POSITION`; raises :class:`MirobotUsageError` ("refused by the safety
         envelope ...; nothing was sent") for a line it refuses."""
-        state = self._machine()
+        state = self._machine(parsed)
         try:
             if state.joints is None and not parsed.is_homing:
                 # Lines that do not move need no position; the others wait for one.
@@ -314,6 +369,7 @@ class EnvelopeGuard:
             return NEED_POSITION
         checks: list[LineCheck] = []
         for index, parsed in enumerate(lines):
+            state = replace(state, work_offset=self._work_offset(parsed))
             result = predict(self.envelope, parsed, state, what=None)
             if not isinstance(result, Prediction):
                 self._stats.envelope_refusals += 1
@@ -337,7 +393,14 @@ class EnvelopeGuard:
         )
 
     def adopt_settings(self, settings: Mapping[int, float]) -> None:
-        """A ``$$`` listing: the 2021 base offset ``$41..$43`` and gate lift ``$49``."""
+        """A ``$$`` listing: the soft limits, the 2021 base offset ``$41..$43``, gate lift
+        ``$49`` and ``$35``."""
+        soft = soft_limits_from_settings(settings)
+        if soft is not None:
+            self._soft_read = True
+            self._state = replace(self._state, soft_limits=soft)
+        if 35 in settings:
+            self._state = replace(self._state, linear_g1=settings[35] != 0)
         if all(n in settings for n in (41, 42, 43)):
             offset = (float(settings[41]), float(settings[42]), float(settings[43]))
             self._base_offset = offset
@@ -372,14 +435,36 @@ class EnvelopeGuard:
             self._state = after
         else:
             modes = update_modes(parsed, before.modes)
-            self._state = replace(before, modes=modes, joints=None, pose=None, rail=None)
-            if _may_change_offset(parsed):
-                self._state = replace(self._state, base_offset=None, gate_lift=None)
-                self._base_offset = self._gate_lift = None
+            self._state = replace(
+                before, modes=modes, joints=None, pose=None, rail=None, parser=PARSER_UNKNOWN
+            )
+            self._forget_stored(parsed)
             moved = True
+        coordinate = self._work.coordinate
+        self._track_coordinates(parsed)
         self._last_line_id = line_id
         check = None if after is None else _line_check(after, moved)
-        return Tracked(line_id, check, before, moved, self._state.modes != before.modes)
+        changed = self._state.modes != before.modes
+        return Tracked(line_id, check, before, moved, changed, self.epoch, coordinate)
+
+    def _track_coordinates(self, parsed: ParsedLine) -> None:
+        """The work coordinate system in effect (``G54`` after homing, program end)."""
+        if parsed.is_homing:  # the parser is re-initialised, then the startup lines run
+            self._work.reinitialised(self._state.startup_lines, ran=True)
+        self._work.follow(parsed)
+
+    def _forget_stored(self, parsed: ParsedLine) -> None:
+        """An unchecked line that may change what the firmware stores: read it again."""
+        dollar = parsed.dollar
+        if changes_base_offset(parsed):
+            self._state = replace(self._state, base_offset=None, gate_lift=None)
+            self._base_offset = self._gate_lift = None
+        if dollar is not None and dollar.kind in ("restore", "unknown"):
+            self._soft_read = False
+            self._state = replace(self._state, linear_g1=None, soft_limits=None)
+        if dollar is not None and dollar.kind in ("startup", "restore", "unknown"):
+            self._state = replace(self._state, startup_lines=None)
+        self._work.forget_after(parsed)
 
     def _follow(self, parsed: ParsedLine, what: str | None) -> MachineState | None:
         try:
@@ -422,28 +507,46 @@ class EnvelopeGuard:
             )
         return after
 
-    def line_failed(self, tracked: Tracked, *, rejected: bool) -> None:
-        """A line was rejected (error: nothing of it ran) or its motion refused (modes ran)."""
+    def line_failed(
+        self, tracked: Tracked, *, rejected: bool, reason: RefusalReason | None = None
+    ) -> None:
+        """A line was rejected (error: nothing of it ran) or its motion refused (modes ran).
+
+        A refused move leaves the arm where it was, but not always the parser (oracle): locked,
+        it moves the parser to the refused target (and so does an unreachable Cartesian
+        target, for the commanded pose); a soft limit leaves it."""
         if not tracked.moved and not (rejected and tracked.modes_changed):
             return
         before = tracked.state_before
-        if tracked.line_id == self._last_line_id:  # nothing was written after it: undo it
-            if rejected:
-                self._state = before
-            else:
-                self._state = replace(
-                    self._state, joints=before.joints, pose=before.pose, rail=before.rail
-                )
-            self.epoch += 1
+        last = tracked.line_id == self._last_line_id and tracked.epoch == self.epoch
+        if last and rejected:  # nothing was written after it: undo it
+            self._state, self._work.coordinate = before, tracked.coordinate
+        elif last:
+            state = replace(self._state, joints=before.joints, pose=before.pose, rail=before.rail)
+            self._state = state_after_refusal(state, before, tracked.check, reason)
         else:
             self._forget(MotionModes.unknown() if rejected else None)
+            if not rejected:
+                self._state = replace(self._state, parser=PARSER_UNKNOWN)
+        self.epoch += 1
 
     def forget(self, why: str) -> None:
         """The arm may be elsewhere than predicted: ``why`` is ``"alarm"`` (modes kept),
         ``"reset"`` (power-on modes: GRBL re-initialises the parser, G21 included) or ``"lost"``
         (a lost reply: modes unknown)."""
-        modes = {"reset": MotionModes(), "lost": MotionModes.unknown()}.get(why)
+        if why == "reset":
+            # GRBL re-initialises the parser (G54, no G92), then the stored startup lines run:
+            # on classic unless the reset ends in Alarm; on 2021 (Alarm after a reset) they may
+            # not, so the modes they change are unknown.
+            ran = None if self._condition.firmware != "classic" or self._condition.alarm else True
+            lines = self._state.startup_lines
+            self._work.reinitialised(lines, ran=ran is not False)
+            self._forget(reset_modes(lines, ran=ran))
+            self._state = replace(self._state, parser=None)
+            return
+        modes = {"lost": MotionModes.unknown()}.get(why)
         self._forget(modes)
+        self._state = replace(self._state, parser=PARSER_UNKNOWN)
 
     def _forget(self, modes: MotionModes | None) -> None:
         state = replace(self._state, joints=None, pose=None, rail=None)
@@ -462,16 +565,6 @@ class EnvelopeGuard:
 
 def _line_check(state: MachineState, moves: bool) -> LineCheck:
     return LineCheck(state.modes, moves, state.joints, state.pose, state.rail, state.base_offset)
-
-
-def _may_change_offset(parsed: ParsedLine) -> bool:
-    """An unchecked ``$`` line that may change the base offset or the gate lift."""
-    dollar = parsed.dollar
-    if dollar is None:
-        return False
-    if dollar.kind in ("restore", "unknown"):
-        return True
-    return dollar.kind == "setting" and dollar.number in (41, 42, 43, 49)
 
 
 def make_guard(

@@ -27,7 +27,12 @@ from mirobot_async._client.wire import ClientStats, Wire
 from mirobot_async._core import gcode
 from mirobot_async._core.line import ParsedLine, parse_line
 from mirobot_async._core.replies import parse_setting_line
-from mirobot_async.errors import MirobotConnectionError, MirobotUsageError
+from mirobot_async.errors import (
+    MirobotAlarmError,
+    MirobotCommandError,
+    MirobotConnectionError,
+    MirobotUsageError,
+)
 
 if TYPE_CHECKING:  # imported when an envelope is used (it needs numpy)
     from mirobot_async._safety.envelope import Envelope
@@ -234,6 +239,17 @@ class ClientParts:
         rest (the firmware refuses ``$$`` while it moves: ``Not idle``)."""
         if self._condition.firmware is None or self._guard.wants_settings:
             await self._settings(deadline, timeout, idle=True)
+        for query in self._guard.wanted_queries():  # what the firmware stores ($N, $#, $G)
+            output: tuple[str, ...] | None
+            try:
+                output = await self._command(
+                    query.encode("ascii"), deadline=deadline, timeout=timeout, idle=True
+                )
+            except MirobotAlarmError:
+                raise
+            except MirobotCommandError:  # the firmware does not know it: it stays unknown
+                output = None
+            self._guard.adopt_query(query, output)
         if self._condition.firmware is None:  # pragma: no cover - _settings always decides
             raise MirobotConnectionError("could not determine the firmware profile")
         return self._condition.firmware

@@ -177,8 +177,8 @@ class LineScheduler:
         if slot.tracked is not None:
             if isinstance(event, LineRejected):
                 self._guard.line_failed(slot.tracked, rejected=True)
-            elif event.refusal is not None:
-                self._guard.line_failed(slot.tracked, rejected=False)
+            elif (refused := event.refusal) is not None:
+                self._guard.line_failed(slot.tracked, rejected=False, reason=refused.reason)
         if slot.fut.done():
             stats.replies_discarded += 1
             _log.debug("discarding the reply to %r (its caller left)", slot.command)

@@ -16,7 +16,8 @@ violated bound, and returns ``None`` when the move is allowed):
   target: joint limits, rail range, and the tool point at the target inside the box. When the start
   joints are known the straight joint-space path is sampled too (linear joint interpolation, as the
   firmware moves), so that the tool point may not leave the box on the way.
-- **Cartesian linear moves** (``M20 G1``) and **arcs** (``G2``/``G3``) are checked by samples of
+- **Cartesian linear moves** (2021 ``M20 G1`` with ``$35=1``; the classic firmware's ``M20 G1``
+  is a joint move, checked as one) and **arcs** (``G2``/``G3``) are checked by samples of
   the path, at most ``path_step_mm`` apart: every sample in the box, and every sample's
   firmware-branch IK (PROTOCOL 8.3) reachable and within the joint limits. The box test of lines and
   arcs is exact (a box is convex; an arc's extreme points are added to its samples).
@@ -30,9 +31,10 @@ violated bound, and returns ``None`` when the move is allowed):
 - **Raw lines** (``Mirobot.send``, ``stream``) are checked **default-deny** by
   :meth:`Envelope.check_line` (:func:`mirobot_async._safety.prediction.predict`): a line is let
   through only when its exact effect is predicted from the modal state (:class:`MotionModes`:
-  M20/M21, G90/G91, G0..G5, G20/G21, any of them possibly unknown), the position and the 2021 base
-  offset ``$41..$43``; everything it cannot model is refused (see
-  :mod:`mirobot_async._safety.prediction`). The opt-out is ``Mirobot.send(line,
+  M20/M21, G90/G91, G0..G5, G20/G21, any of them possibly unknown), the position, the 2021 base
+  offset ``$41..$43`` and what the firmware stores (work offsets, startup lines, soft limits,
+  ``$35``: :mod:`mirobot_async._safety.firmware_memory`); everything it cannot model is refused
+  (see :mod:`mirobot_async._safety.prediction`). The opt-out is ``Mirobot.send(line,
   check_envelope=False)``, which logs a WARNING.
 - **Bounded work**: at most :data:`~mirobot_async._safety.paths.MAX_PATH_SAMPLES` samples per
 Cartesian

@@ -10,20 +10,30 @@ through only when its effect is modelled; everything else is refused:
   words, unknown codes and letters, lines the firmware would reject (modal group violations,
   ``G21 M21``/``M21 M3`` orders, arcs without R, ``F0`` with a feed move);
 - moves that rely on an unknown mode (M20/M21, G90/G91, G0..G5, **G20/G21 units**), on an
-  unknown position, or (absolute ``M20`` on 2021) on an unknown base offset ``$41..$43``;
+  unknown position or parser position (:class:`ParserPosition`), on an unknown work offset
+  (absolute moves), or (absolute ``M20`` on 2021) on an unknown base offset ``$41..$43``;
+  a 2021 ``M20 G1`` while ``$35`` is unknown;
 - settings that change the geometry or the meaning of numbers (DH lengths, tool offset, steps
-  per unit, direction inversion, report units...), startup lines (``$N0=``), ``$RST``, jogs;
+  per unit, direction inversion, report units...), storing startup lines (``$N0=``), ``$RST``,
+  jogs;
 - paths that need more than :data:`~mirobot_async._safety.paths.MAX_PATH_SAMPLES` check samples.
 
 Modelled: units (``G20`` scales every axis word by 25.4, angles too), relative and absolute
-words, missing words keeping their value, the base offset added to absolute ``M20`` X/Y/Z, the
-firmware's IK branch and the rapid joint move ("wrist snap") to it before an ``M20``
-``G1``/``G2``/``G3``/``G5`` path, J4/J6 kept continuous along a path, ``G5`` gate moves (with
-``$49`` known), every ``$H...`` variant as homing, ``$M``, program end. Pure module.
+words, missing words keeping their value, the parser's own position (a move refused as locked
+moves it; a line with ``M20``/``M21`` re-reads the arm's), the work offset (``G54..G59`` +
+``G92``) added to absolute words in both modes, the base offset added to absolute ``M20`` X/Y/Z,
+the firmware's IK branch and the rapid joint move ("wrist snap") to it before an ``M20``
+``G1``/``G2``/``G3``/``G5`` path, the classic ``M20 G1`` (2021: with ``$35=0``) as a joint-space
+move, J4/J6 kept continuous along a path, ``G5`` gate moves (with ``$49`` known), the soft limits
+``$20``/``$130..$146`` (the envelope narrowed to them: no line it passes is dropped by the
+firmware, so the next line starts where predicted), every ``$H...`` variant as homing (then the
+stored startup lines run), ``$M``, program end. What the firmware stores is read by the guard
+(:mod:`mirobot_async._safety.firmware_memory`). Pure module.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Final
@@ -31,6 +41,16 @@ from typing import TYPE_CHECKING, Final
 from mirobot_async._core.line import CodeWord, ParsedLine, parse_line
 from mirobot_async._core.modal import MotionModes, modes_after, modes_of
 from mirobot_async._safety.cartesian import CartesianEnd, cartesian_path, point_to_point
+from mirobot_async._safety.firmware_memory import (
+    PARSER_UNKNOWN,
+    SOFT_LIMIT_SETTINGS,
+    ZERO_OFFSET,
+    Offset,
+    ParserPosition,
+    apply_startup_lines,
+    soft_limit_ranges,
+    with_setting,
+)
 from mirobot_async._safety.paths import as_pose
 from mirobot_async.errors import MirobotUsageError
 from mirobot_async.kinematics import Joints, Pose, forward
@@ -41,7 +61,9 @@ if TYPE_CHECKING:
 __all__ = [
     "HARMLESS_SETTINGS",
     "MAX_AXIS_VALUE",
+    "PARSER_UNKNOWN",
     "MachineState",
+    "ParserPosition",
     "Prediction",
     "Refusal",
     "combine",
@@ -53,13 +75,14 @@ MAX_AXIS_VALUE: Final = 100_000.0
 """Axis words beyond this (mm or degrees, after units) are refused before any computation."""
 
 HARMLESS_SETTINGS: Final = frozenset(
-    {0, 1, 4, 5, 6, 10, 11, 12, 20, 21, 22, 23, 24, 25, 26, 27, 28}
+    {0, 1, 4, 5, 6, 10, 11, 12, 21, 22, 23, 24, 25, 26, 27, 28}
     | set(range(110, 117))
     | set(range(120, 127))
-    | set(range(130, 137))
-    | set(range(140, 147))
 )
-"""Settings that do not change where a line moves the arm (rates, limits, homing, reports)."""
+"""Settings that do not change where a line moves the arm (rates, homing, reports). The soft
+limits ``$20``, ``$130..$146`` and the 2021 ``$35`` are followed: they decide which moves the
+firmware drops and how ``M20 G1`` moves."""
+_LINEAR_G1: Final = 35
 _BASE_OFFSET: Final = {41: 0, 42: 1, 43: 2}
 _GATE_LIFT: Final = 49
 _ALLOWED_G: Final = frozenset({0, 1, 2, 3, 4, 5, 17, 20, 21, 40, 54, 61, 90, 91, 93, 94})
@@ -103,6 +126,18 @@ class MachineState:
     """``$49``, the lift of a ``G5`` gate move (2021)."""
     firmware: str | None = None
     """``"2021"``, ``"classic"`` or None (unknown: features of one profile are refused)."""
+    parser: ParserPosition | None = None
+    """The parser's position when it differs from ``joints``/``pose`` (None: the same)."""
+    work_offset: Offset | None = ZERO_OFFSET
+    """The work offset in effect (``G54..G59`` + ``G92``, axis-word order X..D), added by the
+    firmware to absolute targets in both modes; None: unknown (absolute moves are refused)."""
+    startup_lines: tuple[str, ...] | None = ()
+    """The stored ``$N0``/``$N1`` lines, run after homing (None: unknown)."""
+    linear_g1: bool | None = True
+    """2021 ``$35``: ``M20 G1`` is a straight line (else, and always on classic, a joint move)."""
+    soft_limits: tuple[float, ...] | None = None
+    """``($20, $130..$136, $140..$146)``: targets outside them are refused like the envelope's
+    own bounds (the firmware would drop them); None: not applied."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -180,13 +215,15 @@ def _dollar(envelope: Envelope, parsed: ParsedLine, state: MachineState, what: s
     if kind == "homing":
         # ASSUMED: homing passes; its path to the switches cannot be bounded. It re-initialises
         # the parser (oracle: G0 G21 G90 after any $H...); $H and $HH leave the rail alone.
+        # After a successful homing the stored startup lines run (oracle: $N0=G91, $H -> G91ok).
         keeps_rail = parsed.text in ("$H", "$HH")
         after = replace(
             state,
-            modes=MotionModes(),
+            modes=apply_startup_lines(MotionModes(), state.startup_lines, certain=True),
             joints=None,
             pose=None,
             rail=state.rail if keeps_rail else None,
+            parser=None,
         )
         return Prediction(parsed, after, True)
     if kind == "zero":
@@ -216,6 +253,13 @@ def _setting(parsed: ParsedLine, state: MachineState, what: str) -> Prediction:
         )
     if number in HARMLESS_SETTINGS:
         return Prediction(parsed, state, False)
+    if number in SOFT_LIMIT_SETTINGS:
+        if state.soft_limits is None:
+            return Prediction(parsed, state, False)
+        after = replace(state, soft_limits=with_setting(state.soft_limits, number, value))
+        return Prediction(parsed, after, False)
+    if number == _LINEAR_G1 and state.firmware == "2021":
+        return Prediction(parsed, replace(state, linear_g1=value != 0), False)
     if state.firmware == "2021" and number in _BASE_OFFSET:
         if state.base_offset is None:
             return Prediction(parsed, state, False)
@@ -281,16 +325,22 @@ def _validate_words(parsed: ParsedLine, state: MachineState) -> None:
 
 def _gcode(envelope: Envelope, parsed: ParsedLine, state: MachineState, what: str) -> Prediction:
     _validate_words(parsed, state)
+    envelope = with_soft_limits(envelope, state.soft_limits)
     modes = modes_of(parsed, state.modes)
     after_modes = modes_after(parsed, state.modes)
     axes = dict(parsed.axis_words)
     pose = state.pose
+    parser = state.parser
+    if parsed.coordinate_mode is not None:
+        parser = None  # oracle: a line with M20/M21 re-reads the parser's position from the arm
     if pose is None and state.joints is not None:
         pose = forward(state.joints, envelope.dh, envelope.tool)
     if parsed.coordinate_mode == 20 or state.modes.cartesian is not True:
         # the firmware re-reads the commanded pose from the joints on M20 (and in joint mode)
         pose = None if state.joints is None else forward(state.joints, envelope.dh, envelope.tool)
-    base = replace(state, pose=pose)
+    elif parser is not None and parser.joints is None:
+        pose = None  # the commanded pose is unknown (see ParserPosition)
+    base = replace(state, pose=pose, parser=parser)
     if not axes:
         if parsed.motion in (2, 3, 5):
             raise _Refuse(f"G{parsed.motion} without axis words: the firmware rejects it")
@@ -312,7 +362,17 @@ def _gcode(envelope: Envelope, parsed: ParsedLine, state: MachineState, what: st
     if motion in (1, 2, 3, 5) and feed == 0.0:
         raise _Refuse(f"G{motion} with F0: the firmware says 'Undefined feed rate'")
     relative = modes.relative is True
-    rail = _rail_target(envelope, axes, relative, base.rail, what)
+    if not relative:
+        _add_work_offset(axes, state.work_offset)
+    lost = parser is not None and parser.joints is None
+    if lost and (relative or not all(k in axes for k in _WORDS)):
+        raise _Refuse(
+            "the firmware's parser position is unknown (after an alarm, a lost reply or a "
+            "refused move): a relative move or one that leaves out an axis needs it; "
+            "state M20/M21 in the line (the firmware then re-reads the arm's position)"
+        )
+    parser_rail = base.rail if parser is None else parser.rail
+    rail = _rail_target(envelope, axes, relative, parser_rail, what)
     if modes.cartesian:
         return _cartesian(envelope, parsed, base, after_modes, axes, rail, what)
     if motion not in (0, 1):
@@ -320,15 +380,66 @@ def _gcode(envelope: Envelope, parsed: ParsedLine, state: MachineState, what: st
     problem = envelope.rail_problem(rail, what)
     if problem is not None:
         raise _Refuse(problem)
-    if not any(k in axes for k in "XYZABC"):
+    start = state.joints if parser is None else parser.joints
+    if not any(k in axes for k in "XYZABC") and parser is None:
         return Prediction(parsed, replace(base, modes=after_modes, rail=rail), True)
-    target = combine(axes, relative, state.joints, "current joint angles")
+    target = combine(axes, relative, start, "current joint angles")
     q: Joints = (target[0], target[1], target[2], target[3], target[4], target[5])
     envelope.check_joints(q, rail, start=state.joints, what=what)
     after = replace(
-        base, modes=after_modes, joints=q, pose=forward(q, envelope.dh, envelope.tool), rail=rail
+        base,
+        modes=after_modes,
+        joints=q,
+        pose=forward(q, envelope.dh, envelope.tool),
+        rail=rail,
+        parser=None,
     )
     return Prediction(parsed, after, True)
+
+
+_WORDS: Final = "XYZABC"
+
+
+def _add_work_offset(axes: dict[str, float], offset: tuple[float, ...] | None) -> None:
+    """Absolute words: the firmware adds the work offset in effect (``G54..G59`` + ``G92``)."""
+    if offset is None:
+        raise _Refuse(
+            "an absolute move needs the work offset in effect (G54..G59 + G92), which is "
+            "unknown; it is read ($#, $G) before a move (or state G54 in the line)"
+        )
+    for k, delta in zip("XYZABCD", offset, strict=True):
+        if k in axes:
+            axes[k] += delta
+
+
+def with_soft_limits(envelope: Envelope, values: tuple[float, ...] | None) -> Envelope:
+    """``envelope`` narrowed to the firmware's soft limits (``$20=1``, ``$130..$146``), so that
+    no line it lets through is one the firmware drops (the next lines would start elsewhere)."""
+    ranges = soft_limit_ranges(values)
+    if ranges is None:
+        return envelope
+    return _narrowed(envelope, ranges)
+
+
+@functools.lru_cache(maxsize=16)
+def _narrowed(envelope: Envelope, ranges: tuple[tuple[float, float], ...]) -> Envelope:
+    # ASSUMED: the firmware's own rounding (float32) never drops a target within LIMIT_TOL
+    # (1e-6 deg) of a soft limit that the envelope lets through.
+    joints: dict[int, tuple[float, float]] = {}
+    for i, ((lo, hi), (soft_lo, soft_hi)) in enumerate(
+        zip(envelope.joint_limits, ranges[:6], strict=True)
+    ):
+        joints[i + 1] = (max(lo, soft_lo), min(hi, soft_hi))
+        if joints[i + 1][0] > joints[i + 1][1]:
+            raise _Refuse(f"the soft limits ($130..$146) leave J{i + 1} no range")
+    rail_lo, rail_hi = ranges[6]
+    if envelope.rail is not None:
+        env_lo, env_hi = envelope.rail
+        rail_lo = rail_lo if env_lo is None else max(env_lo, rail_lo)
+        rail_hi = rail_hi if env_hi is None else min(env_hi, rail_hi)
+    if rail_lo > rail_hi:
+        raise _Refuse("the soft limits ($133/$143) leave the rail no range")
+    return replace(envelope, joints=joints, rail=(rail_lo, rail_hi))
 
 
 def _rail_target(
@@ -391,7 +502,11 @@ def _cartesian(
     target = as_pose(combine(axes, relative, base.pose, "current pose"))
     motion = modes.motion
     end: CartesianEnd
-    if motion == 0:
+    if motion == 1 and base.firmware == "2021" and base.linear_g1 is None:
+        raise _Refuse("how M20 G1 moves depends on $35, which is unknown; read the settings first")
+    # oracle: the classic firmware (and the 2021 one with $35=0) runs M20 G1 in joint space
+    joint_g1 = base.firmware == "classic" or base.linear_g1 is False
+    if motion == 0 or (motion == 1 and joint_g1):
         end = point_to_point(envelope, base.joints, target, what)
     else:
         if base.joints is None or base.pose is None:
@@ -409,7 +524,7 @@ def _cartesian(
             gate_lift=base.gate_lift,
             what=what,
         )
-    after = replace(base, modes=after_modes, joints=end.joints, pose=target, rail=rail)
+    after = replace(base, modes=after_modes, joints=end.joints, pose=target, rail=rail, parser=None)
     return Prediction(
         parsed, after, True, snap=end.snap, samples=end.samples, model_joints=end.model_joints
     )

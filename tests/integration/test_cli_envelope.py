@@ -51,9 +51,15 @@ def test_run_refuses_a_program_leaving_the_box_with_nothing_sent(
     assert "below the envelope's minimum z=20 mm" in result.stderr
     assert f"{program.name} leaves the safety envelope at line 2: nothing was sent" in result.stderr
     assert "Traceback" not in result.stderr
-    # the connection reads the firmware's settings ($$), no line of the program is written
-    assert "M20 G90 G0" not in result.stderr  # the -v wire log
-    assert after - before <= 1, result.stderr
+    # the connection reads the firmware's stored state (read-only queries), no line of the
+    # program is written (the -v wire log)
+    written = [
+        line.split("-> ", 1)[1]
+        for line in result.stderr.splitlines()
+        if "mirobot_async._client.wire: -> " in line
+    ]
+    assert set(written) <= {"?", "$$", "$N", "$#", "$G"}, written
+    assert after - before == sum(1 for line in written if line != "?"), result.stderr
     assert control.returncode == 0, control.stderr
 
 

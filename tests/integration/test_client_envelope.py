@@ -221,6 +221,11 @@ async def test_a_linear_path_that_needs_joints_outside_the_envelope_is_refused(
     async with connected(emu, envelope) as arm:
         report = await arm.move_pose(x=200, y=-150, z=200)
         assert report is not None and report.pose[:3] == pytest.approx((200, -150, 200), abs=0.1)
+        if arm.firmware == "classic":
+            # the classic firmware runs M20 G1 in joint space (oracle): J3 stays <= -10
+            report = await arm.move_pose(y=150, linear=True, speed=2000)
+            assert report is not None and report.pose[1] == pytest.approx(150, abs=0.1)
+            return
         await assert_refused(
             arm,
             spy,
@@ -471,6 +476,21 @@ PROPERTY_ENVELOPE = Envelope(x=BOX["x"], y=BOX["y"], z=BOX["z"], joints=NARROW)
 LIMITS = PROPERTY_ENVELOPE.joint_limits
 
 
+# What the envelope reads before the first move: the settings (base offset, $35, soft limits
+# off), the stored startup lines (none) and the work offsets (zero).
+_ZERO_ROW = b"0.000,0.000,0.000,0.000,0.000,0.000,0.000]\r\n"
+FAKE_ANSWERS = {
+    b"$$": b"".join(
+        b"$%d=%s\r\n" % (n, v)
+        for n, v in [(20, b"0"), (35, b"1"), (41, b"0.000"), (42, b"0.000"), (43, b"0.000")]
+        + [(n, b"100.000") for n in (*range(130, 137), *range(140, 147))]
+    ),
+    b"$N": b"$N0=\r\n$N1=\r\n",
+    b"$#": b"".join(b"[G%d:" % n + _ZERO_ROW for n in (54, 55, 56, 57, 58, 59, 28, 30, 92)),
+    b"$G": b"[G0 G54 G17 G21 G90 G94 M0 M5 M9 T0 F200. S0.]\r\n",
+}
+
+
 class FakeRobot:
     """Answers ``?`` with an Idle status at home and every line with ``ok``; records lines."""
 
@@ -497,8 +517,7 @@ class FakeRobot:
                     if byte == ord("?"):
                         writer.write(FAKE_STATUS)
                     elif byte == ord("\n"):
-                        if bytes(line) == b"$$":  # the base offset, for the envelope
-                            writer.write(b"$41=0.000\r\n$42=0.000\r\n$43=0.000\r\n")
+                        writer.write(FAKE_ANSWERS.get(bytes(line), b""))
                         writer.write(b"ok\r\n")
                         line.clear()
                     else:
@@ -589,7 +608,7 @@ async def attempt(call: Callable[[Mirobot], Awaitable[object]]) -> tuple[bool, b
         robot as url,
         Mirobot.connect(url, envelope=PROPERTY_ENVELOPE, firmware="2021") as arm,
     ):
-        await arm.settings()  # the base offset, for absolute Cartesian moves
+        await arm.detect_firmware()  # the envelope reads $$, $N and $# before the first move
         before = len(robot.received)
         refused = False
         try:

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import pytest
 
-from mirobot_async.bus.ledger import may_move
-from mirobot_async.line import parse_line
-from mirobot_async.replies import parse_setting_line
+from mirobot_async._core.line import parse_line
+from mirobot_async._core.replies import parse_setting_line
+from mirobot_async.bus._ledger import may_move
 
 
 @pytest.mark.parametrize(
