@@ -33,6 +33,7 @@ from mirobot_async.errors import (
     MirobotResetError,
     MirobotTimeoutError,
     MirobotUsageError,
+    MotionChainError,
     MotionRefusedError,
     RefusalReason,
 )
@@ -67,6 +68,7 @@ __all__ = [
     "MirobotResetError",
     "MirobotTimeoutError",
     "MirobotUsageError",
+    "MotionChainError",
     "MotionRefusedError",
     "PathError",
     "RefusalReason",

@@ -20,9 +20,9 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Final, Protocol
 
 from mirobot_async.condition import RobotCondition
-from mirobot_async.errors import MirobotUsageError
+from mirobot_async.errors import MirobotUsageError, MotionChainError
 from mirobot_async.line import ParsedLine
-from mirobot_async.modal import LineCheck, MotionModes, update_modes
+from mirobot_async.modal import Chaining, LineCheck, MotionModes, update_modes
 from mirobot_async.replies import State, StatusReport
 from mirobot_async.validation import ModalState
 from mirobot_async.wire import ClientStats
@@ -80,9 +80,13 @@ class Guard(Protocol):
     """What the scheduler and the facade use (:class:`EnvelopeGuard` or :class:`NullGuard`)."""
 
     epoch: int
+    chain: Chaining
 
     @property
     def envelope(self) -> Envelope | None: ...
+
+    @property
+    def modes(self) -> MotionModes: ...
 
     @property
     def wants_settings(self) -> bool: ...
@@ -126,11 +130,18 @@ class NullGuard:
 
     def __init__(self) -> None:
         self._modes = MotionModes.unknown()
+        self.chain = Chaining()
+        """Which joints may still move, which the parser took from a mode word (every line)."""
 
     @property
     def envelope(self) -> Envelope | None:
         """``None``: there is no envelope."""
         return None
+
+    @property
+    def modes(self) -> MotionModes:
+        """The modal words stated by the lines written since connect (``None``: unknown)."""
+        return self._modes
 
     @property
     def wants_settings(self) -> bool:
@@ -140,7 +151,7 @@ class NullGuard:
     def modal_state(self) -> ModalState:
         """The modal words stated by the lines written since connect (unknown before)."""
         modes = self._modes
-        return ModalState(modes.cartesian, modes.relative)
+        return ModalState(modes.cartesian, modes.relative, modes.motion, self.chain)
 
     def needs_firmware(self, parsed: ParsedLine) -> bool:
         """Never: no kinematic model is needed."""
@@ -155,7 +166,9 @@ class NullGuard:
         return []
 
     def adopt_status(self, report: StatusReport) -> None:
-        """Nothing to predict."""
+        """A status at rest with nothing in flight: no motion is queued."""
+        if report.state in _QUIET:
+            self.chain = self.chain.at_rest()
 
     def adopt_settings(self, settings: Mapping[int, float]) -> None:
         """Nothing to predict."""
@@ -171,7 +184,8 @@ class NullGuard:
         what: str | None,
         warn_unchecked: bool,
     ) -> Tracked | None:
-        """Follow the line's modal words; nothing else is tracked."""
+        """Follow the line's modal words and chaining; nothing else is tracked."""
+        self.chain = self.chain.after(parsed, self._modes)
         if parsed.kind == "dollar" or parsed.codes:
             self._modes = update_modes(parsed, self._modes)
         return None
@@ -183,8 +197,10 @@ class NullGuard:
         """A reset restores the power-on modes; a lost reply makes them unknown."""
         if why == "reset":
             self._modes = MotionModes()
+            self.chain = Chaining()
         elif why == "lost":
             self._modes = MotionModes.unknown()
+            self.chain = self.chain.moved_anything()
 
     def warn_stream_unchecked(self) -> None:
         """No envelope, nothing to warn about."""
@@ -208,6 +224,8 @@ class EnvelopeGuard:
         self._last_line_id: int | None = None
         self._moves = False  # whether the last prediction moves the arm
         self._verdicts: tuple[LineCheck, MachineState] | None = None  # the last verdict's state
+        self.chain = Chaining()
+        """Which joints may still move, which the parser took from a mode word (every line)."""
 
     @property
     def envelope(self) -> Envelope:
@@ -237,7 +255,7 @@ class EnvelopeGuard:
     def modal_state(self) -> ModalState:
         """The modal words :mod:`~mirobot_async.validation` needs, as predicted (a new object)."""
         modes = self._state.modes
-        return ModalState(modes.cartesian, modes.relative)
+        return ModalState(modes.cartesian, modes.relative, modes.motion, self.chain)
 
     def needs_firmware(self, parsed: ParsedLine) -> bool:
         """True when the firmware (the kinematic model) or, for an absolute Cartesian line on a
@@ -283,6 +301,11 @@ class EnvelopeGuard:
         :data:`NEED_POSITION`; raises :class:`MirobotUsageError` ("refused by the safety
         envelope ...; nothing was sent") for a line it refuses."""
         state = self._machine()
+        chained = self.chain.problem(parsed, state.modes, self._condition.firmware)
+        if chained is not None:  # the prediction would not be what the firmware does
+            self._stats.envelope_refusals += 1
+            shown = parsed.source.strip() or parsed.text
+            raise MotionChainError(shown, f"refused by the safety envelope: {chained}")
         try:
             if state.joints is None and not parsed.is_homing:
                 # Lines that do not move need no position; the others wait for one.
@@ -324,6 +347,8 @@ class EnvelopeGuard:
 
     def adopt_status(self, report: StatusReport) -> None:
         """A status at rest with nothing in flight: where the arm is (unless predicted)."""
+        if report.state in _QUIET:
+            self.chain = self.chain.at_rest()
         state = self._state
         if state.joints is not None or report.state not in _QUIET:
             return
@@ -358,7 +383,12 @@ class EnvelopeGuard:
         """Update the predicted state for a line just written."""
         before = self._state
         after: MachineState | None = None
-        if checked and verdict is not None:
+        firmware = self._condition.firmware
+        restarts = self.chain.problem(parsed, before.modes, firmware) is not None
+        self.chain = self.chain.after(parsed, before.modes, firmware)
+        if restarts:  # unchecked: the firmware restarts it from where the arm is (unknown)
+            pass
+        elif checked and verdict is not None:
             if self._verdicts is not None and self._verdicts[0] is verdict:
                 after, self._moves = self._verdicts[1], verdict.moves
             else:
@@ -441,6 +471,10 @@ class EnvelopeGuard:
         ``"reset"`` (power-on modes: GRBL re-initialises the parser, G21 included) or ``"lost"``
         (a lost reply: modes unknown)."""
         modes = {"reset": MotionModes(), "lost": MotionModes.unknown()}.get(why)
+        if why == "reset":
+            self.chain = Chaining()
+        elif why == "lost":
+            self.chain = self.chain.moved_anything()
         self._forget(modes)
 
     def _forget(self, modes: MotionModes | None) -> None:

@@ -1,22 +1,42 @@
 """Motion commands of :class:`~mirobot_async.client.Mirobot` (a mixin): ``move_joints``,
-``move_pose``, ``home``, ``unlock``, ``clear_alarm``."""
+``move_pose``, ``home``, ``unlock``, ``clear_alarm``.
+
+A structured move states ``M21``/``M20`` only when the coordinate mode changes (or is unknown):
+the firmware restarts a line that carries one from where the arm is when it reads the line, not
+from where the queued motion ends (:class:`~mirobot_async.modal.Chaining`, oracle), so moves
+sent with ``wait=False`` chain as they do one at a time. When the mode word is needed and the
+joints the line reads may still be moving, ``G4 P0`` goes first (the firmware answers it once
+the arm has stopped). ``G90``/``G91``, ``G0``/``G1`` and ``G21`` are always stated (they do not
+restart anything)."""
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Final
 
 from mirobot_async import gcode
 from mirobot_async.completion import Target
 from mirobot_async.condition import RobotCondition
 from mirobot_async.deadline import deadline_after
+from mirobot_async.line import parse_line
 from mirobot_async.parts import DEFAULT_TIMEOUT, HOME_TIMEOUT, MOVE_TIMEOUT, ClientParts
 from mirobot_async.replies import StatusReport
+from mirobot_async.scheduler import Slot, StreamStopped
 
 if TYPE_CHECKING:
     from mirobot_async.envelope import LineCheck
+    from mirobot_async.line import ParsedLine
 
 __all__ = ["MotionCommands", "absolute_pose"]
+
+ARM_STOPPED: Final = b"G4 P0"
+"""Written before a move whose mode word would restart it from where the moving arm is: the
+firmware answers a dwell only once its planner is empty, and reads the next line after it."""
+_ATTEMPTS: Final = 3
+
+
+class _ModesChanged(Exception):
+    """Another line changed the coordinate mode between building a move and writing it."""
 
 
 class MotionCommands(ClientParts):
@@ -24,8 +44,9 @@ class MotionCommands(ClientParts):
 
     async def _move(
         self,
-        data: bytes,
+        build: Callable[[bool], bytes],
         *,
+        cartesian: bool,
         target: Callable[[StatusReport | None, LineCheck | None], Target | None],
         relative: bool,
         wait: bool,
@@ -35,32 +56,27 @@ class MotionCommands(ClientParts):
     ) -> StatusReport | None:
         """Send a motion line; with ``wait`` await its completion at ``target``.
 
-        ``target(baseline, check)`` gives the goal; for relative moves from ``check`` (the
-        envelope's verdict: the absolute target) or else ``baseline`` (a status read before
-        sending while the arm was at rest), or ``None`` (completion = Idle after the ``ok``).
+        ``build(mode_word)`` gives the line with or without its ``M20``/``M21`` (stated only
+        when the mode changes, see the module docstring). ``target(baseline, check)`` gives the
+        goal; for relative moves from ``check`` (the envelope's verdict: the absolute target)
+        or else ``baseline`` (a status read before sending while the arm was at rest), or
+        ``None`` (completion = Idle after the ``ok``).
         """
-        data = data.rstrip(b"\n")
-        command = data.decode("ascii").strip()
         condition = self._condition
+        command = build(True).rstrip(b"\n").decode("ascii").strip()
         condition.check_sendable(command, motion=True)
         use_baseline = wait and relative and self._guard.envelope is None
         baseline = await self._lines.baseline(deadline) if use_baseline else None
         epoch, alarm_epoch = condition.reset_epoch, condition.alarm_epoch
-        slot = await self._lines.submit(
-            data,
-            command,
-            deadline=deadline,
-            timeout=timeout,
-            motion=True,
-            what=f"{what} {command!r}",
-        )
+        slot = await self._write_move(build, cartesian, deadline, timeout, what)
         await self._lines.await_slot(slot, deadline, timeout)
         if not wait:
             return None
+        command = slot.command
         epoch = slot.reply_epoch  # (a line in doubt after a reset ran after it)
         known = not relative or baseline is not None or slot.check is not None
         goal = target(baseline, slot.check) if known else None
-        return await self._completion.wait(
+        report = await self._completion.wait(
             command,
             goal,
             deadline=deadline,
@@ -68,6 +84,60 @@ class MotionCommands(ClientParts):
             epoch=epoch,
             alarm_epoch=alarm_epoch,
         )
+        return report
+
+    async def _write_move(
+        self,
+        build: Callable[[bool], bytes],
+        cartesian: bool,
+        deadline: float | None,
+        timeout: float | None,
+        what: str,
+    ) -> Slot:
+        """Write the move's line: its mode word only if the mode differs, ``G4 P0`` first if
+        the line would otherwise restart from where the moving arm is. Rebuilt if another
+        line changes the mode before it is written (checked right before the write)."""
+        guard = self._guard
+        for _attempt in range(_ATTEMPTS):
+            mode_word = guard.modes.cartesian is not cartesian
+            data = build(mode_word).rstrip(b"\n")
+            command = data.decode("ascii").strip()
+            parsed = parse_line(data)
+            firmware = self._condition.firmware
+            barrier: Slot | None = None
+            if guard.chain.problem(parsed, guard.modes, firmware) is not None:
+                barrier = await self._lines.submit(
+                    ARM_STOPPED,
+                    ARM_STOPPED.decode("ascii"),
+                    deadline=deadline,
+                    timeout=timeout,
+                    motion=False,
+                    what=f"{ARM_STOPPED.decode('ascii')!r} (the arm stops before {command!r})",
+                )
+
+            def changed(mode_word: bool = mode_word, parsed: ParsedLine = parsed) -> bool:
+                stated = guard.modes.cartesian is not cartesian
+                return stated != mode_word or (
+                    guard.chain.problem(parsed, guard.modes, self._condition.firmware) is not None
+                )
+
+            try:
+                return await self._lines.submit(
+                    data,
+                    command,
+                    deadline=deadline,
+                    timeout=timeout,
+                    motion=True,
+                    what=f"{what} {command!r}",
+                    parsed=parsed,
+                    should_stop=changed,
+                )
+            except StreamStopped:
+                continue  # another line changed the mode meanwhile: build it again
+            finally:
+                if barrier is not None and not barrier.fut.done():
+                    barrier.fut.cancel()  # its reply is consumed and discarded
+        raise _ModesChanged(what)
 
     async def move_joints(
         self,
@@ -116,11 +186,24 @@ class MotionCommands(ClientParts):
         firmware: str = self._condition.firmware or "2021"
         if rail is not None and self._condition.firmware is None and not relative:
             firmware = await self._require_firmware(deadline, timeout)
-        data = _with_units(
-            gcode.move_joints(
-                j1, j2, j3, j4, j5, j6, rail, speed=speed, relative=relative, firmware=firmware
+
+        def build(mode_word: bool) -> bytes:
+            line = gcode.move_joints(
+                j1,
+                j2,
+                j3,
+                j4,
+                j5,
+                j6,
+                rail,
+                speed=speed,
+                relative=relative,
+                firmware=firmware,
+                mode_word=mode_word,
             )
-        )
+            return _with_units(line)
+
+        build(True)  # argument errors before anything is sent
 
         def target(base: StatusReport | None, check: LineCheck | None) -> Target:
             if not relative:
@@ -138,7 +221,8 @@ class MotionCommands(ClientParts):
             return Target(joints=joints, rail=new_rail)
 
         return await self._move(
-            data,
+            build,
+            cartesian=False,
             target=target,
             relative=relative,
             wait=wait,
@@ -178,9 +262,23 @@ class MotionCommands(ClientParts):
         """
         values = (x, y, z, rx, ry, rz)
         deadline = deadline_after(self._running_loop(), timeout)
-        data = _with_units(
-            gcode.move_pose(x, y, z, rx, ry, rz, speed=speed, linear=linear, relative=relative)
-        )
+
+        def build(mode_word: bool) -> bytes:
+            line = gcode.move_pose(
+                x,
+                y,
+                z,
+                rx,
+                ry,
+                rz,
+                speed=speed,
+                linear=linear,
+                relative=relative,
+                mode_word=mode_word,
+            )
+            return _with_units(line)
+
+        build(True)  # argument errors before anything is sent
 
         def target(base: StatusReport | None, check: LineCheck | None) -> Target:
             if not relative:
@@ -197,7 +295,8 @@ class MotionCommands(ClientParts):
             return Target(pose=pose)
 
         return await self._move(
-            data,
+            build,
+            cartesian=True,
             target=target,
             relative=relative,
             wait=wait,
