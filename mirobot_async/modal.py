@@ -189,11 +189,23 @@ class Chaining:
     """Joint letters whose parser value is where the arm was when :attr:`resync` was parsed."""
     resync: str | None = None
     """The line whose ``M20``/``M21`` made :attr:`stale` (as written)."""
+    refused: bool = False
+    """:attr:`resync` is a motion line the firmware refused ("ok" but dropped): it moved the
+    parser's position, not the arm (oracle: locked ``G91 X10``, ``M50``, ``G91 X1`` -> 10.999)."""
 
     def at_rest(self) -> Chaining:
         """The arm stopped with nothing queued (a ``G4`` answered, a status at rest with nothing
         in flight): a mode word now restarts from where the motion ended. Stale joints stay."""
         return replace(self, moving=frozenset())
+
+    def after_refusal(self, parsed: ParsedLine) -> Chaining:
+        """``parsed`` was refused ("ok" but dropped): the joints it would have moved are where
+        the parser, not the arm, went (any mode: the modes it ran in are not known here)."""
+        moved = _moves(parsed, MotionModes.unknown())
+        if not moved:
+            return self
+        text = parsed.source.strip() or parsed.text
+        return replace(self, stale=self.stale | moved, resync=text, refused=True)
 
     def moved_anything(self) -> Chaining:
         """A line of unknown fate (its reply was lost) may have queued motion of any joint."""
@@ -203,7 +215,8 @@ class Chaining:
         self, parsed: ParsedLine, modes: MotionModes, firmware: str | None = None
     ) -> str | None:
         """Why ``parsed``, written now (after the modes ``modes``), would end elsewhere when
-        streamed than when sent after the arm stopped, with the fix; ``None`` when it would not."""
+        streamed than when sent after the arm stopped (or than intended, after a refused line),
+        with the fix; ``None`` when it would not."""
         stale = self._stale_at(parsed)
         read = _reads(parsed, modes, firmware) & stale
         if not read:
@@ -219,12 +232,26 @@ class Chaining:
                 "G4 P0 before it (the arm stops first)"
             )
         source = self.resync or "an earlier M20/M21 line"
+        if self.refused:
+            return (
+                f"this line takes {joints} from where the refused line {source!r} left the "
+                "firmware's parser, not from where the arm is: it ends elsewhere than "
+                "intended. Wait for the arm to stop and state the mode again (M21 or M20: it "
+                "restarts from where the arm is)"
+            )
         return (
             f"this line takes {joints} from where the arm was when {source!r} was read (its "
             "M20/M21 restarts from where the arm is, not from where the motion queued before "
             "it ends): streamed, it ends elsewhere than sent after the arm stopped. State the "
             f"mode once at the top and leave it out of {source!r}, or put G4 P0 before it"
         )
+
+    def needs_restart(
+        self, parsed: ParsedLine, modes: MotionModes, firmware: str | None = None
+    ) -> bool:
+        """``parsed`` (without a mode word) reads a joint the parser has elsewhere: a mode word
+        on it, parsed at rest, would set the parser to where the arm is first."""
+        return bool(_reads(parsed, modes, firmware) & self.stale)
 
     def _stale_at(self, parsed: ParsedLine) -> frozenset[str]:
         """The stale joints while ``parsed`` is executed (its own mode word restarts first)."""
@@ -243,14 +270,14 @@ class Chaining:
             if parsed.dollar is not None and parsed.dollar.kind in ("zero", "jog", "unknown"):
                 return replace(self, moving=self.moving | _WRIST_AND_ARM)
             return self
-        stale, resync = self.stale, self.resync
+        stale, resync, refused = self.stale, self.resync, self.refused
         if parsed.coordinate_mode is not None:
-            stale, resync = self.moving, parsed.source.strip() or parsed.text
+            stale, resync, refused = self.moving, parsed.source.strip() or parsed.text, False
         # reported once: what the line read is set by it (as the firmware does, from there on)
         stale = stale - _reads(parsed, modes, firmware) - _writes(parsed, modes)
         moving = frozenset() if 4 in parsed.g_codes else self.moving
         moving |= _moves(parsed, modes)
-        return Chaining(moving, stale, resync if stale else None)
+        return Chaining(moving, stale, resync if stale else None, refused and bool(stale))
 
 
 def _joint_name(letter: str) -> str:

@@ -11,32 +11,29 @@ restart anything)."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Final
 
 from mirobot_async import gcode
 from mirobot_async.completion import Target
 from mirobot_async.condition import RobotCondition
 from mirobot_async.deadline import deadline_after
-from mirobot_async.line import parse_line
+from mirobot_async.errors import MirobotUsageError
+from mirobot_async.line import ParsedLine, parse_line
+from mirobot_async.modal import Chaining, MotionModes, update_modes
 from mirobot_async.parts import DEFAULT_TIMEOUT, HOME_TIMEOUT, MOVE_TIMEOUT, ClientParts
 from mirobot_async.replies import StatusReport
 from mirobot_async.scheduler import Slot, StreamStopped
 
 if TYPE_CHECKING:
     from mirobot_async.envelope import LineCheck
-    from mirobot_async.line import ParsedLine
 
-__all__ = ["MotionCommands", "absolute_pose"]
+__all__ = ["ARM_STOPPED", "MotionCommands", "absolute_pose", "write_move"]
 
 ARM_STOPPED: Final = b"G4 P0"
 """Written before a move whose mode word would restart it from where the moving arm is: the
 firmware answers a dwell only once its planner is empty, and reads the next line after it."""
 _ATTEMPTS: Final = 3
-
-
-class _ModesChanged(Exception):
-    """Another line changed the coordinate mode between building a move and writing it."""
 
 
 class MotionCommands(ClientParts):
@@ -68,7 +65,8 @@ class MotionCommands(ClientParts):
         use_baseline = wait and relative and self._guard.envelope is None
         baseline = await self._lines.baseline(deadline) if use_baseline else None
         epoch, alarm_epoch = condition.reset_epoch, condition.alarm_epoch
-        slot = await self._write_move(build, cartesian, deadline, timeout, what)
+        slot = await write_move(self, build, cartesian, deadline, timeout, what)
+        written = self._guard.chain
         await self._lines.await_slot(slot, deadline, timeout)
         if not wait:
             return None
@@ -84,60 +82,9 @@ class MotionCommands(ClientParts):
             epoch=epoch,
             alarm_epoch=alarm_epoch,
         )
+        if self._guard.chain is written:  # nothing written since: the arm is at rest
+            self._guard.chain = written.at_rest()
         return report
-
-    async def _write_move(
-        self,
-        build: Callable[[bool], bytes],
-        cartesian: bool,
-        deadline: float | None,
-        timeout: float | None,
-        what: str,
-    ) -> Slot:
-        """Write the move's line: its mode word only if the mode differs, ``G4 P0`` first if
-        the line would otherwise restart from where the moving arm is. Rebuilt if another
-        line changes the mode before it is written (checked right before the write)."""
-        guard = self._guard
-        for _attempt in range(_ATTEMPTS):
-            mode_word = guard.modes.cartesian is not cartesian
-            data = build(mode_word).rstrip(b"\n")
-            command = data.decode("ascii").strip()
-            parsed = parse_line(data)
-            firmware = self._condition.firmware
-            barrier: Slot | None = None
-            if guard.chain.problem(parsed, guard.modes, firmware) is not None:
-                barrier = await self._lines.submit(
-                    ARM_STOPPED,
-                    ARM_STOPPED.decode("ascii"),
-                    deadline=deadline,
-                    timeout=timeout,
-                    motion=False,
-                    what=f"{ARM_STOPPED.decode('ascii')!r} (the arm stops before {command!r})",
-                )
-
-            def changed(mode_word: bool = mode_word, parsed: ParsedLine = parsed) -> bool:
-                stated = guard.modes.cartesian is not cartesian
-                return stated != mode_word or (
-                    guard.chain.problem(parsed, guard.modes, self._condition.firmware) is not None
-                )
-
-            try:
-                return await self._lines.submit(
-                    data,
-                    command,
-                    deadline=deadline,
-                    timeout=timeout,
-                    motion=True,
-                    what=f"{what} {command!r}",
-                    parsed=parsed,
-                    should_stop=changed,
-                )
-            except StreamStopped:
-                continue  # another line changed the mode meanwhile: build it again
-            finally:
-                if barrier is not None and not barrier.fut.done():
-                    barrier.fut.cancel()  # its reply is consumed and discarded
-        raise _ModesChanged(what)
 
     async def move_joints(
         self,
@@ -350,6 +297,100 @@ class MotionCommands(ClientParts):
         :data:`DEFAULT_TIMEOUT`) and cancellation as in :meth:`send`.
         """
         await self._command_within(gcode.clear_alarm(), timeout)
+
+
+async def write_move(
+    parts: ClientParts,
+    build: Callable[[bool], bytes],
+    cartesian: bool,
+    deadline: float | None,
+    timeout: float | None,
+    what: str,
+    follow: Sequence[ParsedLine] = (),
+) -> Slot:
+    """Write a move's line: its mode word only if the mode differs, ``G4 P0`` first if the
+    line (or the lines ``follow`` that come right after it, e.g. a path's points) would
+    otherwise restart from where the moving arm is. Rebuilt if another line changes the mode
+    before it is written (checked right before the write). Returns its slot (not awaited)."""
+    guard = parts._guard
+    for _attempt in range(_ATTEMPTS):
+        mode_word = _needs_mode_word(parts, build, cartesian, follow)
+        data = build(mode_word).rstrip(b"\n")
+        command = data.decode("ascii").strip()
+        parsed = parse_line(data)
+        firmware = parts._condition.firmware
+        barrier: Slot | None = None
+        if _restarts(guard.chain, guard.modes, [parsed, *follow], firmware):
+            barrier = await parts._lines.submit(
+                ARM_STOPPED,
+                ARM_STOPPED.decode("ascii"),
+                deadline=deadline,
+                timeout=timeout,
+                motion=False,
+                what=f"{ARM_STOPPED.decode('ascii')!r} (the arm stops before {command!r})",
+            )
+
+        def changed(mode_word: bool = mode_word, parsed: ParsedLine = parsed) -> bool:
+            stated = _needs_mode_word(parts, build, cartesian, follow)
+            lines = [parsed, *follow]
+            return stated != mode_word or _restarts(
+                guard.chain, guard.modes, lines, parts._condition.firmware
+            )
+
+        try:
+            return await parts._lines.submit(
+                data,
+                command,
+                deadline=deadline,
+                timeout=timeout,
+                motion=True,
+                what=f"{what} {command!r}",
+                parsed=parsed,
+                should_stop=changed,
+            )
+        except StreamStopped:
+            continue  # another line changed the mode meanwhile: build it again
+        finally:
+            if barrier is not None and not barrier.fut.done():
+                barrier.fut.cancel()  # its reply is consumed and discarded
+    raise MirobotUsageError(
+        f"{what}: other lines sent at the same time kept changing the coordinate mode "
+        "(M20/M21); nothing was sent"
+    )
+
+
+def _needs_mode_word(
+    parts: ClientParts,
+    build: Callable[[bool], bytes],
+    cartesian: bool,
+    follow: Sequence[ParsedLine],
+) -> bool:
+    """State ``M20``/``M21``: the mode differs or is unknown, or the line (or ``follow``)
+    without it would read a joint the parser has elsewhere (after a refused line, or an
+    earlier mode word parsed while the arm moved)."""
+    guard = parts._guard
+    if guard.modes.cartesian is not cartesian:
+        return True
+    chain, modes, firmware = guard.chain, guard.modes, parts._condition.firmware
+    for parsed in [parse_line(build(False).rstrip(b"\n")), *follow]:
+        if chain.needs_restart(parsed, modes, firmware):
+            return True
+        chain = chain.after(parsed, modes, firmware)
+        modes = update_modes(parsed, modes)
+    return False
+
+
+def _restarts(
+    chain: Chaining, modes: MotionModes, lines: Sequence[ParsedLine], firmware: str | None
+) -> bool:
+    """Some of ``lines``, written one after another from ``chain``, would restart from where
+    the moving arm is (:meth:`Chaining.problem`)."""
+    for parsed in lines:
+        if chain.problem(parsed, modes, firmware) is not None:
+            return True
+        chain = chain.after(parsed, modes, firmware)
+        modes = update_modes(parsed, modes)
+    return False
 
 
 def absolute_pose(

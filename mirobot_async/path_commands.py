@@ -4,12 +4,14 @@ A path is one modal line (``M20``/``M21 G90 G0|G1 G21 F..``,
 :func:`~mirobot_async.gcode.path_header`) and then one bare ``G1 X.. Y..`` line per point
 (:func:`~mirobot_async.gcode.path_point`), streamed with character counting so that the
 firmware's planner blends them; the call returns when a status shows the arm at rest at the
-last point.
+last point. The header states ``M20``/``M21`` only when the mode changes, and ``G4 P0`` goes
+before it when the points would otherwise restart from where the moving arm is
+(:func:`~mirobot_async.motion_commands.write_move`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from typing import TYPE_CHECKING
 
 from mirobot_async import gcode
@@ -18,7 +20,7 @@ from mirobot_async.deadline import deadline_after
 from mirobot_async.errors import MirobotError, MirobotUsageError
 from mirobot_async.guard import NeedPosition, PathRefused
 from mirobot_async.line import parse_line
-from mirobot_async.motion_commands import absolute_pose
+from mirobot_async.motion_commands import absolute_pose, write_move
 from mirobot_async.parts import MOVE_TIMEOUT, ClientParts
 from mirobot_async.replies import StatusReport
 from mirobot_async.streaming import Stream
@@ -71,7 +73,10 @@ class PathCommands(ClientParts):
         the last point written (use :meth:`hold` or :meth:`hold_on_exit` to stop it).
         """
         points = [tuple(point) for point in poses]
-        header = gcode.path_header(joints=False, speed=speed, linear=linear)
+
+        def header(mode_word: bool) -> bytes:
+            return gcode.path_header(joints=False, speed=speed, linear=linear, mode_word=mode_word)
+
         return await self._path(points, header, joints=False, timeout=timeout)
 
     async def move_joint_path(
@@ -89,13 +94,16 @@ class PathCommands(ClientParts):
         and cancellation as in :meth:`move_path`.
         """
         listed = [tuple(point) for point in points]
-        header = gcode.path_header(joints=True, speed=speed)
+
+        def header(mode_word: bool) -> bytes:
+            return gcode.path_header(joints=True, speed=speed, mode_word=mode_word)
+
         return await self._path(listed, header, joints=True, timeout=timeout)
 
     async def _path(
         self,
         points: list[tuple[float | None, ...]],
-        header: bytes,
+        build_header: Callable[[bool], bytes],
         *,
         joints: bool,
         timeout: float | None,
@@ -103,6 +111,7 @@ class PathCommands(ClientParts):
         deadline = deadline_after(self._running_loop(), timeout)
         if not points:
             raise MirobotUsageError("a path needs at least one point")
+        header = build_header(True)
         motion = header.split()[2].decode("ascii")
         firmware = self._condition.firmware or "2021"
         lines = [header.rstrip(b"\n")]
@@ -119,12 +128,19 @@ class PathCommands(ClientParts):
         condition = self._condition
         condition.check_sendable(lines[0].decode("ascii"), motion=True)
         epoch, alarm_epoch = condition.reset_epoch, condition.alarm_epoch
+        follow = [parse_line(line) for line in lines[1:]]
+        what = f"path of {len(points)} points"
+        slot = await write_move(self, build_header, not joints, deadline, timeout, what, follow)
+        try:
+            await self._lines.await_slot(slot, deadline, timeout)
+        except MirobotError as err:
+            raise PathError(0, points[0], err) from err
         stream = Stream(
-            (self._lines, self._condition, self._guard), lines, None, False, timeout, True, True
+            (self._lines, self._condition, self._guard), lines[1:], None, False, timeout, True, True
         )
         result = await stream.run()
         for line_result in result.errors:
-            index = max(0, line_result.number - 2)
+            index = line_result.number - 1
             assert line_result.error is not None
             raise PathError(index, points[index], line_result.error) from line_result.error
         last = points[-1]

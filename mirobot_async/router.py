@@ -15,6 +15,7 @@ from collections.abc import Callable
 from mirobot_async.condition import RobotCondition
 from mirobot_async.errors import MirobotAlarmError, MirobotLinkLostError
 from mirobot_async.guard import EnvelopeGuard, NullGuard
+from mirobot_async.line import parse_line
 from mirobot_async.poller import StatusPoller
 from mirobot_async.protocol import (
     AlarmRaised,
@@ -31,9 +32,11 @@ from mirobot_async.protocol import (
     StatusReceived,
     UnsolicitedText,
 )
-from mirobot_async.replies import ReplyKind
+from mirobot_async.replies import ReplyKind, State
 from mirobot_async.scheduler import LineScheduler
 from mirobot_async.wire import Wire
+
+_AT_REST = frozenset({State.IDLE, State.ALARM})
 
 __all__ = ["EventRouter", "url_text"]
 
@@ -93,8 +96,15 @@ class EventRouter:
         stats = self._wire.stats
         if isinstance(event, StatusReceived):
             self._poller.on_status(event.report)
+            if event.report.state in _AT_REST and not self._wire.conn.pending_count:
+                # printed after the last line's reply: nothing is queued (GRBL starts queued
+                # motion before it answers a ?), so a mode word now restarts from the end
+                self._guard.chain = self._guard.chain.at_rest()
             return
         if isinstance(event, LineAcknowledged | LineRejected):
+            if isinstance(event, LineAcknowledged) and event.refusal is not None:
+                # "ok" but dropped: the parser's position may have moved, the arm did not
+                self._guard.chain = self._guard.chain.after_refusal(parse_line(event.line.line))
             self._lines.on_reply(event)
         elif isinstance(event, StatusCorrupted):
             self._poller.on_corrupted(event.reason)

@@ -46,6 +46,7 @@ __all__ = [
     "ModalState",
     "check_line",
     "check_program",
+    "first_restart",
     "line_problems",
     "parse_words",
     "validate_line",
@@ -464,3 +465,26 @@ def validate_line(
     if chain is not None:
         raise MotionChainError(shown, f"{chain} (validate=False sends it anyway)")
     return parsed
+
+
+def first_restart(
+    lines: Iterable[str | bytes], *, firmware: str | None, state: ModalState
+) -> tuple[int, str, str] | None:
+    """The first of ``lines`` (1-based number, text, why and the fix) that, streamed from
+    ``state``, would end elsewhere than sent one at a time after the arm stopped (its
+    ``M20``/``M21`` restarts from where the moving arm is: :class:`~mirobot_async.modal.Chaining`),
+    or ``None``. Other problems are not judged here. ``firmware=None``: a line counts only if
+    it does on both profiles. ``state`` is not changed."""
+    profiles = (check_firmware(firmware),) if firmware is not None else ("classic", "2021")
+    found: list[tuple[int, str, str] | None] = []
+    for profile in profiles:
+        current = ModalState(state.cartesian, state.relative, state.motion, state.chain)
+        first = None
+        for number, line in enumerate(lines, start=1):
+            parsed = parse_line(line)
+            chain = _problems(parsed, profile, current)[1]
+            if chain is not None:
+                first = (number, parsed.source.strip() or parsed.text, chain)
+                break
+        found.append(first)
+    return None if any(item is None for item in found) else found[0]
