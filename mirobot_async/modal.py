@@ -176,11 +176,13 @@ class Chaining:
       J1 0 (vs 29.861); ``G4 P0`` before the mode word avoids it (the dwell is answered once
       the planner is empty: the mode word is then parsed at rest).
 
-    So a line is judged by the joints it *reads* from the parser (relative words, the axes an
-    absolute line omits, every pose coordinate of a Cartesian line that does not give all six,
-    and on the 2021 firmware the start of an ``M20`` ``G1``/``G2``/``G3``/``G5`` path, which is
-    cut from the parser's pose): reading a :attr:`stale` joint makes the streamed program end
-    elsewhere than the stepped one. ``moving`` joints become stale when a mode word is parsed.
+    So a line is judged by the joints it *reads* from the parser: every joint it does not set
+    to an absolute value (a relative line adds to the parser and keeps the axes it omits where
+    the parser has them: ``M21 G90 G0 X1``, ``M21 G91 G0 Y1`` streamed goes back to J1 0 in the
+    emulator), every pose coordinate of a Cartesian line that does not give all six, and on the
+    2021 firmware the start of an ``M20`` ``G1``/``G2``/``G3``/``G5`` path, which is cut from
+    the parser's pose. Reading a :attr:`stale` joint makes the streamed program end elsewhere
+    than the stepped one. ``moving`` joints become stale when a mode word is parsed.
     """
 
     moving: frozenset[str] = frozenset()
@@ -306,16 +308,15 @@ def _reads(parsed: ParsedLine, modes: MotionModes, firmware: str | None) -> froz
     read: set[str] = set()
     for cartesian in _frames(parsed, modes):
         for relative in _distances(parsed, modes):
+            if relative:  # the words add to the parser, the omitted axes stay there
+                read |= set(JOINT_LETTERS)
+                continue
             if not cartesian:
-                read |= axes if relative else set(JOINT_LETTERS) - axes
+                read |= set(JOINT_LETTERS) - axes
                 continue
-            rail = {"D"} & (axes if relative else set("D") - axes)
-            read |= rail
-            pose = axes & _POSE_LETTERS
-            if not pose:
-                continue
+            read |= {"D"} - axes
             path = firmware != "classic" and motion != 0
-            if relative or pose != _POSE_LETTERS or path:
+            if axes & _POSE_LETTERS != _POSE_LETTERS or path:
                 read |= _WRIST_AND_ARM
     return frozenset(read)
 
