@@ -178,9 +178,10 @@ class Chaining:
 
     So a line is judged by the joints it *reads* from the parser: every joint it does not set
     to an absolute value (a relative line adds to the parser and keeps the axes it omits where
-    the parser has them: ``M21 G90 G0 X1``, ``M21 G91 G0 Y1`` streamed goes back to J1 0 in the
-    emulator), every pose coordinate of a Cartesian line that does not give all six, and on the
-    2021 firmware the start of an ``M20`` ``G1``/``G2``/``G3``/``G5`` path, which is cut from
+    the parser has them: ``M21 G90 G0 X5``, ``M21 G91 G0 Y1`` streamed ends at J1 0, not 5.006;
+    a whole ``M20`` pose, then ``M21 G91 G0 D5``: every joint back to 0), every pose
+    coordinate of a Cartesian line that does not give all six, and on the 2021 firmware the
+    start of an ``M20`` ``G1``/``G2``/``G3``/``G5`` path, which is cut from
     the parser's pose. Reading a :attr:`stale` joint makes the streamed program end elsewhere
     than the stepped one. ``moving`` joints become stale when a mode word is parsed.
     """

@@ -115,7 +115,11 @@ class MotionCommands(ClientParts):
         step), or ``Idle`` after the arm was seen moving; for relative moves the target is the
         envelope's predicted one, or without an envelope computed from a status read just
         before sending when the arm is at rest (else completion is ``Idle`` after the ``ok``).
-        Without ``wait`` returns ``None`` once the line is queued (``ok``).
+        Without ``wait`` returns ``None`` once the line is queued (``ok``); such moves chain
+        as waited ones do: the line carries ``M21`` only when the mode changes, and when it
+        must while joints it reads may still be moving, ``G4 P0`` goes first, so the ``ok``
+        comes once the earlier motion has ended (the firmware restarts an ``M21`` line from
+        where the arm is).
 
         Raises :class:`MotionRefusedError` (locked, soft limit...), :class:`MirobotAlarmError`
         (an alarm is remembered or raised meanwhile), :class:`MirobotResetError`,

@@ -64,7 +64,9 @@ class PathCommands(ClientParts):
         a safety envelope, the whole path predicted from where the arm will be): a bad point
         raises :class:`MirobotUsageError` naming its index and nothing is written. The lines are
         then streamed with character counting (the planner never starves); the modes are stated
-        once, in the first line. Returns the status that shows the arm at rest at the last point.
+        once, in the first line (``M20``/``M21`` only if it changes: the firmware restarts a
+        line carrying it from where the arm is; ``G4 P0`` first if the points would then read
+        a joint still moving). Returns the status that shows the arm at rest at the last point.
 
         A line the robot refuses or rejects stops the path: :class:`PathError` names the point
         (lines already in the robot's buffer still run). ``timeout`` (default

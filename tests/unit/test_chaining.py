@@ -48,6 +48,8 @@ ORACLE_CASES: list[tuple[list[str], bool]] = [
     (["M20 G90 G0 X180 Y20 Z160 A0 B0 C0", "G4 P0", "M21", "G91 X1"], False),
     (["M21 G90 G0 A30 C-30", "M20 G90 G0 X202 Y0 Z181 A0 B0 C0"], False),
     (["M21 G91 G0 X1 G21", "G91 G0 X1 G21", "G21 G91 G0 X1 F100"], False),
+    (["M21 G90 G0 X5", "M21 G91 G0 Y1"], True),  # J1 0 vs 5.006: omitted axes stay
+    (["M20 G90 G0 X180 Y20 Z160 A0 B0 C0", "M21 G91 G0 D5"], True),  # all back to 0
 ]
 
 
