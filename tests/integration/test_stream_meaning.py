@@ -188,3 +188,24 @@ def test_run_refuses_the_program_before_its_first_byte(
     assert proc.returncode != 0
     assert f"{program}:2: M21 G91 G0 X1 F2000: M21 makes the firmware restart" in proc.stderr
     assert "nothing was sent" in proc.stderr
+
+
+@pytest.mark.mirobot_emulator(time_scale=TIME_SCALE)
+async def test_the_envelope_never_predicts_a_restarted_line(emu: EmulatorProcess) -> None:
+    """The envelope's prediction assumes each line continues where the one before ends: a line
+    the firmware would restart from the moving arm is refused even with ``validate=False``;
+    sent unchecked, the prediction is dropped and the position read again."""
+    from mirobot_async.envelope import Envelope
+
+    async with Mirobot.connect(emu.url, envelope=Envelope(joints={1: (-60, 60)})) as arm:
+        await arm.unlock()
+        await arm.send("G21")
+        await arm.send("M21 G91 G0 X5 F2000")
+        with pytest.raises(MotionChainError, match="refused by the safety envelope"):
+            await arm.send("M21 G91 G0 X5", validate=False)
+        await arm.send("M21 G91 G0 X5", validate=False, check_envelope=False)
+        report = await arm.wait_idle()
+        # the client follows the arm, not its own stepped arithmetic (5 + 5 = 10)
+        moved = await arm.move_joints(j1=1, relative=True)
+        assert moved is not None
+        assert moved.joints[0] == pytest.approx(report.joints[0] + 1, abs=STEP)
