@@ -33,6 +33,7 @@ from mirobot_async.errors import (
     MirobotResetError,
     MirobotTimeoutError,
     MirobotUsageError,
+    MotionChainError,
     MotionRefusedError,
     RefusalReason,
 )
@@ -79,6 +80,7 @@ __all__ = [
     "MirobotResetError",
     "MirobotTimeoutError",
     "MirobotUsageError",
+    "MotionChainError",
     "MotionModes",
     "MotionRefusedError",
     "PathError",

@@ -34,6 +34,7 @@ __all__ = [
     "MirobotResetError",
     "MirobotTimeoutError",
     "MirobotUsageError",
+    "MotionChainError",
     "MotionRefusedError",
     "RefusalReason",
 ]
@@ -53,6 +54,18 @@ class MirobotError(Exception):
 
 class MirobotUsageError(MirobotError, ValueError):
     """A caller passed a bad argument; raised before anything is written to the robot."""
+
+
+class MotionChainError(MirobotUsageError):
+    """A line refused before it is written because, streamed behind queued motion, it would end
+    elsewhere than sent after the arm stopped: its ``M20``/``M21`` makes the firmware restart
+    from where the arm is, not from where the queued motion ends. :attr:`line` is the line;
+    the message says which joints and the fix (state the mode once at the top, or ``G4 P0``
+    before the line)."""
+
+    def __init__(self, line: str, message: str) -> None:
+        super().__init__(f"line {line!r} refused before sending: {message}")
+        self.line = line
 
 
 class MirobotConnectionError(MirobotError):

@@ -553,6 +553,13 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
         :class:`~mirobot_async._core.validation.InvalidLineError`, and the stream stops there unless
         ``continue_on_error``. ``validate=False`` logs one WARNING when the stream starts.
 
+        A line that would end elsewhere streamed than sent after the arm stopped (its
+        ``M20``/``M21`` makes the firmware restart from where the moving arm is, see
+        :class:`~mirobot_async._core.modal.Chaining`) is a
+        :class:`~mirobot_async.errors.MotionChainError` naming the line and the fix; it stops
+        the stream even with ``continue_on_error``. A ``list`` or ``tuple`` of lines is judged
+        whole first: then nothing at all is written (``result.sent == 0``).
+
         With ``wait`` the stream ends only when the arm has finished the motion: ``G4 P0`` is
         written right after the last line, and the firmware answers it once its planner is
         empty, so the stream returns about one USB latency after the arm stops (a status poll

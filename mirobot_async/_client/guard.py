@@ -1,20 +1,18 @@
 """The client's side of the safety envelope: line checks and position prediction.
 
-:class:`EnvelopeGuard` checks each line against the
-:class:`~mirobot_async._safety.envelope.Envelope` right before it is written, starting from the
-machine state predicted from every line written before it
-(:class:`~mirobot_async._safety.prediction.MachineState`: modal words including the units,
-position, the 2021 base offset ``$41..$43`` and gate lift ``$49``), and keeps that prediction up to
-date. The check is default-deny (:func:`~mirobot_async._safety.prediction.predict`): a line passes
-only when its exact effect is predicted. What is unknown at connect stays unknown until a line
-states it (``G21``, ``M20``...), a status at rest shows it (the position) or a listing gives it:
-before the first line that moves the arm the guard asks (:meth:`EnvelopeGuard.wanted_queries`)
-for ``$$`` (soft limits, base offset, ``$35``), ``$N`` (startup lines, applied after every reset
-and homing), ``$#`` and ``$G`` (work offsets); an unchecked line that changes one makes it
-unknown again. The parser's position is kept apart from the arm's after a move the firmware
-refused (locked: the parser moved to the target). :class:`NullGuard` is the same interface
-without an envelope: every line passes, nothing is tracked. No I/O here: the scheduler learns
-the position (a status at rest) when :meth:`EnvelopeGuard.verdict` asks for it.
+:class:`EnvelopeGuard` checks each line against the ``Envelope`` right before it is written,
+from the machine state predicted from every line written before it (modal words including the
+units, position, the 2021 base offset ``$41..$43`` and gate lift ``$49``), kept up to date. The
+check is default-deny (:func:`~mirobot_async._safety.prediction.predict`): a line passes only when
+its exact effect is predicted. What is unknown at connect stays unknown until a line states it
+(``G21``, ``M20``...), a status at rest shows it (the position) or a listing gives it: before the
+first line that moves the arm the guard asks (:meth:`EnvelopeGuard.wanted_queries`) for ``$$``
+(soft limits, base offset, ``$35``), ``$N`` (startup lines, applied after every reset and homing),
+``$#`` and ``$G`` (work offsets); an unchecked line that changes one makes it unknown again. The
+parser's position is kept apart from the arm's after a move the firmware refused (locked: the
+parser moved to the target). :class:`NullGuard` is the same interface without an envelope: every
+line passes, nothing is tracked. No I/O here: the scheduler learns the position (a status at rest)
+when :meth:`EnvelopeGuard.verdict` asks for it.
 """
 
 from __future__ import annotations
@@ -27,7 +25,7 @@ from typing import TYPE_CHECKING, Final, Protocol
 from mirobot_async._client.condition import RobotCondition
 from mirobot_async._client.wire import ClientStats
 from mirobot_async._core.line import ParsedLine
-from mirobot_async._core.modal import LineCheck, MotionModes, update_modes
+from mirobot_async._core.modal import Chaining, LineCheck, MotionModes, update_modes
 from mirobot_async._core.replies import State, StatusReport
 from mirobot_async._core.validation import ModalState
 from mirobot_async._safety.firmware_memory import (
@@ -40,7 +38,7 @@ from mirobot_async._safety.firmware_memory import (
     soft_limits_from_settings,
     state_after_refusal,
 )
-from mirobot_async.errors import MirobotUsageError, RefusalReason
+from mirobot_async.errors import MirobotUsageError, MotionChainError, RefusalReason
 
 if TYPE_CHECKING:  # imported when an envelope is used (it needs numpy)
     from mirobot_async._safety.envelope import Envelope
@@ -97,29 +95,23 @@ class Guard(Protocol):
     """What the scheduler and the facade use (:class:`EnvelopeGuard` or :class:`NullGuard`)."""
 
     epoch: int
+    chain: Chaining
+    parser_apart: bool  # the parser's position is not the arm's (a move restates M20/M21)
 
     @property
     def envelope(self) -> Envelope | None: ...
-
+    @property
+    def modes(self) -> MotionModes: ...
     @property
     def wants_settings(self) -> bool: ...
-
     def wanted_queries(self) -> tuple[str, ...]: ...
-
     def adopt_query(self, query: str, output: Sequence[str] | None) -> None: ...
-
     def modal_state(self) -> ModalState: ...
-
     def needs_firmware(self, parsed: ParsedLine) -> bool: ...
-
     def verdict(self, parsed: ParsedLine, what: str | None) -> LineCheck | NeedPosition | None: ...
-
     def preview(self, lines: Sequence[ParsedLine]) -> list[LineCheck] | NeedPosition: ...
-
     def adopt_status(self, report: StatusReport) -> None: ...
-
     def adopt_settings(self, settings: Mapping[int, float]) -> None: ...
-
     def track_written(
         self,
         line_id: int,
@@ -131,13 +123,10 @@ class Guard(Protocol):
         what: str | None,
         warn_unchecked: bool,
     ) -> Tracked | None: ...
-
     def line_failed(
         self, tracked: Tracked, *, rejected: bool, reason: RefusalReason | None = None
     ) -> None: ...
-
     def forget(self, why: str) -> None: ...
-
     def warn_stream_unchecked(self) -> None: ...
 
 
@@ -146,14 +135,21 @@ class NullGuard:
     (``M20``/``M21``, ``G90``/``G91``) are followed, for the validation of raw lines."""
 
     epoch = 0
+    parser_apart = False
 
     def __init__(self) -> None:
         self._modes = MotionModes.unknown()
+        self.chain = Chaining()  # which joints may still move, which a mode word re-read
 
     @property
     def envelope(self) -> Envelope | None:
         """``None``: there is no envelope."""
         return None
+
+    @property
+    def modes(self) -> MotionModes:
+        """The modal words stated by the lines written since connect (``None``: unknown)."""
+        return self._modes
 
     @property
     def wants_settings(self) -> bool:
@@ -170,7 +166,7 @@ class NullGuard:
     def modal_state(self) -> ModalState:
         """The modal words stated by the lines written since connect (unknown before)."""
         modes = self._modes
-        return ModalState(modes.cartesian, modes.relative)
+        return ModalState(modes.cartesian, modes.relative, modes.motion, self.chain)
 
     def needs_firmware(self, parsed: ParsedLine) -> bool:
         """Never: no kinematic model is needed."""
@@ -185,7 +181,9 @@ class NullGuard:
         return []
 
     def adopt_status(self, report: StatusReport) -> None:
-        """Nothing to predict."""
+        """A status at rest with nothing in flight: no motion is queued."""
+        if report.state in _QUIET:
+            self.chain = self.chain.at_rest()
 
     def adopt_settings(self, settings: Mapping[int, float]) -> None:
         """Nothing to predict."""
@@ -201,7 +199,8 @@ class NullGuard:
         what: str | None,
         warn_unchecked: bool,
     ) -> Tracked | None:
-        """Follow the line's modal words; nothing else is tracked."""
+        """Follow the line's modal words and chaining; nothing else is tracked."""
+        self.chain = self.chain.after(parsed, self._modes)
         if parsed.kind == "dollar" or parsed.codes:
             self._modes = update_modes(parsed, self._modes)
         return None
@@ -215,8 +214,10 @@ class NullGuard:
         """A reset restores the power-on modes; a lost reply makes them unknown."""
         if why == "reset":
             self._modes = MotionModes()
+            self.chain = Chaining()
         elif why == "lost":
             self._modes = MotionModes.unknown()
+            self.chain = self.chain.moved_anything()
 
     def warn_stream_unchecked(self) -> None:
         """No envelope, nothing to warn about."""
@@ -245,6 +246,8 @@ class EnvelopeGuard:
         self._last_line_id: int | None = None
         self._moves = False  # whether the last prediction moves the arm
         self._verdicts: tuple[LineCheck, MachineState] | None = None  # the last verdict's state
+        self.chain = Chaining()
+        """Which joints may still move, which the parser took from a mode word (every line)."""
 
     @property
     def envelope(self) -> Envelope:
@@ -264,6 +267,12 @@ class EnvelopeGuard:
     def modes(self) -> MotionModes:
         """The modal words as predicted after every line written (``None`` parts: unknown)."""
         return self._state.modes
+
+    @property
+    def parser_apart(self) -> bool:
+        """The firmware's parser is not where the arm is, or unknown (a locked refusal moved it):
+        the client's own moves restate M20/M21, which re-reads the arm's position."""
+        return self._state.parser is not None
 
     @property
     def wants_settings(self) -> bool:
@@ -295,7 +304,7 @@ class EnvelopeGuard:
         """The modal words :mod:`~mirobot_async._core.validation` needs, as predicted (a new
         object)."""
         modes = self._state.modes
-        return ModalState(modes.cartesian, modes.relative)
+        return ModalState(modes.cartesian, modes.relative, modes.motion, self.chain)
 
     def needs_firmware(self, parsed: ParsedLine) -> bool:
         """True when the firmware (the kinematic model) or, for a line with axis words, what the
@@ -340,6 +349,11 @@ class EnvelopeGuard:
         :data:`NEED_POSITION`; raises :class:`MirobotUsageError` ("refused by the safety
         envelope ...; nothing was sent") for a line it refuses."""
         state = self._machine(parsed)
+        chained = self.chain.problem(parsed, state.modes, self._condition.firmware)
+        if chained is not None:  # the prediction would not be what the firmware does
+            self._stats.envelope_refusals += 1
+            shown = parsed.source.strip() or parsed.text
+            raise MotionChainError(shown, f"refused by the safety envelope: {chained}")
         try:
             if state.joints is None and not parsed.is_homing:
                 # Lines that do not move need no position; the others wait for one.
@@ -382,6 +396,8 @@ class EnvelopeGuard:
 
     def adopt_status(self, report: StatusReport) -> None:
         """A status at rest with nothing in flight: where the arm is (unless predicted)."""
+        if report.state in _QUIET:
+            self.chain = self.chain.at_rest()
         state = self._state
         if state.joints is not None or report.state not in _QUIET:
             return
@@ -423,7 +439,12 @@ class EnvelopeGuard:
         """Update the predicted state for a line just written."""
         before = self._state
         after: MachineState | None = None
-        if checked and verdict is not None:
+        firmware = self._condition.firmware
+        restarts = self.chain.problem(parsed, before.modes, firmware) is not None
+        self.chain = self.chain.after(parsed, before.modes, firmware)
+        if restarts:  # unchecked: the firmware restarts it from where the arm is (unknown)
+            pass
+        elif checked and verdict is not None:
             if self._verdicts is not None and self._verdicts[0] is verdict:
                 after, self._moves = self._verdicts[1], verdict.moves
             else:
@@ -543,8 +564,11 @@ class EnvelopeGuard:
             self._work.reinitialised(lines, ran=ran is not False)
             self._forget(reset_modes(lines, ran=ran))
             self._state = replace(self._state, parser=None)
+            self.chain = Chaining()
             return
         modes = {"lost": MotionModes.unknown()}.get(why)
+        if why == "lost":
+            self.chain = self.chain.moved_anything()
         self._forget(modes)
         self._state = replace(self._state, parser=PARSER_UNKNOWN)
 

@@ -1,22 +1,39 @@
 """Motion commands of :class:`~mirobot_async._client.client.Mirobot` (a mixin): ``move_joints``,
-``move_pose``, ``home``, ``unlock``, ``clear_alarm``."""
+``move_pose``, ``home``, ``unlock``, ``clear_alarm``.
+
+A structured move states ``M21``/``M20`` only when the coordinate mode changes (or is unknown):
+the firmware restarts a line that carries one from where the arm is when it reads the line, not
+from where the queued motion ends (:class:`~mirobot_async._core.modal.Chaining`, oracle), so moves
+sent with ``wait=False`` chain as they do one at a time. When the mode word is needed and the
+joints the line reads may still be moving, ``G4 P0`` goes first (the firmware answers it once
+the arm has stopped). ``G90``/``G91``, ``G0``/``G1`` and ``G21`` are always stated (they do not
+restart anything)."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import TYPE_CHECKING
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Final
 
 from mirobot_async._client.completion import Target
 from mirobot_async._client.condition import RobotCondition
 from mirobot_async._client.deadline import deadline_after
 from mirobot_async._client.parts import DEFAULT_TIMEOUT, HOME_TIMEOUT, MOVE_TIMEOUT, ClientParts
+from mirobot_async._client.scheduler import Slot, StreamStopped
 from mirobot_async._core import gcode
+from mirobot_async._core.line import ParsedLine, parse_line
+from mirobot_async._core.modal import Chaining, MotionModes, update_modes
 from mirobot_async._core.replies import StatusReport
+from mirobot_async.errors import MirobotUsageError
 
 if TYPE_CHECKING:
     from mirobot_async._safety.envelope import LineCheck
 
-__all__ = ["MotionCommands", "absolute_pose"]
+__all__ = ["ARM_STOPPED", "MotionCommands", "absolute_pose", "write_move"]
+
+ARM_STOPPED: Final = b"G4 P0"
+"""Written before a move whose mode word would restart it from where the moving arm is: the
+firmware answers a dwell only once its planner is empty, and reads the next line after it."""
+_ATTEMPTS: Final = 3
 
 
 class MotionCommands(ClientParts):
@@ -24,8 +41,9 @@ class MotionCommands(ClientParts):
 
     async def _move(
         self,
-        data: bytes,
+        build: Callable[[bool], bytes],
         *,
+        cartesian: bool,
         target: Callable[[StatusReport | None, LineCheck | None], Target | None],
         relative: bool,
         wait: bool,
@@ -35,32 +53,28 @@ class MotionCommands(ClientParts):
     ) -> StatusReport | None:
         """Send a motion line; with ``wait`` await its completion at ``target``.
 
-        ``target(baseline, check)`` gives the goal; for relative moves from ``check`` (the
-        envelope's verdict: the absolute target) or else ``baseline`` (a status read before
-        sending while the arm was at rest), or ``None`` (completion = Idle after the ``ok``).
+        ``build(mode_word)`` gives the line with or without its ``M20``/``M21`` (stated only
+        when the mode changes, see the module docstring). ``target(baseline, check)`` gives the
+        goal; for relative moves from ``check`` (the envelope's verdict: the absolute target)
+        or else ``baseline`` (a status read before sending while the arm was at rest), or
+        ``None`` (completion = Idle after the ``ok``).
         """
-        data = data.rstrip(b"\n")
-        command = data.decode("ascii").strip()
         condition = self._condition
+        command = build(True).rstrip(b"\n").decode("ascii").strip()
         condition.check_sendable(command, motion=True)
         use_baseline = wait and relative and self._guard.envelope is None
         baseline = await self._lines.baseline(deadline) if use_baseline else None
         epoch, alarm_epoch = condition.reset_epoch, condition.alarm_epoch
-        slot = await self._lines.submit(
-            data,
-            command,
-            deadline=deadline,
-            timeout=timeout,
-            motion=True,
-            what=f"{what} {command!r}",
-        )
+        slot = await write_move(self, build, cartesian, deadline, timeout, what)
+        written = self._guard.chain
         await self._lines.await_slot(slot, deadline, timeout)
         if not wait:
             return None
+        command = slot.command
         epoch = slot.reply_epoch  # (a line in doubt after a reset ran after it)
         known = not relative or baseline is not None or slot.check is not None
         goal = target(baseline, slot.check) if known else None
-        return await self._completion.wait(
+        report = await self._completion.wait(
             command,
             goal,
             deadline=deadline,
@@ -68,6 +82,9 @@ class MotionCommands(ClientParts):
             epoch=epoch,
             alarm_epoch=alarm_epoch,
         )
+        if self._guard.chain is written:  # nothing written since: the arm is at rest
+            self._guard.chain = written.at_rest()
+        return report
 
     async def move_joints(
         self,
@@ -98,7 +115,11 @@ class MotionCommands(ClientParts):
         step), or ``Idle`` after the arm was seen moving; for relative moves the target is the
         envelope's predicted one, or without an envelope computed from a status read just
         before sending when the arm is at rest (else completion is ``Idle`` after the ``ok``).
-        Without ``wait`` returns ``None`` once the line is queued (``ok``).
+        Without ``wait`` returns ``None`` once the line is queued (``ok``); such moves chain
+        as waited ones do: the line carries ``M21`` only when the mode changes, and when it
+        must while joints it reads may still be moving, ``G4 P0`` goes first, so the ``ok``
+        comes once the earlier motion has ended (the firmware restarts an ``M21`` line from
+        where the arm is).
 
         Raises :class:`MotionRefusedError` (locked, soft limit...), :class:`MirobotAlarmError`
         (an alarm is remembered or raised meanwhile), :class:`MirobotResetError`,
@@ -116,11 +137,24 @@ class MotionCommands(ClientParts):
         firmware: str = self._condition.firmware or "2021"
         if rail is not None and self._condition.firmware is None and not relative:
             firmware = await self._require_firmware(deadline, timeout)
-        data = _with_units(
-            gcode.move_joints(
-                j1, j2, j3, j4, j5, j6, rail, speed=speed, relative=relative, firmware=firmware
+
+        def build(mode_word: bool) -> bytes:
+            line = gcode.move_joints(
+                j1,
+                j2,
+                j3,
+                j4,
+                j5,
+                j6,
+                rail,
+                speed=speed,
+                relative=relative,
+                firmware=firmware,
+                mode_word=mode_word,
             )
-        )
+            return _with_units(line)
+
+        build(True)  # argument errors before anything is sent
 
         def target(base: StatusReport | None, check: LineCheck | None) -> Target:
             if not relative:
@@ -138,7 +172,8 @@ class MotionCommands(ClientParts):
             return Target(joints=joints, rail=new_rail)
 
         return await self._move(
-            data,
+            build,
+            cartesian=False,
             target=target,
             relative=relative,
             wait=wait,
@@ -178,9 +213,23 @@ class MotionCommands(ClientParts):
         """
         values = (x, y, z, rx, ry, rz)
         deadline = deadline_after(self._running_loop(), timeout)
-        data = _with_units(
-            gcode.move_pose(x, y, z, rx, ry, rz, speed=speed, linear=linear, relative=relative)
-        )
+
+        def build(mode_word: bool) -> bytes:
+            line = gcode.move_pose(
+                x,
+                y,
+                z,
+                rx,
+                ry,
+                rz,
+                speed=speed,
+                linear=linear,
+                relative=relative,
+                mode_word=mode_word,
+            )
+            return _with_units(line)
+
+        build(True)  # argument errors before anything is sent
 
         def target(base: StatusReport | None, check: LineCheck | None) -> Target:
             if not relative:
@@ -197,7 +246,8 @@ class MotionCommands(ClientParts):
             return Target(pose=pose)
 
         return await self._move(
-            data,
+            build,
+            cartesian=True,
             target=target,
             relative=relative,
             wait=wait,
@@ -251,6 +301,100 @@ class MotionCommands(ClientParts):
         :data:`DEFAULT_TIMEOUT`) and cancellation as in :meth:`send`.
         """
         await self._command_within(gcode.clear_alarm(), timeout)
+
+
+async def write_move(
+    parts: ClientParts,
+    build: Callable[[bool], bytes],
+    cartesian: bool,
+    deadline: float | None,
+    timeout: float | None,
+    what: str,
+    follow: Sequence[ParsedLine] = (),
+) -> Slot:
+    """Write a move's line: its mode word only if the mode differs, ``G4 P0`` first if the
+    line (or the lines ``follow`` that come right after it, e.g. a path's points) would
+    otherwise restart from where the moving arm is. Rebuilt if another line changes the mode
+    before it is written (checked right before the write). Returns its slot (not awaited)."""
+    guard = parts._guard
+    for _attempt in range(_ATTEMPTS):
+        mode_word = _needs_mode_word(parts, build, cartesian, follow)
+        data = build(mode_word).rstrip(b"\n")
+        command = data.decode("ascii").strip()
+        parsed = parse_line(data)
+        firmware = parts._condition.firmware
+        barrier: Slot | None = None
+        if _restarts(guard.chain, guard.modes, [parsed, *follow], firmware):
+            barrier = await parts._lines.submit(
+                ARM_STOPPED,
+                ARM_STOPPED.decode("ascii"),
+                deadline=deadline,
+                timeout=timeout,
+                motion=False,
+                what=f"{ARM_STOPPED.decode('ascii')!r} (the arm stops before {command!r})",
+            )
+
+        def changed(mode_word: bool = mode_word, parsed: ParsedLine = parsed) -> bool:
+            stated = _needs_mode_word(parts, build, cartesian, follow)
+            lines = [parsed, *follow]
+            return stated != mode_word or _restarts(
+                guard.chain, guard.modes, lines, parts._condition.firmware
+            )
+
+        try:
+            return await parts._lines.submit(
+                data,
+                command,
+                deadline=deadline,
+                timeout=timeout,
+                motion=True,
+                what=f"{what} {command!r}",
+                parsed=parsed,
+                should_stop=changed,
+            )
+        except StreamStopped:
+            continue  # another line changed the mode meanwhile: build it again
+        finally:
+            if barrier is not None and not barrier.fut.done():
+                barrier.fut.cancel()  # its reply is consumed and discarded
+    raise MirobotUsageError(
+        f"{what}: other lines sent at the same time kept changing the coordinate mode "
+        "(M20/M21); nothing was sent"
+    )
+
+
+def _needs_mode_word(
+    parts: ClientParts,
+    build: Callable[[bool], bytes],
+    cartesian: bool,
+    follow: Sequence[ParsedLine],
+) -> bool:
+    """State ``M20``/``M21``: the mode differs or is unknown, or the line (or ``follow``)
+    without it would read a joint the parser has elsewhere (after a refused line, or an
+    earlier mode word parsed while the arm moved)."""
+    guard = parts._guard
+    if guard.modes.cartesian is not cartesian or guard.parser_apart:
+        return True
+    chain, modes, firmware = guard.chain, guard.modes, parts._condition.firmware
+    for parsed in [parse_line(build(False).rstrip(b"\n")), *follow]:
+        if chain.needs_restart(parsed, modes, firmware):
+            return True
+        chain = chain.after(parsed, modes, firmware)
+        modes = update_modes(parsed, modes)
+    return False
+
+
+def _restarts(
+    chain: Chaining, modes: MotionModes, lines: Sequence[ParsedLine], firmware: str | None
+) -> bool:
+    """Some of ``lines``, written one after another from ``chain``, would restart from where
+    the moving arm is (:meth:`Chaining.problem`)."""
+    for parsed in lines:
+        if chain.problem(parsed, modes, firmware) is not None:
+            return True
+        chain = chain.after(parsed, modes, firmware)
+        modes = update_modes(parsed, modes)
+    return False
 
 
 def absolute_pose(

@@ -5,18 +5,20 @@ A path is one modal line (``M20``/``M21 G90 G0|G1 G21 F..``,
 :func:`~mirobot_async._core.gcode.path_header`) and then one bare ``G1 X.. Y..`` line per point
 (:func:`~mirobot_async._core.gcode.path_point`), streamed with character counting so that the
 firmware's planner blends them; the call returns when a status shows the arm at rest at the
-last point.
+last point. The header states ``M20``/``M21`` only when the mode changes, and ``G4 P0`` goes
+before it when the points would otherwise restart from where the moving arm is
+(:func:`~mirobot_async._client.motion_commands.write_move`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from typing import TYPE_CHECKING
 
 from mirobot_async._client.completion import Target
 from mirobot_async._client.deadline import deadline_after
 from mirobot_async._client.guard import NeedPosition, PathRefused
-from mirobot_async._client.motion_commands import absolute_pose
+from mirobot_async._client.motion_commands import absolute_pose, write_move
 from mirobot_async._client.parts import MOVE_TIMEOUT, ClientParts
 from mirobot_async._client.streaming import Stream
 from mirobot_async._core import gcode
@@ -63,7 +65,9 @@ class PathCommands(ClientParts):
         a safety envelope, the whole path predicted from where the arm will be): a bad point
         raises :class:`MirobotUsageError` naming its index and nothing is written. The lines are
         then streamed with character counting (the planner never starves); the modes are stated
-        once, in the first line. Returns the status that shows the arm at rest at the last point.
+        once, in the first line (``M20``/``M21`` only if it changes: the firmware restarts a
+        line carrying it from where the arm is; ``G4 P0`` first if the points would then read
+        a joint still moving). Returns the status that shows the arm at rest at the last point.
 
         A line the robot refuses or rejects stops the path: :class:`PathError` names the point
         (lines already in the robot's buffer still run). ``timeout`` (default
@@ -72,7 +76,10 @@ class PathCommands(ClientParts):
         the last point written (use :meth:`hold` or :meth:`hold_on_exit` to stop it).
         """
         points = [tuple(point) for point in poses]
-        header = gcode.path_header(joints=False, speed=speed, linear=linear)
+
+        def header(mode_word: bool) -> bytes:
+            return gcode.path_header(joints=False, speed=speed, linear=linear, mode_word=mode_word)
+
         return await self._path(points, header, joints=False, timeout=timeout)
 
     async def move_joint_path(
@@ -90,13 +97,16 @@ class PathCommands(ClientParts):
         and cancellation as in :meth:`move_path`.
         """
         listed = [tuple(point) for point in points]
-        header = gcode.path_header(joints=True, speed=speed)
+
+        def header(mode_word: bool) -> bytes:
+            return gcode.path_header(joints=True, speed=speed, mode_word=mode_word)
+
         return await self._path(listed, header, joints=True, timeout=timeout)
 
     async def _path(
         self,
         points: list[tuple[float | None, ...]],
-        header: bytes,
+        build_header: Callable[[bool], bytes],
         *,
         joints: bool,
         timeout: float | None,
@@ -104,6 +114,7 @@ class PathCommands(ClientParts):
         deadline = deadline_after(self._running_loop(), timeout)
         if not points:
             raise MirobotUsageError("a path needs at least one point")
+        header = build_header(True)
         motion = header.split()[2].decode("ascii")
         firmware = self._condition.firmware or "2021"
         lines = [header.rstrip(b"\n")]
@@ -120,12 +131,19 @@ class PathCommands(ClientParts):
         condition = self._condition
         condition.check_sendable(lines[0].decode("ascii"), motion=True)
         epoch, alarm_epoch = condition.reset_epoch, condition.alarm_epoch
+        follow = [parse_line(line) for line in lines[1:]]
+        what = f"path of {len(points)} points"
+        slot = await write_move(self, build_header, not joints, deadline, timeout, what, follow)
+        try:
+            await self._lines.await_slot(slot, deadline, timeout)
+        except MirobotError as err:
+            raise PathError(0, points[0], err) from err
         stream = Stream(
-            (self._lines, self._condition, self._guard), lines, None, False, timeout, True, True
+            (self._lines, self._condition, self._guard), lines[1:], None, False, timeout, True, True
         )
         result = await stream.run()
         for line_result in result.errors:
-            index = max(0, line_result.number - 2)
+            index = line_result.number - 1
             assert line_result.error is not None
             raise PathError(index, points[index], line_result.error) from line_result.error
         last = points[-1]

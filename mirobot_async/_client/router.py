@@ -17,6 +17,7 @@ from mirobot_async._client.guard import EnvelopeGuard, NullGuard
 from mirobot_async._client.poller import StatusPoller
 from mirobot_async._client.scheduler import LineScheduler
 from mirobot_async._client.wire import Wire
+from mirobot_async._core.line import parse_line
 from mirobot_async._core.protocol import (
     AlarmRaised,
     BannerReceived,
@@ -32,8 +33,10 @@ from mirobot_async._core.protocol import (
     StatusReceived,
     UnsolicitedText,
 )
-from mirobot_async._core.replies import ReplyKind
-from mirobot_async.errors import MirobotAlarmError, MirobotLinkLostError
+from mirobot_async._core.replies import ReplyKind, State
+from mirobot_async.errors import MirobotAlarmError, MirobotLinkLostError, RefusalReason
+
+_AT_REST = frozenset({State.IDLE, State.ALARM})
 
 __all__ = ["EventRouter", "url_text"]
 
@@ -93,8 +96,20 @@ class EventRouter:
         stats = self._wire.stats
         if isinstance(event, StatusReceived):
             self._poller.on_status(event.report)
+            if event.report.state in _AT_REST and not self._wire.conn.pending_count:
+                # printed after the last line's reply: nothing is queued (GRBL starts queued
+                # motion before it answers a ?), so a mode word now restarts from the end
+                self._guard.chain = self._guard.chain.at_rest()
             return
         if isinstance(event, LineAcknowledged | LineRejected):
+            refusal = event.refusal if isinstance(event, LineAcknowledged) else None
+            if refusal is not None and refusal.reason is RefusalReason.LOCKED:
+                # a locked arm moves nothing: every line before this one was refused too
+                self._guard.chain = self._guard.chain.at_rest()
+            if refusal is not None and isinstance(self._guard, NullGuard):
+                # "ok" but dropped: the parser's position may have moved, the arm did not (an
+                # envelope guard follows the parser's position itself: line_failed)
+                self._guard.chain = self._guard.chain.after_refusal(parse_line(event.line.line))
             self._lines.on_reply(event)
         elif isinstance(event, StatusCorrupted):
             self._poller.on_corrupted(event.reason)

@@ -29,7 +29,7 @@ from mirobot_async._client.deadline import deadline_after
 from mirobot_async._client.guard import EnvelopeGuard, NullGuard
 from mirobot_async._client.scheduler import LineScheduler, Slot, StreamStopped
 from mirobot_async._core.protocol import LineRejected, encode_line
-from mirobot_async._core.validation import InvalidLineError
+from mirobot_async._core.validation import InvalidLineError, first_restart
 from mirobot_async.errors import (
     MirobotAlarmError,
     MirobotError,
@@ -37,6 +37,7 @@ from mirobot_async.errors import (
     MirobotResetError,
     MirobotTimeoutError,
     MirobotUsageError,
+    MotionChainError,
 )
 
 __all__ = ["LineResult", "Stream", "StreamResult"]
@@ -354,6 +355,12 @@ class Stream:
         condition.check_sendable(None, motion=False)
         if not self._check_envelope:
             guard.warn_stream_unchecked()
+        refused = self._restart_refusal()
+        if refused is not None:  # nothing is written
+            self.result.errors.append(refused)
+            self.result.stopped = True
+            yield refused
+            return
         run = _StreamRun(
             scheduler,
             condition,
@@ -372,6 +379,23 @@ class Stream:
         async with contextlib.aclosing(results):
             async for line_result in results:
                 yield line_result
+
+    def _restart_refusal(self) -> LineResult | None:
+        """A list or tuple of lines is judged whole before its first byte: a line that would
+        restart from where the moving arm is (its ``M20``/``M21``) refuses the stream."""
+        lines = self._lines
+        if not self._validate or not isinstance(lines, list | tuple):
+            return None
+        texts = [_text(item) for item in lines if isinstance(item, str | bytes | bytearray)]
+        if len(texts) != len(lines):
+            return None  # a bad item: reported in order as the stream reaches it
+        _scheduler, condition, guard = self._parts
+        found = first_restart(texts, firmware=condition.firmware, state=guard.modal_state())
+        if found is None:
+            return None
+        number, line, why = found
+        error = MotionChainError(line, f"{why}; nothing of the stream was sent")
+        return LineResult(number, line, (), error)
 
     def __aiter__(self) -> AsyncIterator[LineResult]:
         return self._take()

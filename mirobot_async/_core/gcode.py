@@ -189,6 +189,7 @@ def move_joints(
     check_limits: bool = True,
     firmware: str = "2021",
     decimals: int = 3,
+    mode_word: bool = True,
 ) -> bytes:
     """Joint-space move ``M21 G90|G91 G0|G1 X.. Y.. Z.. A.. B.. C.. D.. [F..]``.
 
@@ -196,6 +197,10 @@ def move_joints(
     joint at its max rate); with ``speed`` (deg/min) it is ``G1 F<speed>``. Omitted joints stay.
     Absolute targets are checked against :data:`JOINT_RANGES` / :data:`RAIL_RANGES` when
     ``check_limits`` (relative ones cannot be checked without the current position).
+
+    ``mode_word=False`` leaves ``M21`` out, for a line streamed while ``M21`` is in effect: the
+    firmware restarts a line that carries ``M20``/``M21`` from where the arm is at that moment,
+    not from where the queued motion ends (:class:`~mirobot_async._core.modal.Chaining`).
     """
     profile = _check_firmware(firmware)
     places = _check_decimals(decimals)
@@ -232,7 +237,8 @@ def move_joints(
         axis_words.append(letter + text)
     if not axis_words:
         raise _usage("move_joints needs at least one of j1..j6 or rail")
-    words = ["M21", "G91" if relative else "G90"]
+    words = ["M21"] if mode_word else []
+    words.append("G91" if relative else "G90")
     if speed is None:
         words.append("G0")
         words += axis_words
@@ -256,6 +262,7 @@ def move_pose(
     linear: bool = False,
     relative: bool = False,
     decimals: int = 3,
+    mode_word: bool = True,
 ) -> bytes:
     """Cartesian move ``M20 G90|G91 G0|G1 X.. Y.. Z.. A.. B.. C.. [F..]`` (mm, degrees).
 
@@ -263,6 +270,7 @@ def move_pose(
     sets the modal feed). ``linear=True`` is a straight line (``G1``) at ``speed`` mm/min, which is
     then required: a G1 without F fails with ``Undefined feed rate`` after homing.
     Reachability is not checked here (see :mod:`mirobot_async._safety.envelope`).
+    ``mode_word=False`` leaves ``M20`` out (as in :func:`move_joints`).
     """
     places = _check_decimals(decimals)
     values = (("x", x), ("y", y), ("z", z), ("rx", rx), ("ry", ry), ("rz", rz))
@@ -279,14 +287,20 @@ def move_pose(
             "a G1 without F fails with 'Undefined feed rate' after homing"
         )
     feed = None if speed is None else _positive(speed, "speed", places, "mm/min")
-    words = ["M20", "G91" if relative else "G90", "G1" if linear else "G0", *axis_words]
+    words = ["M20"] if mode_word else []
+    words += ["G91" if relative else "G90", "G1" if linear else "G0", *axis_words]
     if feed is not None:
         words.append("F" + feed)
     return _finish(words)
 
 
 def path_header(
-    *, joints: bool, speed: float | None, linear: bool = True, decimals: int = 3
+    *,
+    joints: bool,
+    speed: float | None,
+    linear: bool = True,
+    decimals: int = 3,
+    mode_word: bool = True,
 ) -> bytes:
     """The modal line of a path, stated once: ``M21|M20 G90 G0|G1 G21 [F..]``.
 
@@ -294,12 +308,14 @@ def path_header(
     restarts a line that carries ``M20``/``M21`` from where the arm is at that moment, so
     streamed full lines would swing back. ``linear`` with ``speed=None`` is refused (``G1``
     needs a feed rate); joint paths use ``G1`` with a speed (deg/min), else ``G0``.
+    ``mode_word=False`` leaves ``M21``/``M20`` out too (the mode is in effect already).
     """
     places = _check_decimals(decimals)
     if not joints and linear and speed is None:
         raise _usage("speed is required with linear=True (mm/min)")
     motion = "G1" if (speed is not None and (joints or linear)) else "G0"
-    words = ["M21" if joints else "M20", "G90", motion, "G21"]
+    words = ["M21" if joints else "M20"] if mode_word else []
+    words += ["G90", motion, "G21"]
     if speed is not None:
         words.append("F" + _positive(speed, "speed", places, "deg/min" if joints else "mm/min"))
     return _finish(words)

@@ -3,16 +3,27 @@
 :class:`MotionModes` is what the client knows of the firmware's parser state (``M20``/``M21``,
 ``G90``/``G91``, the motion code, ``G20``/``G21``); any part may be unknown (``None``), e.g. on
 connecting to an arm that another session left in inches. :func:`update_modes` follows every line
-written, checked or not. Pure module (no numpy): the client imports it without an envelope.
+written, checked or not. :class:`Chaining` follows whether each line still continues from where
+the lines before it end when they are streamed (the ``M20``/``M21`` restart, see there). Pure
+module (no numpy): the client imports it without an envelope.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import Final
 
 from mirobot_async._core.line import ParsedLine, parse_line
 
-__all__ = ["LineCheck", "MotionModes", "modes_after", "modes_of", "update_modes"]
+__all__ = [
+    "JOINT_LETTERS",
+    "Chaining",
+    "LineCheck",
+    "MotionModes",
+    "modes_after",
+    "modes_of",
+    "update_modes",
+]
 
 
 @dataclass(frozen=True, slots=True)
@@ -127,3 +138,215 @@ class LineCheck:
     pose: _Six | None
     rail: float | None
     base_offset: tuple[float, float, float] | None = (0.0, 0.0, 0.0)
+
+
+# --------------------------------------------------------------------------------------------
+# Chaining: does a streamed line still start where the lines before it end?
+
+JOINT_LETTERS: Final = "XYZABCD"
+"""The joint-mode axis letters: J1..J6 (``X``..``C``) and the rail (``D``)."""
+_WRIST_AND_ARM: Final = frozenset("XYZABC")
+_POSE_LETTERS: Final = frozenset("XYZABC")
+
+
+@dataclass(frozen=True, slots=True)
+class Chaining:
+    """Whether the firmware's parser position is where the motion queued before a line ends.
+
+    The rule (firmware oracle, classic ``20191228_2``; the emulator models it): **a line that
+    carries ``M20`` or ``M21`` first sets the parser's position to the machine position, where
+    the arm is at the instant the line is parsed, not where the queued motion ends.** Every
+    mode-dependent part of a line, and of the lines after it, is then measured from there.
+    ``G90``/``G91``, ``G0``/``G1``, ``G21`` and ``F`` do not do this. Measured, streamed (all
+    lines parsed before the arm moved) vs stepped (each line after the arm stopped), J1 in deg:
+
+    - ``M21 G91 G0 X1 F2000`` x4: 1.005 vs 4.019; ``M21 G91 G0 X1`` then ``G91 G0 X1``,
+      ``G91 X1``, ``X1``: 4.001 both (the mode stated once chains);
+    - ``M21 G90 G0 X10``, ``M21``, ``G91 X1``: 1.005 vs 10.999 (a bare ``M21``, same mode);
+    - ``M21 G90 G0 Y20``, ``M21 G90 G0 X10``: J2 0 vs 20.004 (an absolute line takes the
+      axes it omits from where the arm is); the rail ``D`` likewise (``D20`` then
+      ``M21 G90 G0 X10``: D 0 vs 20);
+    - absolute lines that give every axis (``M21 G90 G0 X.. Y.. Z.. A.. B.. C..``, and classic
+      ``M20 G90 G0|G1 X.. Y.. Z.. A.. B.. C..``, also from a different wrist J4/J6) end at the
+      same place both ways;
+    - ``M20 G91 G0 X5`` x3 and ``M20 G91 G1``: the Cartesian increments add to the pose of where
+      the arm is (X 207.005 vs 217.006); ``M20 G90 G0 Z120`` after a full pose: the omitted
+      X, Y, A, B, C come from there too;
+    - the restart is permanent: ``M21 G90 G0 X30``, ``M20``, ``G4 P0``, ``G91 X1`` ends near
+      J1 0 (vs 29.861); ``G4 P0`` before the mode word avoids it (the dwell is answered once
+      the planner is empty: the mode word is then parsed at rest).
+
+    So a line is judged by the joints it *reads* from the parser: every joint it does not set
+    to an absolute value (a relative line adds to the parser and keeps the axes it omits where
+    the parser has them: ``M21 G90 G0 X5``, ``M21 G91 G0 Y1`` streamed ends at J1 0, not 5.006;
+    a whole ``M20`` pose, then ``M21 G91 G0 D5``: every joint back to 0), every pose
+    coordinate of a Cartesian line that does not give all six, and on the 2021 firmware the
+    start of an ``M20`` ``G1``/``G2``/``G3``/``G5`` path, which is cut from
+    the parser's pose. Reading a :attr:`stale` joint makes the streamed program end elsewhere
+    than the stepped one. ``moving`` joints become stale when a mode word is parsed.
+    """
+
+    moving: frozenset[str] = frozenset()
+    """Joint letters (:data:`JOINT_LETTERS`) that motion written before may still move."""
+    stale: frozenset[str] = frozenset()
+    """Joint letters whose parser value is where the arm was when :attr:`resync` was parsed."""
+    resync: str | None = None
+    """The line whose ``M20``/``M21`` made :attr:`stale` (as written)."""
+    refused: bool = False
+    """:attr:`resync` is a motion line the firmware refused ("ok" but dropped): it moved the
+    parser's position, not the arm (oracle: locked ``G91 X10``, ``M50``, ``G91 X1`` -> 10.999)."""
+
+    def at_rest(self) -> Chaining:
+        """The arm stopped with nothing queued (a ``G4`` answered, a status at rest with nothing
+        in flight): a mode word now restarts from where the motion ended. Stale joints stay."""
+        return replace(self, moving=frozenset())
+
+    def after_refusal(self, parsed: ParsedLine) -> Chaining:
+        """``parsed`` was refused ("ok" but dropped): the joints it would have moved are where
+        the parser, not the arm, went (any mode: the modes it ran in are not known here)."""
+        moved = _moves(parsed, MotionModes.unknown())
+        if not moved:
+            return self
+        text = parsed.source.strip() or parsed.text
+        return replace(self, stale=self.stale | moved, resync=text, refused=True)
+
+    def moved_anything(self) -> Chaining:
+        """A line of unknown fate (its reply was lost) may have queued motion of any joint."""
+        return replace(self, moving=frozenset(JOINT_LETTERS))
+
+    def problem(
+        self, parsed: ParsedLine, modes: MotionModes, firmware: str | None = None
+    ) -> str | None:
+        """Why ``parsed``, written now (after the modes ``modes``), would end elsewhere when
+        streamed than when sent after the arm stopped (or than intended, after a refused line),
+        with the fix; ``None`` when it would not."""
+        stale = self._stale_at(parsed)
+        read = _reads(parsed, modes, firmware) & stale
+        if not read:
+            return None
+        joints = ", ".join(_joint_name(k) for k in JOINT_LETTERS if k in read)
+        word = f"M{parsed.coordinate_mode}" if parsed.coordinate_mode is not None else None
+        if word is not None and parsed.coordinate_mode is not None and self.moving & read:
+            return (
+                f"{word} makes the firmware restart this line from where the arm is when it "
+                f"reads the line, not from where the motion queued before it ends ({joints} "
+                f"may still be moving): streamed, it ends elsewhere than sent after the arm "
+                f"stopped. State {word} once at the top and leave it out of this line, or put "
+                "G4 P0 before it (the arm stops first)"
+            )
+        source = self.resync or "an earlier M20/M21 line"
+        if self.refused:
+            return (
+                f"this line takes {joints} from where the refused line {source!r} left the "
+                "firmware's parser, not from where the arm is: it ends elsewhere than "
+                "intended. Wait for the arm to stop and state the mode again (M21 or M20: it "
+                "restarts from where the arm is)"
+            )
+        return (
+            f"this line takes {joints} from where the arm was when {source!r} was read (its "
+            "M20/M21 restarts from where the arm is, not from where the motion queued before "
+            "it ends): streamed, it ends elsewhere than sent after the arm stopped. State the "
+            f"mode once at the top and leave it out of {source!r}, or put G4 P0 before it"
+        )
+
+    def needs_restart(
+        self, parsed: ParsedLine, modes: MotionModes, firmware: str | None = None
+    ) -> bool:
+        """``parsed`` (without a mode word) reads a joint the parser has elsewhere: a mode word
+        on it, parsed at rest, would set the parser to where the arm is first."""
+        return bool(_reads(parsed, modes, firmware) & self.stale)
+
+    def _stale_at(self, parsed: ParsedLine) -> frozenset[str]:
+        """The stale joints while ``parsed`` is executed (its own mode word restarts first)."""
+        if parsed.kind == "gcode" and parsed.coordinate_mode is not None:
+            return self.moving
+        return self.stale
+
+    def after(
+        self, parsed: ParsedLine, modes: MotionModes, firmware: str | None = None
+    ) -> Chaining:
+        """The chaining after ``parsed`` was written (``modes``: before it). Homing and a reset
+        (:class:`Chaining` ``()``) leave nothing stale or moving; a dwell waits for the planner."""
+        if parsed.is_homing:
+            return Chaining()
+        if parsed.kind != "gcode" or parsed.syntax_error is not None:
+            if parsed.dollar is not None and parsed.dollar.kind in ("zero", "jog", "unknown"):
+                return replace(self, moving=self.moving | _WRIST_AND_ARM)
+            return self
+        stale, resync, refused = self.stale, self.resync, self.refused
+        if parsed.coordinate_mode is not None:
+            stale, resync, refused = self.moving, parsed.source.strip() or parsed.text, False
+        # reported once: what the line read is set by it (as the firmware does, from there on)
+        stale = stale - _reads(parsed, modes, firmware) - _writes(parsed, modes)
+        moving = frozenset() if 4 in parsed.g_codes else self.moving
+        moving |= _moves(parsed, modes)
+        return Chaining(moving, stale, resync if stale else None, refused and bool(stale))
+
+
+def _joint_name(letter: str) -> str:
+    return "the rail" if letter == "D" else f"J{JOINT_LETTERS.index(letter) + 1}"
+
+
+def _frames(parsed: ParsedLine, modes: MotionModes) -> tuple[bool, ...]:
+    """The coordinate modes the line may run in: (True,) Cartesian, (False,) joints, or both."""
+    current = modes_of(parsed, modes).cartesian
+    return (True, False) if current is None else (current,)
+
+
+def _distances(parsed: ParsedLine, modes: MotionModes) -> tuple[bool, ...]:
+    current = modes_of(parsed, modes).relative
+    return (True, False) if current is None else (current,)
+
+
+def _reads(parsed: ParsedLine, modes: MotionModes, firmware: str | None) -> frozenset[str]:
+    """The joints whose parser value decides where ``parsed`` ends (see :class:`Chaining`)."""
+    if parsed.kind != "gcode" or parsed.syntax_error is not None:
+        return frozenset()
+    axes = frozenset(parsed.axis_words)
+    if not axes:
+        return frozenset()
+    motion = modes_of(parsed, modes).motion
+    read: set[str] = set()
+    for cartesian in _frames(parsed, modes):
+        for relative in _distances(parsed, modes):
+            if relative:  # the words add to the parser, the omitted axes stay there
+                read |= set(JOINT_LETTERS)
+                continue
+            if not cartesian:
+                read |= set(JOINT_LETTERS) - axes
+                continue
+            read |= {"D"} - axes
+            path = firmware != "classic" and motion != 0
+            if axes & _POSE_LETTERS != _POSE_LETTERS or path:
+                read |= _WRIST_AND_ARM
+    return frozenset(read)
+
+
+def _writes(parsed: ParsedLine, modes: MotionModes) -> frozenset[str]:
+    """The joints an absolute line sets regardless of the parser (given axes; a full pose)."""
+    if parsed.kind != "gcode" or parsed.syntax_error is not None:
+        return frozenset()
+    new = modes_of(parsed, modes)
+    if new.relative is not False or new.cartesian is None:
+        return frozenset()
+    axes = frozenset(parsed.axis_words)
+    if not new.cartesian:
+        return axes
+    written = {"D"} & axes
+    if axes >= _POSE_LETTERS:
+        written |= _WRIST_AND_ARM
+    return frozenset(written)
+
+
+def _moves(parsed: ParsedLine, modes: MotionModes) -> frozenset[str]:
+    """The joints the line's motion may move (conservative)."""
+    axes = frozenset(parsed.axis_words)
+    if not axes:
+        return frozenset()
+    moved: set[str] = set()
+    for cartesian in _frames(parsed, modes):
+        if cartesian:
+            moved |= ({"D"} & axes) | (_WRIST_AND_ARM if axes & _POSE_LETTERS else set())
+        else:
+            moved |= axes
+    return frozenset(moved)

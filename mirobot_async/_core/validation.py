@@ -4,9 +4,12 @@
 firmware's parser would (PROTOCOL.md sections 2, 6 and 7: filtering, comments, the 80-byte limit,
 words, modal groups, settings) plus the ranges of PWM values and of absolute ``M21`` joint targets,
 and numbers the firmware reads differently from how they are written (``X0000000030`` is 0,
-``M16404`` is ``M20``). :func:`check_line` / :func:`check_program` return those problems as
-text (the CLI's ``check``); :func:`validate_line` raises them as one
-:class:`~mirobot_async.errors.MirobotUsageError` (the client's ``send()`` and ``stream()``, whose
+``M16404`` is ``M20``), and lines that would end elsewhere streamed than sent one at a time
+(an ``M20``/``M21`` restarts from where the arm is: :class:`~mirobot_async._core.modal.Chaining`;
+raised as :class:`~mirobot_async.errors.MotionChainError`). :func:`check_line` /
+:func:`check_program` return those problems as text (the CLI's ``check``);
+:func:`validate_line` raises them as one :class:`~mirobot_async.errors.MirobotUsageError` (the
+client's ``send()`` and ``stream()``, whose
 opt-out is explicit). Pure module: no I/O.
 """
 
@@ -14,7 +17,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Final
 
 from mirobot_async._core.line import (
@@ -25,6 +28,7 @@ from mirobot_async._core.line import (
     Word,
     parse_line,
 )
+from mirobot_async._core.modal import Chaining, MotionModes
 from mirobot_async._core.settings import setting_problem
 from mirobot_async._core.values import (
     JOINT_NAMES,
@@ -35,13 +39,14 @@ from mirobot_async._core.values import (
     check_firmware,
     show_number,
 )
-from mirobot_async.errors import MirobotUsageError
+from mirobot_async.errors import MirobotUsageError, MotionChainError
 
 __all__ = [
     "InvalidLineError",
     "ModalState",
     "check_line",
     "check_program",
+    "first_restart",
     "line_problems",
     "parse_words",
     "validate_line",
@@ -97,12 +102,21 @@ class ModalState:
     """``M20`` in effect (else ``M21``, the power-on default); ``None``: unknown."""
     relative: bool | None = False
     """``G91`` in effect (else ``G90``, the power-on default); ``None``: unknown."""
+    motion: int | None = 0
+    """The motion code in effect (``G0`` at power-on); ``None``: unknown."""
+    chain: Chaining = field(default_factory=Chaining)
+    """Which joints may still move and which the parser took from where the arm was (see
+    :class:`~mirobot_async._core.modal.Chaining`): a line reading those is reported."""
 
     @classmethod
     def unknown(cls) -> ModalState:
         """Nothing known (a client on an arm in use): mode-dependent ranges are checked only
         when the line states its modes."""
-        return cls(None, None)
+        return cls(None, None, None)
+
+    def modes(self) -> MotionModes:
+        """The motion modes (units: mm; ``G20`` is refused by the check)."""
+        return MotionModes(self.cartesian, self.relative, self.motion, False)
 
 
 def parse_words(line: str | bytes) -> list[tuple[str, float]]:
@@ -151,6 +165,7 @@ def _check_dollar(parsed: ParsedLine, profile: str, state: ModalState, problems:
         if dollar.kind == "homing":
             state.cartesian = False
             state.relative = False
+            state.motion = 0
         return
     if norm.startswith(("$N0=", "$N1=")) or norm in ("$RST=$", "$RST=#", "$RST=*"):
         return
@@ -233,6 +248,7 @@ def _check_gcode(parsed: ParsedLine, profile: str, state: ModalState, problems: 
             if letter == "G":
                 if group == "motion":
                     motion = code
+                    state.motion = code
                 elif code == 4:
                     dwell_seen = True
                 elif group == "distance":
@@ -349,11 +365,25 @@ def line_problems(
 
     ``state`` is the modal state before the line (power-on defaults when omitted) and is updated
     in place. Feed-rate state is not checked (``G1`` without ``F`` depends on what ran before).
-    An empty list means no problem found.
+    A line that would end elsewhere streamed than sent after the arm stopped is a problem too
+    (the last one; :class:`~mirobot_async._core.modal.Chaining`). An empty list means no problem
+    found.
     """
-    profile = check_firmware(firmware)
-    if state is None:
-        state = ModalState()
+    state = ModalState() if state is None else state
+    problems, chain = _problems(parsed, check_firmware(firmware), state)
+    return problems if chain is None else [*problems, chain]
+
+
+def _problems(parsed: ParsedLine, profile: str, state: ModalState) -> tuple[list[str], str | None]:
+    """The problems of :func:`line_problems`, and apart from them the chaining problem."""
+    before = state.modes()
+    chain = state.chain.problem(parsed, before, profile)
+    problems = _syntax_problems(parsed, profile, state)
+    state.chain = state.chain.after(parsed, before, profile)
+    return problems, chain
+
+
+def _syntax_problems(parsed: ParsedLine, profile: str, state: ModalState) -> list[str]:
     text = parsed.source
     problems: list[str] = []
     if "\n" in text or "\r" in text:
@@ -389,7 +419,10 @@ def check_line(
 
 
 def check_program(lines: Iterable[str | bytes], *, firmware: str = "2021") -> list[tuple[int, str]]:
-    """Check the lines of a G-code file in order, from power-on state.
+    """Check the lines of a G-code file in order, from power-on state, as they are streamed
+    (``mirobot run``): a line that would end elsewhere than when the lines are sent one at a
+    time, each after the arm stopped, is reported with the fix (see
+    :class:`~mirobot_async._core.modal.Chaining`).
 
     Returns (1-based line number, problem) pairs; modal words carry over between lines.
     """
@@ -422,12 +455,38 @@ def validate_line(
     :class:`~mirobot_async.errors.MirobotUsageError`) listing every problem
     :func:`line_problems` finds (the client's check before writing; ``state`` as there)."""
     parsed = line if isinstance(line, ParsedLine) else parse_line(line)
-    problems = line_problems(parsed, firmware=firmware, state=state)
+    profile = check_firmware(firmware)
+    problems, chain = _problems(parsed, profile, ModalState() if state is None else state)
+    shown = parsed.source.strip() or parsed.text
     if problems:
-        shown = parsed.source.strip() or parsed.text
         raise InvalidLineError(
             f"line {shown!r} refused before sending: {'; '.join(problems)} "
             "(validate=False sends it anyway)",
             tuple(problems),
         )
+    if chain is not None:
+        raise MotionChainError(shown, f"{chain} (validate=False sends it anyway)")
     return parsed
+
+
+def first_restart(
+    lines: Iterable[str | bytes], *, firmware: str | None, state: ModalState
+) -> tuple[int, str, str] | None:
+    """The first of ``lines`` (1-based number, text, why and the fix) that, streamed from
+    ``state``, would end elsewhere than sent one at a time after the arm stopped (its
+    ``M20``/``M21`` restarts from where the moving arm is:
+    :class:`~mirobot_async._core.modal.Chaining`), or ``None``. Other problems are not judged here.
+    ``firmware=None``: a line counts only if it does on both profiles. ``state`` is not changed."""
+    profiles = (check_firmware(firmware),) if firmware is not None else ("classic", "2021")
+    found: list[tuple[int, str, str] | None] = []
+    for profile in profiles:
+        current = ModalState(state.cartesian, state.relative, state.motion, state.chain)
+        first = None
+        for number, line in enumerate(lines, start=1):
+            parsed = parse_line(line)
+            chain = _problems(parsed, profile, current)[1]
+            if chain is not None:
+                first = (number, parsed.source.strip() or parsed.text, chain)
+                break
+        found.append(first)
+    return None if any(item is None for item in found) else found[0]

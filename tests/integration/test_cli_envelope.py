@@ -56,7 +56,7 @@ def test_run_refuses_a_program_leaving_the_box_with_nothing_sent(
     written = [
         line.split("-> ", 1)[1]
         for line in result.stderr.splitlines()
-        if "mirobot_async._client.wire: -> " in line
+        if "mirobot_async.wire: -> " in line
     ]
     assert set(written) <= {"?", "$$", "$N", "$#", "$G"}, written
     assert after - before == sum(1 for line in written if line != "?"), result.stderr

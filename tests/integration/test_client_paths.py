@@ -134,9 +134,9 @@ async def test_move_path_streams_bare_lines_and_ends_idle_at_the_last_point(
     report = await arm.move_path(_SQUARE[1:], speed=2000)
     assert report.pose[:3] == pytest.approx((200, 0, 200), abs=0.2)
     sent = wire_spy.lines(mark)
-    assert sent[0] == b"M20 G90 G1 G21 F2000\n"
-    # the modes once: no later line carries M20/M21 (the firmware restarts such a line from
-    # where the arm is)
+    # M20 is in effect after move_pose: not stated again (the firmware restarts a line that
+    # carries M20/M21 from where the arm is), and no later line carries it
+    assert sent[0] == b"G90 G1 G21 F2000\n"
     assert sent[1:5] == [
         b"G1 X200 Y20 Z200\n",
         b"G1 X180 Y20 Z200\n",

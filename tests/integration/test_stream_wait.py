@@ -64,7 +64,7 @@ async def test_stream_wait_after_a_failed_line_returns_its_result_and_stays_in_s
     written (the lines are pipelined) is answered later and that reply is not misplaced."""
     arm = ready_arm
     # The firmware refuses an unreachable pose (the envelope is off by default).
-    lines = ["M21 G90 G1 X5 F2000", "M20 G90 G1 X900 Y0 Z100 A0 B0 C0 F2000", "M21 G90 X0"]
+    lines = ["M21 G90 G1 X5 F2000", "M20 G90 G0 X900 Y0 Z100 A0 B0 C0", "M21 G90 X0 Y0 Z0 A0 B0 C0"]
     result = await arm.stream(lines, wait=True)
     assert not result.ok and [r.number for r in result.errors] == [2]
     await arm.wait_idle()

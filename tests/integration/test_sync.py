@@ -53,7 +53,7 @@ SCRIPT = """
         report = arm.move_joints(j1=30, j2=10)
         print("joints", [round(j, 1) for j in report.joints[:2]])
         progress = []
-        result = arm.stream(["G90", "M21 G01 X5 F2000", "M20 G01 X200 Y0 Z200"],
+        result = arm.stream(["G90", "M21 G01 X5 F2000", "M20 G00 X200 Y0 Z200 A0 B0 C0"],
                             on_progress=progress.append)
         print("stream", result.sent, result.acknowledged, len(progress))
         for number, status in enumerate(arm.statuses(0.01)):
@@ -158,7 +158,8 @@ def test_an_interrupt_during_a_stream_stops_sending(mirobot_emulator_pool: Emula
     # Real-time motion, so the robot's buffer holds the stream back and lines remain unsent.
     with mirobot_emulator_pool.lend("2021", 1.0) as emu, Mirobot.connect(emu.url) as arm:
         arm.unlock()
-        lines = [f"M21 G91 G01 X{1 if i % 2 else -1} F200" for i in range(60)]
+        # the modes once, at the top: a line with M21 restarts from where the arm is
+        lines = [f"{'' if i else 'M21 G91 '}G01 X{1 if i % 2 else -1} F200" for i in range(60)]
         seen: list[LineResult] = []
 
         def on_progress(result: LineResult) -> None:
@@ -181,7 +182,7 @@ CTRL_C_SCRIPT = """
 
     arm = Mirobot.connect(sys.argv[1])
     arm.unlock()
-    lines = [f"M21 G91 G01 X{1 if i % 2 else -1} F100" for i in range(200)]
+    lines = [f"{'' if i else 'M21 G91 '}G01 X{1 if i % 2 else -1} F100" for i in range(200)]
     try:
         arm.stream(lines, on_progress=lambda r: print("line", r.number, flush=True))
     except KeyboardInterrupt:

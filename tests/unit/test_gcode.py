@@ -475,6 +475,7 @@ def test_check_program_tracks_modal_state() -> None:
     program = [
         "M20",  # Cartesian: X is mm now
         "G0 X500",
+        "G4 P0",  # the arm stops: the M21 below restarts from where that move ends
         "M21 G91",  # joint increments: not checkable
         "X500",
         "G90",
@@ -484,8 +485,8 @@ def test_check_program_tracks_modal_state() -> None:
         "X500",
     ]
     assert gcode.check_program(program) == [
-        (6, "J1=500 is outside -100..160"),
-        (9, "J1=500 is outside -100..160"),
+        (7, "J1=500 is outside -100..160"),
+        (10, "J1=500 is outside -100..160"),
     ]
 
 
