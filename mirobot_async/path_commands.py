@@ -168,3 +168,30 @@ class PathCommands(ClientParts):
             if not isinstance(found, NeedPosition):
                 return found
             await self._lines.learn_position("a path", deadline)
+
+    async def preview_lines(
+        self, lines: Sequence[str | bytes], *, timeout: float | None = MOVE_TIMEOUT
+    ) -> list[LineCheck]:
+        """The safety envelope's verdicts on ``lines`` as if they were streamed now, one after
+        another from where the arm is; nothing is written. A line the envelope refuses raises
+        :class:`PathRefused` (a MirobotUsageError) with its 0-based :attr:`~PathRefused.index`;
+        without an envelope the answer is ``[]``. May read the firmware profile (``$$``) and the
+        position (``?``) first, within ``timeout`` seconds; cancelling leaves nothing behind."""
+        guard = self._guard
+        if guard.envelope is None:
+            return []
+        deadline = deadline_after(self._running_loop(), timeout)
+        parsed = [parse_line(line) for line in lines]
+        # A line may need the base offset only because an earlier line of the program switched
+        # to M20 G90: ask as if each line with X, Y or Z were an absolute Cartesian one.
+        absolute = parse_line(b"M20 G90 G0 X0")
+        positions = any(any(k in line.axis_words for k in "XYZ") for line in parsed)
+        if any(guard.needs_firmware(line) for line in parsed) or (
+            positions and guard.needs_firmware(absolute)
+        ):
+            await self._require_firmware(deadline, timeout)
+        while True:
+            found = guard.preview(parsed)
+            if not isinstance(found, NeedPosition):
+                return found
+            await self._lines.learn_position("a program", deadline)

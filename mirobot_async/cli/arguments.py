@@ -17,7 +17,7 @@ from mirobot_async.cli import commands
 from mirobot_async.cli.demo import DEFAULT_EXAMPLE, cmd_demo
 from mirobot_async.cli.exits import EXIT_USAGE, PROG
 
-__all__ = ["DEFAULT_MONITOR_INTERVAL", "build_parser"]
+__all__ = ["DEFAULT_MONITOR_INTERVAL", "add_envelope_option", "build_parser"]
 
 DEFAULT_MONITOR_INTERVAL: Final = 0.5
 PORT_ENV: Final = "MIROBOT_PORT"
@@ -149,6 +149,24 @@ def _add_interrupt_option(parser: argparse.ArgumentParser) -> None:
     )
 
 
+# --- envelope option (--envelope FILE) -------------------------------------------------------
+
+
+def add_envelope_option(parser: argparse.ArgumentParser) -> None:
+    """``--envelope FILE`` for a command that moves the arm: every line is checked against the
+    workspace safety envelope in that TOML file (see examples/envelope.toml)."""
+    parser.add_argument(
+        "--envelope",
+        metavar="FILE",
+        help="a safety envelope (TOML: [box] x/y/z, [joints] 1..6, rail = [min, max]; see "
+        "examples/envelope.toml): every line is checked against it before it is sent, and a "
+        "move that would leave it is refused with nothing sent",
+    )
+
+
+# --- end of the envelope option ----------------------------------------------------------------
+
+
 def _version() -> str:
     from importlib.metadata import PackageNotFoundError, version
 
@@ -241,6 +259,7 @@ def build_parser() -> argparse.ArgumentParser:
     joints.set_defaults(handler=commands.cmd_move_joints)
     _add_prepare_options(joints, "home")
     _add_interrupt_option(joints)
+    add_envelope_option(joints)
     pose = move_kinds.add_parser(
         "pose",
         help="Cartesian move, e.g. x=200 y=0 z=150",
@@ -259,6 +278,7 @@ def build_parser() -> argparse.ArgumentParser:
     pose.set_defaults(handler=commands.cmd_move_pose)
     _add_prepare_options(pose, "home")
     _add_interrupt_option(pose)
+    add_envelope_option(pose)
 
     pump = add("pump", commands.cmd_pump, "air pump of the suction cup: on (suck), blow, off")
     pump.add_argument("action", choices=("on", "blow", "off"))
@@ -293,6 +313,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_prepare_options(run, "home")
     _add_interrupt_option(run)
+    add_envelope_option(run)
 
     demo = add(
         "demo",

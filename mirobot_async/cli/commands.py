@@ -272,6 +272,8 @@ async def cmd_run(args: argparse.Namespace) -> int:
                 await _check_before_running(arm, args, name, program)
             await prepare(arm, args)
             before = await preflight(arm)
+            if not args.no_check:
+                await check_envelope_before_running(arm, name, program)
             if trace is not None:
                 trace.write(before)  # the start of the path, before the first move
             result = await _stream_program(arm, args, name, program, trace, scale)
@@ -323,6 +325,33 @@ async def _check_before_running(
         f"{count} problem{'s' if count != 1 else ''} in {name} (firmware {firmware}): nothing "
         "was sent (--no-check sends it anyway)"
     )
+
+
+# --- the envelope's check of a whole program (--envelope) ---------------------------------------
+
+
+async def check_envelope_before_running(
+    arm: Mirobot, name: str, program: list[ProgramLine]
+) -> None:
+    """With a safety envelope (``--envelope``), the whole program is predicted from where the
+    arm stands before anything is sent: a line the envelope refuses is ``FILE:LINE: text:
+    why`` on stderr and :class:`RobotNotReadyError` (exit 1), so that the program does not stop
+    half-way at that line. Without an envelope, nothing to do."""
+    from mirobot_async.guard import PathRefused
+
+    if arm.envelope is None:
+        return
+    try:
+        await arm.preview_lines([line.text for line in program])
+    except PathRefused as err:
+        line = program[err.index]
+        print(f"{name}:{line.number}: {line.text}: {err}", file=sys.stderr)
+        raise RobotNotReadyError(
+            f"{name} leaves the safety envelope at line {line.number}: nothing was sent"
+        ) from None
+
+
+# --- end of the envelope's check --------------------------------------------------------------
 
 
 async def _stream_program(

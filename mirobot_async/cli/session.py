@@ -29,6 +29,7 @@ from mirobot_async.replies import State, StatusReport
 
 if TYPE_CHECKING:
     from mirobot_async.client import Mirobot
+    from mirobot_async.envelope import Envelope
 
 __all__ = [
     "DEFAULT_TIME_SCALE",
@@ -37,6 +38,7 @@ __all__ = [
     "STOP_WAIT",
     "Interrupts",
     "background_jobs",
+    "envelope_of",
     "firmware_of",
     "open_robot",
     "preflight",
@@ -77,6 +79,18 @@ def time_scale_of(args: argparse.Namespace) -> float | None:
     return DEFAULT_TIME_SCALE if args.time_scale is None else float(args.time_scale)
 
 
+def envelope_of(args: argparse.Namespace) -> Envelope | None:
+    """The safety envelope of ``--envelope FILE`` (None without it), on the kinematic model of
+    ``--firmware`` (default 2021: a classic arm found at connect gets the classic model).
+    A bad file is a MirobotUsageError naming it (exit status 2), before the arm is opened."""
+    path = getattr(args, "envelope", None)
+    if path is None:
+        return None
+    from mirobot_async.envelope_file import load_envelope
+
+    return load_envelope(path, firmware=firmware_of(args))
+
+
 def _check_port(port: str) -> None:
     """Fail early, in plain words, for a device path that does not exist or is locked.
 
@@ -111,6 +125,7 @@ async def open_robot(args: argparse.Namespace) -> AsyncIterator[Mirobot]:
     """The arm at ``--port``, or an embedded virtual Mirobot for the duration of the block."""
     from mirobot_async.client import Mirobot
 
+    envelope = envelope_of(args)
     if args.port is not None:
         if args.time_scale is not None:
             note("note: --time-scale only applies to the embedded virtual Mirobot; ignored")
@@ -118,7 +133,7 @@ async def open_robot(args: argparse.Namespace) -> AsyncIterator[Mirobot]:
             args.port = await asyncio.to_thread(find_mirobot)
             note(f"auto: using {args.port}")
         _check_port(args.port)
-        async with Mirobot.connect(args.port, firmware=args.firmware) as arm:
+        async with Mirobot.connect(args.port, firmware=args.firmware, envelope=envelope) as arm:
             yield arm
         return
 
@@ -134,7 +149,9 @@ async def open_robot(args: argparse.Namespace) -> AsyncIterator[Mirobot]:
     try:
         async with (
             start_emulator(firmware=firmware, time_scale=scale) as url,
-            Mirobot.connect(url, firmware="classic" if firmware == "classic" else "2021") as arm,
+            Mirobot.connect(
+                url, firmware="classic" if firmware == "classic" else "2021", envelope=envelope
+            ) as arm,
         ):
             yield arm
     finally:
