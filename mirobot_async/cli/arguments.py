@@ -389,11 +389,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="stream PROGRAM once the first browser has connected (else: the Run button)",
     )
     view.add_argument("--no-browser", action="store_true", help="do not open a browser")
-    view.add_argument(
-        "--envelope",
-        metavar="FILE",
-        help="safety envelope file: drawn, and every jog and streamed line is checked against it",
-    )
+    add_envelope_option(view)  # drawn as a box; every jog and streamed line is checked
     urdf = add(
         "urdf",
         commands.cmd_urdf,

@@ -67,7 +67,10 @@ async def _open_arm(args: argparse.Namespace, envelope: Envelope | None) -> Asyn
     from mirobot_async.testing import start_emulator
 
     scale = DEFAULT_TIME_SCALE if args.time_scale is None else float(args.time_scale)
-    note(f"no --port given; using an embedded virtual Mirobot (firmware {firmware}, time-scale {scale:g})")
+    note(
+        f"no --port given; using an embedded virtual Mirobot (firmware {firmware}, "
+        f"time-scale {scale:g})"
+    )
     async with (
         start_emulator(firmware=firmware, time_scale=scale) as url,
         Mirobot.connect(url, firmware=firmware, envelope=envelope) as arm,

@@ -109,8 +109,8 @@ class ViewController:
             name, action = await self._queue.get()
             self.current = name
             try:
-                await action()
-                self.panel.say(f"{name}: done")
+                outcome = await action()
+                self.panel.say(outcome if isinstance(outcome, str) else f"{name}: done")
             except MirobotError as err:
                 self.panel.say(f"**{name}: {err}**")
             except Exception as err:  # a bug must not kill the pendant; it is logged
@@ -191,8 +191,8 @@ class ViewController:
     def teach(self, name: str) -> None:
         """The teach table's buttons (table changes happen on the loop, in order)."""
 
-        async def act() -> None:
-            await self._teach(name)
+        async def act() -> str | None:
+            return await self._teach(name)
 
         self._submit(name, act)
 
@@ -208,13 +208,15 @@ class ViewController:
     def _selected(self) -> int:
         return int(self.panel.point.value)
 
-    async def _teach(self, name: str) -> None:
+    async def _teach(self, name: str) -> str | None:
         table, panel = self.table, self.panel
+        said = None
         if name == "Record point":
             report = await self.arm.status(fresh=True)
             self.last = report
             number = table.add(TaughtPoint(report.joints, report.rail, report.pose))
             panel.point.value = number
+            said = f"Recorded point {number}"
         elif name == "Go to":
             await self._run_points([table.get(self._selected())])
         elif name == "Run all points":
@@ -229,11 +231,12 @@ class ViewController:
         elif name == "Apply joints":
             table.replace(self._selected(), self._edited_point())
         elif name == "Export":
-            self._export()
+            said = self._export()
         if table.points and 1 <= self._selected() <= len(table.points):
             point = table.get(self._selected())
             panel.point_joints.value = " ".join(f"{v:.3f}" for v in point.joints)
         panel.table.content = table.markdown(self._selected())
+        return said
 
     def _edited_point(self) -> TaughtPoint:
         from mirobot_async.kinematics import forward
@@ -243,7 +246,9 @@ class ViewController:
         try:
             values = [float(v) for v in text]
         except ValueError:
-            raise _ViewError(f"point joints {self.panel.point_joints.value!r}: six numbers") from None
+            raise _ViewError(
+                f"point joints {self.panel.point_joints.value!r}: six numbers"
+            ) from None
         if len(values) != 6:
             raise _ViewError(f"point joints: six numbers J1..J6 (got {len(values)})")
         joints = (values[0], values[1], values[2], values[3], values[4], values[5])
@@ -261,7 +266,7 @@ class ViewController:
         if result.errors:
             raise _ViewError(f"stopped at point {result.errors[0].number - 1}")
 
-    def _export(self) -> None:
+    def _export(self) -> str:
         lines = export_program(
             self.table.points, speed=float(self.panel.teach_speed.value), firmware=self.firmware
         )
@@ -269,7 +274,8 @@ class ViewController:
         with open(path, "w", encoding="ascii") as file:
             file.write("\n".join(lines) + "\n")
         shown = "\n".join(lines)
-        self.panel.exported.content = f"Wrote `{path}`:\n```\n{shown}\n```"
+        self.panel.exported.content = f"```\n{shown}\n```"
+        return f"Wrote {path} ({len(self.table.points)} points)"
 
     # ------------------------------------------------------------------------------------
     # The program
@@ -330,7 +336,9 @@ def describe_preview(program: ProgramSource, preview: ProgramPreview) -> str:
         text = f"{head}  \nNo flagged lines."
     else:
         rows = "\n".join(f"- line {f.number}: `{f.text}`: {f.message}" for f in preview.flagged)
-        text = f"{head}  \n**Flagged lines ({len(preview.flagged)})**, marked red in the view:\n{rows}"
+        text = (
+            f"{head}  \n**Flagged lines ({len(preview.flagged)})**, marked red in the view:\n{rows}"
+        )
     if preview.unknown:
         first = preview.unknown[0]
         text += f"  \nPath not drawn after line {first.number}: {first.message}"

@@ -59,8 +59,10 @@ class ControlPanel:
             self.joint_speed = gui.add_number("Speed (deg/min)", 1500.0, min=10.0, max=3000.0)
             for j in range(1, 7):
                 group = gui.add_button_group(f"J{j}", (f"J{j} -", f"J{j} +"))
-                group.on_click(_pick(lambda v, j=j: actions.jog_joint(j, -1 if v.endswith("-") else 1)))
-        with gui.add_folder("Jog Cartesian", expand_by_default=False):
+                group.on_click(
+                    _pick(lambda v, j=j: actions.jog_joint(j, -1 if v.endswith("-") else 1))
+                )
+        with gui.add_folder("Jog Cartesian"):
             self.move_step = gui.add_number("Step (mm)", 10.0, min=0.1, max=100.0, step=0.1)
             self.turn_step = gui.add_number("Turn step (deg)", 5.0, min=0.1, max=90.0, step=0.1)
             self.linear_speed = gui.add_number("Speed (mm/min)", 1500.0, min=10.0, max=5000.0)
@@ -79,7 +81,9 @@ class ControlPanel:
             self.point_joints = gui.add_text("Point joints", "")
             apply = gui.add_button("Apply joints")
             apply.on_click(lambda _: actions.teach("Apply joints"))
-            self.teach_speed = gui.add_number("Program speed (deg/min)", 2000.0, min=10.0, max=3000.0)
+            self.teach_speed = gui.add_number(
+                "Program speed (deg/min)", 2000.0, min=10.0, max=3000.0
+            )
             run_all = gui.add_button("Run all points")
             run_all.on_click(lambda _: actions.teach("Run all points"))
             self.export_path = gui.add_text("Export to", "taught.gcode")
@@ -92,7 +96,9 @@ class ControlPanel:
         self.message.content = text
 
 
-def _pick(handler: Callable[[str], None]) -> Callable[[viser.GuiEvent[viser.GuiButtonGroupHandle]], None]:
+def _pick(
+    handler: Callable[[str], None],
+) -> Callable[[viser.GuiEvent[viser.GuiButtonGroupHandle]], None]:
     """A button group's callback: the option clicked is the group's value."""
 
     def callback(event: viser.GuiEvent[viser.GuiButtonGroupHandle]) -> None:

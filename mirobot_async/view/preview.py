@@ -160,9 +160,7 @@ def _segments(
     if result.snap is not None:
         out.append(PathSegment(number, _joint_points(model, start_joints, result.snap), "snap"))
     start_pose: Pose = (
-        before.pose
-        if before.pose is not None
-        else forward(start_joints, model.dh, model.tool)
+        before.pose if before.pose is not None else forward(start_joints, model.dh, model.tool)
     )
     target = result.state.pose
     if target is None:
@@ -170,7 +168,9 @@ def _segments(
     step = model.path_step_mm
     pieces: list[FloatArray] = []
     if modes.motion == 1:
-        pieces.append(line_samples(start_pose, target, int(line_samples_needed(start_pose, target, step))))
+        pieces.append(
+            line_samples(start_pose, target, int(line_samples_needed(start_pose, target, step)))
+        )
     elif modes.motion in (2, 3):
         radius = result.line.value("R")
         if radius is not None:

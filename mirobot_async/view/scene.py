@@ -30,7 +30,11 @@ __all__ = ["ArmScene"]
 _M: Final = 0.001
 _REACH_MM: Final = 450.0
 """How far an open side of the envelope's box is drawn (beyond the arm's reach)."""
-_PATH_COLOURS: Final = {"joint": (40, 110, 230), "cartesian": (20, 160, 80), "snap": (150, 150, 150)}
+_PATH_COLOURS: Final = {
+    "joint": (40, 110, 230),
+    "cartesian": (20, 160, 80),
+    "snap": (150, 150, 150),
+}
 _FLAG_COLOUR: Final = (220, 30, 30)
 
 
@@ -44,6 +48,7 @@ class ArmScene:
         scene = server.scene
         scene.set_up_direction("+z")
         scene.configure_environment_map(environment_intensity=0.35)
+        scene.configure_default_lights(cast_shadow=False)  # shadows cost software renderers
         scene.add_grid("/ground", width=1.0, height=1.0, cell_size=0.05, section_size=0.1)
         self.base = scene.add_frame("/arm", show_axes=False)
         model = yourdfpy.URDF.load(io.StringIO(build_urdf(firmware)))
@@ -66,7 +71,10 @@ class ArmScene:
         self.tool.position = (x * _M + offset[0], y * _M + offset[1], z * _M + offset[2])
         if rail and self._rail is None:  # the 2021 status always has D: drawn once it moves
             self._rail = self._server.scene.add_box(
-                "/rail", color=(90, 90, 100), dimensions=(0.14, 1.2, 0.02), position=(0, 0.5, -0.011)
+                "/rail",
+                color=(90, 90, 100),
+                dimensions=(0.14, 1.2, 0.02),
+                position=(0, 0.5, -0.011),
             )
 
     def show_status(self, report: StatusReport) -> None:
@@ -117,12 +125,17 @@ class ArmScene:
             position = where.get(flag.number, (0.0, 0.0, 0.0))
             self._path_nodes.append(
                 scene.add_icosphere(
-                    f"/program/flag/{flag.number}", radius=0.008, color=_FLAG_COLOUR, position=position
+                    f"/program/flag/{flag.number}",
+                    radius=0.011,
+                    color=_FLAG_COLOUR,
+                    position=position,
                 )
             )
             self._path_nodes.append(
                 scene.add_label(
-                    f"/program/flag/{flag.number}/label", f"line {flag.number}", position=(0, 0, 0.02)
+                    f"/program/flag/{flag.number}/label",
+                    f"line {flag.number}",
+                    position=(0, 0, 0.02),
                 )
             )
 

@@ -41,7 +41,10 @@ class TaughtPoint:
 
 def point_line(point: TaughtPoint, *, firmware: str = "2021") -> str:
     """The axis words of one point (3 decimals, checked against the joint ranges)."""
-    words = [f"{letter}{gcode.fmt_number(v, 3, name=letter)}" for letter, v in zip(_LETTERS, point.joints, strict=True)]
+    words = [
+        f"{letter}{gcode.fmt_number(v, 3, name=letter)}"
+        for letter, v in zip(_LETTERS, point.joints, strict=True)
+    ]
     if point.rail is not None:
         words.append(f"D{gcode.fmt_number(point.rail, 3, name='rail')}")
     line = " ".join(words)
@@ -80,7 +83,9 @@ class TeachTable:
 
     def _index(self, number: int) -> int:
         if not 1 <= number <= len(self.points):
-            raise MirobotUsageError(f"there is no point {number} (the table has {len(self.points)})")
+            raise MirobotUsageError(
+                f"there is no point {number} (the table has {len(self.points)})"
+            )
         return number - 1
 
     def add(self, point: TaughtPoint) -> int:
