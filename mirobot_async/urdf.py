@@ -183,7 +183,7 @@ def build_urdf(firmware: str = "2021", *, name: str = "mirobot") -> str:
         f'      <geometry><box size="{_vec((_BASE_SIDE, _BASE_SIDE, base_height))}"/></geometry>\n'
         '      <material name="body"/>\n    </visual>\n  </link>\n'
     )
-    for index, row in enumerate(rows, start=1):
+    for index in range(1, len(rows) + 1):
         out.append(f'  <link name="link{index}">\n{_link_visuals(index, rows)}  </link>\n')
     parent = "base_link"
     for index, (row, joint) in enumerate(zip(rows, JOINT_NAMES, strict=True), start=1):

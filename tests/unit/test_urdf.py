@@ -22,7 +22,10 @@ PROFILES = ("2021", "classic")
 _MODELS = {p: yourdfpy.URDF.load(io.StringIO(build_urdf(p))) for p in PROFILES}
 
 joints = st.tuples(
-    *(st.floats(lo, hi, allow_nan=False, allow_infinity=False) for lo, hi in kinematics.JOINT_LIMITS)
+    *(
+        st.floats(lo, hi, allow_nan=False, allow_infinity=False)
+        for lo, hi in kinematics.JOINT_LIMITS
+    )
 )
 
 
