@@ -16,7 +16,7 @@ import contextlib
 import sys
 import webbrowser
 from collections.abc import AsyncIterator
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Literal
 
 from mirobot_async.cli.exits import CliError, note
 from mirobot_async.cli.programs import read_lines, read_program
@@ -58,7 +58,7 @@ async def _open_arm(args: argparse.Namespace, envelope: Envelope | None) -> Asyn
     """The arm at ``--port`` as it is, or an embedded virtual Mirobot, homed first."""
     from mirobot_async.client import Mirobot
 
-    firmware = args.firmware or "2021"
+    firmware: Literal["2021", "classic"] = "classic" if args.firmware == "classic" else "2021"
     if args.port is not None:
         async with Mirobot.connect(args.port, firmware=args.firmware, envelope=envelope) as arm:
             yield arm
@@ -131,7 +131,11 @@ async def serve_view(args: argparse.Namespace) -> int:
                 print(f"{source.name}:{flag.number}: {flag.message}", file=sys.stderr)  # type: ignore[union-attr]
         connected = asyncio.Event()
         loop = asyncio.get_running_loop()
-        server.on_client_connect(lambda _client: loop.call_soon_threadsafe(connected.set))
+
+        def on_connect(_client: viser.ClientHandle) -> None:
+            loop.call_soon_threadsafe(connected.set)
+
+        server.on_client_connect(on_connect)
         if not args.no_browser:
             webbrowser.open(url)
         tasks = [

@@ -16,7 +16,7 @@ import contextlib
 import logging
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Final
+from typing import TYPE_CHECKING, Any, Final
 
 import viser
 
@@ -136,20 +136,22 @@ class ViewController:
     def jog_joint(self, joint: int, sign: int) -> None:
         step = float(self.panel.joint_step.value) * sign
         speed = float(self.panel.joint_speed.value)
-        target = {f"j{joint}": step}
+        steps: list[float | None] = [None] * 6
+        steps[joint - 1] = step
         self._submit(
             f"J{joint} {'+' if sign > 0 else '-'}{abs(step):g} deg",
-            lambda: self.arm.move_joints(**target, relative=True, speed=speed),
+            lambda: self.arm.move_joints(*steps, relative=True, speed=speed),
         )
 
     def jog_cartesian(self, axis: int, sign: int) -> None:
         name = CARTESIAN_AXES[axis]
         step = float(self.panel.move_step.value if axis < 3 else self.panel.turn_step.value) * sign
         speed = float(self.panel.linear_speed.value)
-        target = {name.lower(): step}
+        steps: list[float | None] = [None] * 6
+        steps[axis] = step
         self._submit(
             f"{name} {'+' if sign > 0 else '-'}{abs(step):g}",
-            lambda: self.arm.move_pose(**target, relative=True, linear=True, speed=speed),
+            lambda: self.arm.move_pose(*steps, relative=True, linear=True, speed=speed),
         )
 
     def command(self, name: str) -> None:
@@ -215,14 +217,14 @@ class ViewController:
             report = await self.arm.status(fresh=True)
             self.last = report
             number = table.add(TaughtPoint(report.joints, report.rail, report.pose))
-            panel.point.value = number
+            _set_value(panel.point, number)
             said = f"Recorded point {number}"
         elif name == "Go to":
             await self._run_points([table.get(self._selected())])
         elif name == "Run all points":
             await self._run_points(list(table.points))
         elif name in ("Up", "Down"):
-            panel.point.value = table.move(self._selected(), -1 if name == "Up" else 1)
+            _set_value(panel.point, table.move(self._selected(), -1 if name == "Up" else 1))
         elif name == "Delete":
             table.delete(self._selected())
         elif name == "Set here":
@@ -234,7 +236,7 @@ class ViewController:
             said = self._export()
         if table.points and 1 <= self._selected() <= len(table.points):
             point = table.get(self._selected())
-            panel.point_joints.value = " ".join(f"{v:.3f}" for v in point.joints)
+            _set_value(panel.point_joints, " ".join(f"{v:.3f}" for v in point.joints))
         panel.table.content = table.markdown(self._selected())
         return said
 
@@ -292,11 +294,11 @@ class ViewController:
         bar = self.panel.progress
         assert bar is not None
         total = len(program.commands)
-        bar.value = 0.0
+        _set_value(bar, 0.0)
 
         def progress(result: object) -> None:
             number = getattr(result, "number", 0)
-            bar.value = 100.0 * number / max(total, 1)
+            _set_value(bar, 100.0 * number / max(total, 1))
 
         result = await self.arm.stream(
             [text for _, text in program.commands], on_progress=progress, wait=True
@@ -305,8 +307,14 @@ class ViewController:
             failed = result.errors[0]
             line = program.commands[failed.number - 1][0]
             raise _ViewError(f"{program.name}:{line}: {failed.error or 'failed'}")
-        bar.value = 100.0
+        _set_value(bar, 100.0)
         self.panel.say(f"{program.name}: {total} lines done")
+
+
+def _set_value(handle: Any, value: object) -> None:
+    """Set an input's value (viser's typing declares ``value`` read-only on some handles;
+    the setter exists and sends the new value to the page)."""
+    handle.value = value
 
 
 class _ViewError(MirobotError):

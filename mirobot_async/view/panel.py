@@ -11,6 +11,7 @@ from collections.abc import Callable
 from typing import Final, Protocol
 
 import viser
+from viser._gui_handles import GuiProgressBarHandle
 
 __all__ = ["CARTESIAN_AXES", "Actions", "ControlPanel"]
 
@@ -47,7 +48,7 @@ class ControlPanel:
             grip = gui.add_button_group("Gripper", ("Gripper open", "Gripper close"))
             grip.on_click(_pick(lambda v: actions.command(v)))
         self.program_text: viser.GuiMarkdownHandle | None = None
-        self.progress: viser.GuiProgressBarHandle | None = None
+        self.progress: GuiProgressBarHandle | None = None
         if program is not None:
             with gui.add_folder("Program"):
                 self.program_text = gui.add_markdown(f"**{program}**")
@@ -59,18 +60,14 @@ class ControlPanel:
             self.joint_speed = gui.add_number("Speed (deg/min)", 1500.0, min=10.0, max=3000.0)
             for j in range(1, 7):
                 group = gui.add_button_group(f"J{j}", (f"J{j} -", f"J{j} +"))
-                group.on_click(
-                    _pick(lambda v, j=j: actions.jog_joint(j, -1 if v.endswith("-") else 1))
-                )
+                group.on_click(_pick(_jog(actions.jog_joint, j)))
         with gui.add_folder("Jog Cartesian"):
             self.move_step = gui.add_number("Step (mm)", 10.0, min=0.1, max=100.0, step=0.1)
             self.turn_step = gui.add_number("Turn step (deg)", 5.0, min=0.1, max=90.0, step=0.1)
             self.linear_speed = gui.add_number("Speed (mm/min)", 1500.0, min=10.0, max=5000.0)
             for i, axis in enumerate(CARTESIAN_AXES):
                 group = gui.add_button_group(axis, (f"{axis} -", f"{axis} +"))
-                group.on_click(
-                    _pick(lambda v, i=i: actions.jog_cartesian(i, -1 if v.endswith("-") else 1))
-                )
+                group.on_click(_pick(_jog(actions.jog_cartesian, i)))
         with gui.add_folder("Teach"):
             record = gui.add_button("Record point", color="blue")
             record.on_click(lambda _: actions.teach("Record point"))
@@ -105,3 +102,12 @@ def _pick(
         handler(event.target.value)
 
     return callback
+
+
+def _jog(action: Callable[[int, int], None], which: int) -> Callable[[str], None]:
+    """A jog group's handler: ``action(which, -1 or +1)`` for the option ``... -``/``... +``."""
+
+    def handler(option: str) -> None:
+        action(which, -1 if option.endswith("-") else 1)
+
+    return handler

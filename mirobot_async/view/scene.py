@@ -90,8 +90,12 @@ class ArmScene:
             high = _REACH_MM if bound is None or bound[1] is None else bound[1]
             lows.append(low)
             highs.append(high)
-        size = tuple((h - lo) * _M for lo, h in zip(lows, highs, strict=True))
-        centre = tuple((h + lo) / 2 * _M for lo, h in zip(lows, highs, strict=True))
+        size = ((highs[0] - lows[0]) * _M, (highs[1] - lows[1]) * _M, (highs[2] - lows[2]) * _M)
+        centre = (
+            (highs[0] + lows[0]) / 2 * _M,
+            (highs[1] + lows[1]) / 2 * _M,
+            (highs[2] + lows[2]) / 2 * _M,
+        )
         self._server.scene.add_box(
             "/envelope", color=(230, 160, 0), dimensions=size, position=centre, wireframe=True
         )
