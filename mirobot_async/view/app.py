@@ -282,7 +282,7 @@ class ViewController:
     # ------------------------------------------------------------------------------------
     # The program
 
-    async def run_program(self) -> None:
+    async def run_program(self) -> str:
         """Stream the program with progress (refused, nothing sent, when lines are flagged)."""
         program, preview = self.program, self.preview
         if program is None or preview is None:
@@ -308,7 +308,7 @@ class ViewController:
             line = program.commands[failed.number - 1][0]
             raise _ViewError(f"{program.name}:{line}: {failed.error or 'failed'}")
         _set_value(bar, 100.0)
-        self.panel.say(f"{program.name}: {total} lines done")
+        return f"{program.name}: {total} lines done"
 
 
 def _set_value(handle: Any, value: object) -> None:

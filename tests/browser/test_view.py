@@ -217,3 +217,17 @@ def test_envelope_refuses_a_jog(start_view: Any, open_page: Any, tmp_path: Path)
     page.expect_text("J3 0.00")
     page.shot("envelope")
     _close(page, view)
+
+
+def test_run_option_streams_the_program_once_the_page_is_open(
+    start_view: Any, open_page: Any
+) -> None:
+    """``--run``: the program starts when the first browser connects; the progress bar and
+    the message say when it is done, and the arm ends where the program ends."""
+    view = start_view(str(EXAMPLES / "square.gcode"), "--run", "--time-scale", "100")
+    page = open_page(view.url)
+    page.expect_text("square.gcode: ")
+    page.expect_text("lines done")
+    page.expect_text("State: Idle")
+    page.shot("ran")
+    _close(page, view)
