@@ -404,6 +404,23 @@ def build_parser() -> argparse.ArgumentParser:
     )
     # --- end of mirobot view / mirobot urdf -----------------------------------------------
 
+    # --- mcp: a Model Context Protocol server for AI agents -------------------------------
+    mcp = add(
+        "mcp",
+        commands.cmd_mcp,
+        "serve the arm to an AI agent over MCP (stdio; for Claude Desktop, Cursor...): tools "
+        "status, home, move_joints, move_pose, run_program, hold, reset...; every motion is "
+        "checked against the safety envelope (--envelope, else a conservative default box)",
+    )
+    mcp.add_argument(
+        "--dry-run",
+        action="store_true",
+        help="with --port: run every motion tool first on a virtual twin (the embedded "
+        "emulator) and only then on the arm; what fails on the twin is not sent to the arm",
+    )
+    add_envelope_option(mcp)
+    # --- end of mcp ------------------------------------------------------------------------
+
     emulator = commands_parser.add_parser(
         "emulator",
         help="run the virtual Mirobot on a pty (same as mirobot-emulator; see "

@@ -61,6 +61,7 @@ __all__ = [
     "cmd_emulator",
     "cmd_gripper",
     "cmd_home",
+    "cmd_mcp",
     "cmd_monitor",
     "cmd_move_joints",
     "cmd_move_pose",
@@ -467,6 +468,19 @@ def cmd_urdf(args: argparse.Namespace) -> int:
 
 
 # --- end of mirobot view / mirobot urdf ---------------------------------------------------
+
+
+# --- mcp -----------------------------------------------------------------------------------
+
+
+async def cmd_mcp(args: argparse.Namespace) -> int:
+    """``mirobot mcp``: a Model Context Protocol server over stdio (needs the ``mcp`` extra)."""
+    from mirobot_async.mcp_server import serve
+
+    return await serve(args)
+
+
+# --- end of mcp ----------------------------------------------------------------------------
 
 
 def cmd_emulator(args: argparse.Namespace) -> int:

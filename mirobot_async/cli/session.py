@@ -82,7 +82,11 @@ def time_scale_of(args: argparse.Namespace) -> float | None:
 def envelope_of(args: argparse.Namespace) -> Envelope | None:
     """The safety envelope of ``--envelope FILE`` (None without it), on the kinematic model of
     ``--firmware`` (default 2021: a classic arm found at connect gets the classic model).
-    A bad file is a MirobotUsageError naming it (exit status 2), before the arm is opened."""
+    A bad file is a MirobotUsageError naming it (exit status 2), before the arm is opened.
+    A command may set ``args.envelope_object`` (an Envelope) instead, e.g. a default one."""
+    given: Envelope | None = getattr(args, "envelope_object", None)
+    if given is not None:
+        return given
     path = getattr(args, "envelope", None)
     if path is None:
         return None

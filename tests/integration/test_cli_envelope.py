@@ -6,6 +6,7 @@ received) and its port, channels the CLI does not use."""
 from __future__ import annotations
 
 import subprocess
+import sys
 from collections.abc import Callable
 from pathlib import Path
 
@@ -81,3 +82,18 @@ def test_a_bad_envelope_file_is_a_usage_error(cli: Cli, tmp_path: Path) -> None:
         f"mirobot: error: {bad}: box.z = [300, 20]: min is above max (reversed range)"
     )
     assert "virtual Mirobot" not in result.stderr  # refused before an arm was opened
+
+
+def test_mcp_without_the_sdk_says_how_to_install_it(
+    cli: Cli, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.delitem(sys.modules, "mirobot_async.mcp_server.server", raising=False)
+    for name in [name for name in sys.modules if name == "mcp" or name.startswith("mcp.")]:
+        monkeypatch.setitem(sys.modules, name, None)  # imported before: ImportError now
+    monkeypatch.setitem(sys.modules, "mcp", None)
+    result = cli("mcp", "--time-scale", "0")
+    assert result.returncode == 2
+    last = result.stderr.strip().splitlines()[-1]
+    assert last.startswith("mirobot: error: mirobot mcp needs the MCP SDK: pip install ")
+    assert "'mirobot-async[mcp]'" in last
+    assert "virtual Mirobot" not in result.stderr  # said before anything was started
