@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Any, Final
 
 import viser
 
+from mirobot_async import gcode
 from mirobot_async.errors import MirobotError, MirobotTimeoutError
 from mirobot_async.replies import State, StatusReport
 from mirobot_async.view.panel import CARTESIAN_AXES, ControlPanel
@@ -41,6 +42,18 @@ _QUEUE_LIMIT: Final = 8
 """Commands waiting behind the running one; clicks beyond are refused (a stuck arm)."""
 _PUMP: Final = {"Pump on": "suction_on", "Pump blow": "blow", "Pump off": "pump_off"}
 _STATE_WORDS: Final = {State.HOME: "Home (homing)"}
+_OUTPUT_WORDS: Final = {  # what the PWM 1 output (M3 S...) drives, by its value
+    gcode.PUMP_OFF: "off",
+    gcode.PUMP_SUCK: "pump sucking",
+    gcode.PUMP_BLOW: "pump blowing",
+    gcode.GRIPPER_OPEN: "gripper open",
+    gcode.GRIPPER_CLOSE: "gripper closed",
+}
+_LEGACY_GRIPPER: Final = {
+    0: "off",
+    gcode.VALVE_GRIPPER_OPEN: "open",
+    gcode.VALVE_GRIPPER_CLOSE: "closed",
+}
 
 
 @dataclass(frozen=True, slots=True)
@@ -327,12 +340,13 @@ def describe_status(report: StatusReport, running: str | None) -> str:
     joints = "  ".join(f"J{i} {v:.2f}" for i, v in enumerate(report.joints, start=1))
     x, y, z, rx, ry, rz = report.pose
     rail = "" if report.rail is None else f"  \n**Rail:** {report.rail:.2f} mm"
-    pump = "on" if report.pump_pwm else "off"
+    outputs = _OUTPUT_WORDS.get(report.pump_pwm, f"PWM {report.pump_pwm}")
+    legacy = _LEGACY_GRIPPER.get(report.valve_pwm, f"PWM {report.valve_pwm}")
     lines = [
         f"**State:** {word}" + (f" (running: {running})" if running else ""),
         f"**Joints:** {joints}",
         f"**Tool:** x {x:.2f}  y {y:.2f}  z {z:.2f}  rx {rx:.2f}  ry {ry:.2f}  rz {rz:.2f}",
-        f"**Pump:** {pump} (PWM {report.pump_pwm})  **Gripper/valve PWM:** {report.valve_pwm}",
+        f"**Pump/gripper:** {outputs}  **Valve/legacy gripper:** {legacy}",
     ]
     return "  \n".join(lines) + rail
 

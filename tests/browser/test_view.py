@@ -123,6 +123,10 @@ def test_jog_moves_the_embedded_arm(start_view: Any, open_page: Any) -> None:
     page.expect_joint(2, 5.0)
     page.click("Z +")  # Cartesian jog: 10 mm up, in a straight line
     page.expect_text("Z +10: done")
+    page.click("Pump on")
+    page.expect_text("Pump/gripper: pump sucking")
+    page.click("Gripper close")
+    page.expect_text("Pump/gripper: gripper closed")
     page.page.wait_for_timeout(300)
     after = page.canvas()
     assert _changed_pixels(before, after) > 100
