@@ -3,6 +3,9 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 from hypothesis import given
@@ -107,3 +110,18 @@ def test_teach_table_edits() -> None:
     with pytest.raises(MirobotUsageError):
         export_program([])
     assert "| 1 |" in table.markdown()
+
+
+def test_view_without_the_extra_says_how_to_install_it() -> None:
+    """No viser: one line naming the extra, exit status 2, no virtual arm started."""
+    code = (
+        "import sys; sys.modules['viser'] = None; from mirobot_async.cli import main; "
+        "sys.exit(main(['view', '--no-browser']))"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=False
+    )
+    assert done.returncode == 2, done.stderr
+    assert "pip install 'mirobot-async[view]'" in done.stderr
+    assert "virtual Mirobot" not in done.stderr
+    assert done.stdout == ""
