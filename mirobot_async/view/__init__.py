@@ -110,13 +110,19 @@ async def serve_view(args: argparse.Namespace) -> int:
         report = await arm.status()
         preview = None
         if source is not None:
-            offset = None if firmware == "2021" and args.port is not None else (0.0, 0.0, 0.0)
+            offset: tuple[float, float, float] | None = (0.0, 0.0, 0.0)
+            lift: float | None = None
+            if firmware == "2021":  # absolute M20 targets add $41..$43; G5 lifts by $49
+                settings = await arm.settings()  # read-only ($$)
+                offset = (settings.get(41, 0.0), settings.get(42, 0.0), settings.get(43, 0.0))
+                lift = settings.get(49)
             preview = preview_program(
                 source.lines,
                 firmware=firmware,
                 start=report.joints,
                 envelope=envelope,
                 base_offset=offset,
+                gate_lift=lift,
             )
         with contextlib.redirect_stdout(sys.stderr):  # viser prints its own banner
             server = viser.ViserServer(host=host, port=port, verbose=False)
