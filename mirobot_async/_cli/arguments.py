@@ -366,6 +366,44 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ports.add_argument("--no-probe", action="store_true", help="only list, open nothing")
 
+    # --- mirobot view / mirobot urdf ------------------------------------------------------
+    view = add(
+        "view",
+        commands.cmd_view,
+        "the arm in 3D in a browser: live status, a program's predicted path, a teach pendant "
+        "(needs the view extra: pip install 'mirobot-async[view]')",
+    )
+    view.add_argument(
+        "program", nargs="?", metavar="PROGRAM", help="G-code program to preview (and run)"
+    )
+    view.add_argument(
+        "--listen",
+        default="127.0.0.1:0",
+        metavar="HOST:PORT",
+        help="where to serve the page (default: 127.0.0.1 and a free port; the URL is the first "
+        "line of standard output)",
+    )
+    view.add_argument(
+        "--run",
+        action="store_true",
+        help="stream PROGRAM once the first browser has connected (else: the Run button)",
+    )
+    view.add_argument("--no-browser", action="store_true", help="do not open a browser")
+    add_envelope_option(view)  # drawn as a box; every jog and streamed line is checked
+    urdf = add(
+        "urdf",
+        commands.cmd_urdf,
+        "print a URDF of the arm built from this package's kinematics (for ROS, MoveIt, viewers)",
+        talks=False,
+    )
+    urdf.add_argument(
+        "--firmware",
+        choices=gcode.FIRMWARE_PROFILES,
+        default="2021",
+        help="geometry of this firmware profile (default: 2021)",
+    )
+    # --- end of mirobot view / mirobot urdf -----------------------------------------------
+
     # --- mcp: a Model Context Protocol server for AI agents -------------------------------
     mcp = add(
         "mcp",

@@ -73,6 +73,8 @@ __all__ = [
     "cmd_run",
     "cmd_status",
     "cmd_unlock",
+    "cmd_urdf",
+    "cmd_view",
     "joint_targets",
     "pose_targets",
     "run_emulator",
@@ -446,6 +448,29 @@ def cmd_ports(args: argparse.Namespace) -> int:
     if args.no_probe or any(p.is_mirobot for p in found):
         return EXIT_OK
     return EXIT_FAILED
+
+
+# --- mirobot view / mirobot urdf ----------------------------------------------------------
+
+
+async def cmd_view(args: argparse.Namespace) -> int:
+    """``mirobot view [PROGRAM]``: serve the 3D view and teach pendant until Ctrl-C (the view
+    extra is imported here, so the other commands never need it)."""
+    from mirobot_async._view import serve_view
+
+    return await serve_view(args)
+
+
+def cmd_urdf(args: argparse.Namespace) -> int:
+    """``mirobot urdf [--firmware]``: the URDF on standard output (no viser needed)."""
+    from mirobot_async._urdf import build_urdf
+
+    sys.stdout.write(build_urdf(args.firmware))
+    sys.stdout.flush()
+    return EXIT_OK
+
+
+# --- end of mirobot view / mirobot urdf ---------------------------------------------------
 
 
 # --- mcp -----------------------------------------------------------------------------------

@@ -1,0 +1,375 @@
+"""``mirobot view``: a live 3D twin and a teach pendant in the browser.
+
+One viser server (its own thread and event loop, its web client from the wheel: nothing is
+fetched from elsewhere) shows :class:`~mirobot_async._view.scene.ArmScene` and
+:class:`~mirobot_async._view.panel.ControlPanel`; :class:`ViewController` follows the status
+stream (every :data:`STATUS_INTERVAL` s) and runs what the panel asks on the client's event
+loop, one command at a time (jogs, homing, taught points, the program); Hold, Resume and Stop
+are written at once, whatever runs. An envelope given to the client checks every jog and every
+streamed line before it is written.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+from collections.abc import Awaitable, Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Final
+
+import viser
+
+from mirobot_async._core import gcode
+from mirobot_async._core.replies import State, StatusReport
+from mirobot_async._view.panel import CARTESIAN_AXES, ControlPanel
+from mirobot_async._view.preview import ProgramPreview
+from mirobot_async._view.scene import ArmScene
+from mirobot_async._view.teach import (
+    TaughtPoint,
+    TeachTable,
+    export_program,
+    modes_line,
+    point_line,
+)
+from mirobot_async.errors import MirobotError, MirobotTimeoutError
+
+if TYPE_CHECKING:
+    from mirobot_async._client.client import Mirobot
+    from mirobot_async._safety.envelope import Envelope
+
+__all__ = ["STATUS_INTERVAL", "ProgramSource", "ViewController"]
+
+_log = logging.getLogger("mirobot_async.view")
+
+STATUS_INTERVAL: Final = 0.05
+"""Seconds between status reports the view asks for (20 Hz; the page follows each one)."""
+_QUEUE_LIMIT: Final = 8
+"""Commands waiting behind the running one; clicks beyond are refused (a stuck arm)."""
+_PUMP: Final = {"Pump on": "suction_on", "Pump blow": "blow", "Pump off": "pump_off"}
+_STATE_WORDS: Final = {State.HOME: "Home (homing)"}
+_OUTPUT_WORDS: Final = {  # what the PWM 1 output (M3 S...) drives, by its value
+    gcode.PUMP_OFF: "off",
+    gcode.PUMP_SUCK: "pump sucking",
+    gcode.PUMP_BLOW: "pump blowing",
+    gcode.GRIPPER_OPEN: "gripper open",
+    gcode.GRIPPER_CLOSE: "gripper closed",
+}
+_LEGACY_GRIPPER: Final = {
+    0: "off",
+    gcode.VALVE_GRIPPER_OPEN: "open",
+    gcode.VALVE_GRIPPER_CLOSE: "closed",
+}
+
+
+@dataclass(frozen=True, slots=True)
+class ProgramSource:
+    """A program to preview and run: its name, raw lines, the commands to stream."""
+
+    name: str
+    lines: list[str]
+    commands: list[tuple[int, str]]
+    """(file line number, command text) of each non-empty command."""
+
+
+class ViewController:
+    """The view's behaviour: status following, the command queue, the program, the teach table."""
+
+    def __init__(
+        self,
+        server: viser.ViserServer,
+        arm: Mirobot,
+        *,
+        firmware: str,
+        program: ProgramSource | None,
+        preview: ProgramPreview | None,
+        envelope: Envelope | None,
+    ) -> None:
+        self.server = server
+        self.arm = arm
+        self.firmware = firmware
+        self.program = program
+        self.preview = preview
+        self.loop = asyncio.get_running_loop()
+        self.scene = ArmScene(server, firmware)
+        self.panel = ControlPanel(server, self, program=None if program is None else program.name)
+        self.table = TeachTable()
+        self.last: StatusReport | None = None
+        self.reports = 0
+        self.current: str | None = None
+        self._queue: asyncio.Queue[tuple[str, Callable[[], Awaitable[object]]]] = asyncio.Queue()
+        if envelope is not None:
+            self.scene.show_envelope(envelope)
+        if preview is not None and program is not None:
+            self.scene.show_preview(preview)
+            self.panel.program_text.content = describe_preview(program, preview)  # type: ignore[union-attr]
+        self.panel.table.content = self.table.markdown()
+
+    # ------------------------------------------------------------------------------------
+    # Tasks: status following and the command worker
+
+    async def follow_status(self) -> None:
+        """Show every status report (about :data:`STATUS_INTERVAL` apart) until cancelled. The
+        firmware answers no ``?`` while it homes: the view says so and keeps asking."""
+        while True:
+            try:
+                async with contextlib.aclosing(self.arm.statuses(STATUS_INTERVAL)) as reports:
+                    async for report in reports:
+                        self.last = report
+                        self.reports += 1
+                        self.scene.show_status(report)
+                        self.panel.status.content = describe_status(report, self.current)
+            except MirobotTimeoutError:
+                self.panel.status.content = "**State:** no status reply (homing?)"
+
+    async def work(self) -> None:
+        """Run queued commands one at a time until cancelled; a failure is shown, not raised."""
+        while True:
+            name, action = await self._queue.get()
+            self.current = name
+            try:
+                outcome = await action()
+                self.panel.say(outcome if isinstance(outcome, str) else f"{name}: done")
+            except MirobotError as err:
+                self.panel.say(f"**{name}: {err}**")
+            except Exception as err:  # a bug must not kill the pendant; it is logged
+                _log.exception("view command %s failed", name)
+                self.panel.say(f"**{name}: {type(err).__name__}: {err}**")
+            finally:
+                self.current = None
+
+    def _submit(self, name: str, action: Callable[[], Awaitable[object]]) -> None:
+        """Queue ``action`` on the client's loop (from viser's threads)."""
+
+        def put() -> None:
+            if self._queue.qsize() >= _QUEUE_LIMIT:
+                self.panel.say(f"**{name}: refused, {self._queue.qsize()} commands still waiting**")
+                return
+            self._queue.put_nowait((name, action))
+
+        self.loop.call_soon_threadsafe(put)
+
+    # ------------------------------------------------------------------------------------
+    # The panel's actions (called in viser's threads)
+
+    def jog_joint(self, joint: int, sign: int) -> None:
+        step = float(self.panel.joint_step.value) * sign
+        speed = float(self.panel.joint_speed.value)
+        steps: list[float | None] = [None] * 6
+        steps[joint - 1] = step
+        self._submit(
+            f"J{joint} {'+' if sign > 0 else '-'}{abs(step):g} deg",
+            lambda: self.arm.move_joints(*steps, relative=True, speed=speed),
+        )
+
+    def jog_cartesian(self, axis: int, sign: int) -> None:
+        name = CARTESIAN_AXES[axis]
+        step = float(self.panel.move_step.value if axis < 3 else self.panel.turn_step.value) * sign
+        speed = float(self.panel.linear_speed.value)
+        steps: list[float | None] = [None] * 6
+        steps[axis] = step
+        self._submit(
+            f"{name} {'+' if sign > 0 else '-'}{abs(step):g}",
+            lambda: self.arm.move_pose(*steps, relative=True, linear=True, speed=speed),
+        )
+
+    def command(self, name: str) -> None:
+        arm = self.arm
+        if name == "Home":
+            self._submit(name, arm.home)
+        elif name == "Unlock":
+            self._submit(name, arm.unlock)
+        elif name in _PUMP:
+            self._submit(name, getattr(arm, _PUMP[name]))
+        elif name == "Gripper open":
+            self._submit(name, arm.gripper_open)
+        elif name == "Gripper close":
+            self._submit(name, arm.gripper_close)
+        elif name == "Run program":
+            self._submit(name, self.run_program)
+
+    def realtime(self, name: str) -> None:
+        """Hold, Resume, Stop (reset): written at once (they jump the queue); Stop also drops
+        the commands waiting."""
+        arm = self.arm
+
+        async def act() -> None:
+            try:
+                if name == "Hold":
+                    await arm.hold()
+                elif name == "Resume":
+                    await arm.resume()
+                else:
+                    while not self._queue.empty():
+                        self._queue.get_nowait()
+                    await arm.reset()
+                self.panel.say(f"{name}: sent")
+            except MirobotError as err:
+                self.panel.say(f"**{name}: {err}**")
+
+        asyncio.run_coroutine_threadsafe(act(), self.loop)
+
+    def teach(self, name: str) -> None:
+        """The teach table's buttons (table changes happen on the loop, in order)."""
+
+        async def act() -> str | None:
+            return await self._teach(name)
+
+        self._submit(name, act)
+
+    # ------------------------------------------------------------------------------------
+    # Teach pendant
+
+    def _here(self) -> TaughtPoint:
+        report = self.last
+        if report is None:
+            raise _ViewError("no status yet")
+        return TaughtPoint(report.joints, report.rail, report.pose)
+
+    def _selected(self) -> int:
+        return int(self.panel.point.value)
+
+    async def _teach(self, name: str) -> str | None:
+        table, panel = self.table, self.panel
+        said = None
+        if name == "Record point":
+            report = await self.arm.status(fresh=True)
+            self.last = report
+            number = table.add(TaughtPoint(report.joints, report.rail, report.pose))
+            _set_value(panel.point, number)
+            said = f"Recorded point {number}"
+        elif name == "Go to":
+            await self._run_points([table.get(self._selected())])
+        elif name == "Run all points":
+            await self._run_points(list(table.points))
+        elif name in ("Up", "Down"):
+            _set_value(panel.point, table.move(self._selected(), -1 if name == "Up" else 1))
+        elif name == "Delete":
+            table.delete(self._selected())
+        elif name == "Set here":
+            report = await self.arm.status(fresh=True)
+            table.replace(self._selected(), TaughtPoint(report.joints, report.rail, report.pose))
+        elif name == "Apply joints":
+            table.replace(self._selected(), self._edited_point())
+        elif name == "Export":
+            said = self._export()
+        if table.points and 1 <= self._selected() <= len(table.points):
+            point = table.get(self._selected())
+            _set_value(panel.point_joints, " ".join(f"{v:.3f}" for v in point.joints))
+        panel.table.content = table.markdown(self._selected())
+        return said
+
+    def _edited_point(self) -> TaughtPoint:
+        from mirobot_async._urdf import dh_of
+        from mirobot_async.kinematics import forward
+
+        text = self.panel.point_joints.value.replace(",", " ").split()
+        try:
+            values = [float(v) for v in text]
+        except ValueError:
+            raise _ViewError(
+                f"point joints {self.panel.point_joints.value!r}: six numbers"
+            ) from None
+        if len(values) != 6:
+            raise _ViewError(f"point joints: six numbers J1..J6 (got {len(values)})")
+        joints = (values[0], values[1], values[2], values[3], values[4], values[5])
+        old = self.table.get(self._selected())
+        point = TaughtPoint(joints, old.rail, forward(joints, dh_of(self.firmware)))
+        point_line(point, firmware=self.firmware)  # the joint ranges, before it is stored
+        return point
+
+    async def _run_points(self, points: list[TaughtPoint]) -> None:
+        if not points:
+            raise _ViewError("no points to run")
+        speed = float(self.panel.teach_speed.value)
+        lines = [modes_line(speed)] + [point_line(p, firmware=self.firmware) for p in points]
+        result = await self.arm.stream(lines, wait=True)
+        if result.errors:
+            raise _ViewError(f"stopped at point {result.errors[0].number - 1}")
+
+    def _export(self) -> str:
+        lines = export_program(
+            self.table.points, speed=float(self.panel.teach_speed.value), firmware=self.firmware
+        )
+        path = self.panel.export_path.value
+        with open(path, "w", encoding="ascii") as file:
+            file.write("\n".join(lines) + "\n")
+        shown = "\n".join(lines)
+        self.panel.exported.content = f"```\n{shown}\n```"
+        return f"Wrote {path} ({len(self.table.points)} points)"
+
+    # ------------------------------------------------------------------------------------
+    # The program
+
+    async def run_program(self) -> str:
+        """Stream the program with progress (refused, nothing sent, when lines are flagged)."""
+        program, preview = self.program, self.preview
+        if program is None or preview is None:
+            raise _ViewError("no program given")
+        if preview.flagged:
+            raise _ViewError(
+                f"{len(preview.flagged)} flagged line(s) in {program.name}: nothing was sent"
+            )
+        bar = self.panel.progress
+        assert bar is not None
+        total = len(program.commands)
+        _set_value(bar, 0.0)
+
+        def progress(result: object) -> None:
+            number = getattr(result, "number", 0)
+            _set_value(bar, 100.0 * number / max(total, 1))
+            # acknowledged, not yet run: the arm queues up to 128 bytes of lines ahead
+            self.panel.say(f"{number}/{total} lines acknowledged by the arm; it runs them in order")
+
+        result = await self.arm.stream(
+            [text for _, text in program.commands], on_progress=progress, wait=True
+        )
+        if result.errors:
+            failed = result.errors[0]
+            line = program.commands[failed.number - 1][0]
+            raise _ViewError(f"{program.name}:{line}: {failed.error or 'failed'}")
+        _set_value(bar, 100.0)
+        return f"{program.name}: {total} lines done"
+
+
+def _set_value(handle: Any, value: object) -> None:
+    """Set an input's value (viser's typing declares ``value`` read-only on some handles;
+    the setter exists and sends the new value to the page)."""
+    handle.value = value
+
+
+class _ViewError(MirobotError):
+    """A pendant action that cannot be done (shown on the page)."""
+
+
+def describe_status(report: StatusReport, running: str | None) -> str:
+    """The panel's status block (Markdown)."""
+    word = _STATE_WORDS.get(report.state, report.state.value)
+    joints = "  ".join(f"J{i} {v:.2f}" for i, v in enumerate(report.joints, start=1))
+    x, y, z, rx, ry, rz = report.pose
+    rail = "" if report.rail is None else f"  \n**Rail:** {report.rail:.2f} mm"
+    outputs = _OUTPUT_WORDS.get(report.pump_pwm, f"PWM {report.pump_pwm}")
+    legacy = _LEGACY_GRIPPER.get(report.valve_pwm, f"PWM {report.valve_pwm}")
+    lines = [
+        f"**State:** {word}" + (f" (running: {running})" if running else ""),
+        f"**Joints:** {joints}",
+        f"**Tool:** x {x:.2f}  y {y:.2f}  z {z:.2f}  rx {rx:.2f}  ry {ry:.2f}  rz {rz:.2f}",
+        f"**Pump/gripper:** {outputs}  **Valve/legacy gripper:** {legacy}",
+    ]
+    return "  \n".join(lines) + rail
+
+
+def describe_preview(program: ProgramSource, preview: ProgramPreview) -> str:
+    """The program folder's text: size, flagged lines with their numbers."""
+    head = f"**{program.name}**: {len(program.commands)} commands, path predicted before sending"
+    if not preview.flagged:
+        text = f"{head}  \nNo flagged lines."
+    else:
+        rows = "\n".join(f"- line {f.number}: `{f.text}`: {f.message}" for f in preview.flagged)
+        text = (
+            f"{head}  \n**Flagged lines ({len(preview.flagged)})**, marked red in the view:\n{rows}"
+        )
+    if preview.unknown:
+        first = preview.unknown[0]
+        text += f"  \nPath not drawn after line {first.number}: {first.message}"
+    return text

@@ -1,0 +1,113 @@
+"""The control panel of ``mirobot view`` (viser GUI widgets): status, program, jog, teach.
+
+Widgets only: every button hands its action to :class:`Actions` (the controller, which runs it
+on the client's event loop). Button texts are unique on the page (``J1 +``, ``X -``...), so a
+person and the browser tests find each control by its text.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Final, Protocol
+
+import viser
+from viser._gui_handles import GuiProgressBarHandle
+
+__all__ = ["CARTESIAN_AXES", "Actions", "ControlPanel"]
+
+CARTESIAN_AXES: Final = ("X", "Y", "Z", "RX", "RY", "RZ")
+
+
+class Actions(Protocol):
+    """What the panel's controls ask for (the controller implements it)."""
+
+    def jog_joint(self, joint: int, sign: int) -> None: ...
+    def jog_cartesian(self, axis: int, sign: int) -> None: ...
+    def command(self, name: str) -> None: ...
+    def realtime(self, name: str) -> None: ...
+    def teach(self, name: str) -> None: ...
+
+
+class ControlPanel:
+    """The widgets and their handles; the controller reads the inputs and writes the texts."""
+
+    def __init__(self, server: viser.ViserServer, actions: Actions, *, program: str | None) -> None:
+        gui = server.gui
+        gui.configure_theme(
+            control_width="large", dark_mode=False, show_logo=False, show_share_button=False
+        )
+        self.status = gui.add_markdown("**State:** connecting ...")
+        self.message = gui.add_markdown("")
+        with gui.add_folder("Motion"):
+            stops = gui.add_button_group("Stop", ("Hold", "Resume", "Stop (reset)"))
+            stops.on_click(_pick(lambda v: actions.realtime(v)))
+            prepare = gui.add_button_group("Arm", ("Home", "Unlock"))
+            prepare.on_click(_pick(lambda v: actions.command(v)))
+            pump = gui.add_button_group("Pump", ("Pump on", "Pump blow", "Pump off"))
+            pump.on_click(_pick(lambda v: actions.command(v)))
+            grip = gui.add_button_group("Gripper", ("Gripper open", "Gripper close"))
+            grip.on_click(_pick(lambda v: actions.command(v)))
+        self.program_text: viser.GuiMarkdownHandle | None = None
+        self.progress: GuiProgressBarHandle | None = None
+        if program is not None:
+            with gui.add_folder("Program"):
+                self.program_text = gui.add_markdown(f"**{program}**")
+                self.progress = gui.add_progress_bar(0.0)
+                run = gui.add_button("Run program", color="green")
+                run.on_click(lambda _: actions.command("Run program"))
+        with gui.add_folder("Jog joints"):
+            self.joint_step = gui.add_number("Step (deg)", 5.0, min=0.1, max=90.0, step=0.1)
+            self.joint_speed = gui.add_number("Speed (deg/min)", 1500.0, min=10.0, max=3000.0)
+            for j in range(1, 7):
+                group = gui.add_button_group(f"J{j}", (f"J{j} -", f"J{j} +"))
+                group.on_click(_pick(_jog(actions.jog_joint, j)))
+        with gui.add_folder("Jog Cartesian"):
+            self.move_step = gui.add_number("Step (mm)", 10.0, min=0.1, max=100.0, step=0.1)
+            self.turn_step = gui.add_number("Turn step (deg)", 5.0, min=0.1, max=90.0, step=0.1)
+            self.linear_speed = gui.add_number("Speed (mm/min)", 1500.0, min=10.0, max=5000.0)
+            for i, axis in enumerate(CARTESIAN_AXES):
+                group = gui.add_button_group(axis, (f"{axis} -", f"{axis} +"))
+                group.on_click(_pick(_jog(actions.jog_cartesian, i)))
+        with gui.add_folder("Teach"):
+            record = gui.add_button("Record point", color="blue")
+            record.on_click(lambda _: actions.teach("Record point"))
+            self.table = gui.add_markdown("")
+            self.point = gui.add_number("Point #", 1, min=1, max=999, step=1)
+            edit = gui.add_button_group("Point", ("Go to", "Up", "Down", "Delete", "Set here"))
+            edit.on_click(_pick(lambda v: actions.teach(v)))
+            self.point_joints = gui.add_text("Point joints", "")
+            apply = gui.add_button("Apply joints")
+            apply.on_click(lambda _: actions.teach("Apply joints"))
+            self.teach_speed = gui.add_number(
+                "Program speed (deg/min)", 2000.0, min=10.0, max=3000.0
+            )
+            run_all = gui.add_button("Run all points")
+            run_all.on_click(lambda _: actions.teach("Run all points"))
+            self.export_path = gui.add_text("Export to", "taught.gcode")
+            export = gui.add_button("Export")
+            export.on_click(lambda _: actions.teach("Export"))
+            self.exported = gui.add_markdown("")
+
+    def say(self, text: str) -> None:
+        """The panel's message line (errors, refusals, what happened)."""
+        self.message.content = text
+
+
+def _pick(
+    handler: Callable[[str], None],
+) -> Callable[[viser.GuiEvent[viser.GuiButtonGroupHandle]], None]:
+    """A button group's callback: the option clicked is the group's value."""
+
+    def callback(event: viser.GuiEvent[viser.GuiButtonGroupHandle]) -> None:
+        handler(event.target.value)
+
+    return callback
+
+
+def _jog(action: Callable[[int, int], None], which: int) -> Callable[[str], None]:
+    """A jog group's handler: ``action(which, -1 or +1)`` for the option ``... -``/``... +``."""
+
+    def handler(option: str) -> None:
+        action(which, -1 if option.endswith("-") else 1)
+
+    return handler
