@@ -19,7 +19,7 @@ import math
 import re
 import struct
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Final, Literal
 
@@ -296,32 +296,40 @@ class ParsedLine:
     """Every word in order (``G``/``M`` words are :class:`CodeWord`)."""
     dollar: DollarLine | None = None
     syntax_error: str | None = None
+    # Derived once from ``words`` (the line is read many times: validation, guard, chaining).
+    _codes: tuple[CodeWord, ...] = field(init=False, repr=False, compare=False)
+    _values: Mapping[str, float] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        codes = tuple(w for w in self.words if isinstance(w, CodeWord))
+        values: dict[str, float] = {}
+        for w in self.words:
+            if not isinstance(w, CodeWord):
+                values.setdefault(w.letter, w.value)
+        object.__setattr__(self, "_codes", codes)
+        object.__setattr__(self, "_values", MappingProxyType(values))
 
     # ---- the words -------------------------------------------------------------------------
 
     @property
     def codes(self) -> tuple[CodeWord, ...]:
         """The ``G`` and ``M`` words."""
-        return tuple(w for w in self.words if isinstance(w, CodeWord))
+        return self._codes
 
     @property
     def g_codes(self) -> tuple[int, ...]:
         """The ``G`` numbers as the firmware reads them."""
-        return tuple(w.code for w in self.codes if w.letter == "G")
+        return tuple(w.code for w in self._codes if w.letter == "G")
 
     @property
     def m_codes(self) -> tuple[int, ...]:
         """The ``M`` numbers as the firmware reads them."""
-        return tuple(w.code for w in self.codes if w.letter == "M")
+        return tuple(w.code for w in self._codes if w.letter == "M")
 
     @property
     def values(self) -> Mapping[str, float]:
         """Value words (not ``G``/``M``) by letter, first occurrence (see :attr:`repeated`)."""
-        out: dict[str, float] = {}
-        for w in self.words:
-            if not isinstance(w, CodeWord):
-                out.setdefault(w.letter, w.value)
-        return MappingProxyType(out)
+        return self._values
 
     @property
     def repeated(self) -> tuple[str, ...]:
@@ -347,7 +355,7 @@ class ParsedLine:
         return MappingProxyType({k: values[k] for k in AXIS_LETTERS if k in values})
 
     def _first(self, letter: str, choices: frozenset[int]) -> int | None:
-        for w in self.codes:
+        for w in self._codes:
             if w.letter == letter and w.code in choices:
                 return w.code
         return None

@@ -37,6 +37,8 @@ names = [
     info.name
     for info in pkgutil.walk_packages(mirobot_async.__path__, "mirobot_async.")
     if not info.name.endswith("__main__")
+    # optional extras: their third-party SDKs carry their own platform support
+    and not info.name.startswith(("mirobot_async._mcp_server", "mirobot_async._view"))
 ]
 for name in names:
     importlib.import_module(name)
