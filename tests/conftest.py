@@ -11,11 +11,18 @@ from __future__ import annotations
 import asyncio
 import os
 from collections.abc import AsyncIterator
+from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, settings
 
 SCALE = float(os.environ.get("MIROBOT_TEST_SCALE", "0.3"))
+
+# The firmware oracle (MIROBOT_TEST_LINK=oracle, tests/oracle) sits next to the repository.
+os.environ.setdefault(
+    "MIROBOT_ORACLE_SOURCE",
+    str(Path(__file__).resolve().parents[2] / "shared" / "firmware-oracle"),
+)
 FLOOR = 25
 
 

@@ -16,6 +16,13 @@
 
 Every test module of the client also checks that no task is left behind (``no_leftover_tasks``,
 in tests/conftest.py).
+
+``MIROBOT_TEST_LINK=oracle`` (or ``--mirobot-link oracle``) runs the suite against the vendor's
+firmware in a simulator (classic): every arm the pool lends is then a firmware oracle, at full
+speed for time scale 0, else at the marker's time scale (1: real time). A test that borrows no
+arm from the pool (it starts emulators itself) is skipped on that link; one that asks the pool
+for what only the emulator has (the 2021 profile, emulator options, the control channel) is
+skipped by the plugin when it asks, each with the reason.
 """
 
 from __future__ import annotations
@@ -34,9 +41,23 @@ import pytest
 
 from mirobot_async import Mirobot, State
 from mirobot_async.cli import main
-from mirobot_async.testing import EmulatorPool, EmulatorProcess, WireSpy
+from mirobot_async.testing import EmulatorPool, EmulatorProcess, WireSpy, session_link
 
 PROFILES = ("2021", "classic")
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """On the oracle link, skip the tests that borrow no arm from the session's pool: what
+    they drive is an emulator they start themselves, never the firmware."""
+    if session_link(config) != "oracle":
+        return
+    skip = pytest.mark.skip(
+        reason="emulator only: starts its own emulator (borrows no arm from the pool, so "
+        "nothing of it would run on the firmware oracle)"
+    )
+    for item in items:
+        if "mirobot_emulator_pool" not in getattr(item, "fixturenames", ()):
+            item.add_marker(skip)
 
 
 def emulator_options(request: pytest.FixtureRequest, profile: str) -> dict[str, Any]:
