@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from mirobot_async import gcode
 from mirobot_async.deadline import deadline_after
-from mirobot_async.parts import DEFAULT_TIMEOUT, ClientParts
+from mirobot_async.parts import DEFAULT_TIMEOUT, MOVE_TIMEOUT, ClientParts
 
 __all__ = ["AccessoryCommands"]
 
@@ -18,33 +18,35 @@ class AccessoryCommands(ClientParts):
 
     # ---- outputs ----
 
-    async def set_pump(self, pwm: int, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+    async def set_pump(self, pwm: int, *, timeout: float | None = MOVE_TIMEOUT) -> None:
         """``M3 S<pwm>``: PWM output 1 (pump: 0 off, 500 blow, 1000 suck; servo gripper).
 
-        Errors, ``timeout`` (default :data:`DEFAULT_TIMEOUT`) and cancellation as in :meth:`send`.
+        The firmware answers it only once the motion queued before it has ended (and switches
+        the output then), so its ``timeout`` defaults to :data:`MOVE_TIMEOUT`, as a
+        ``wait=True`` move's does. Errors and cancellation as in :meth:`send`.
         """
         data = gcode.set_pump(pwm)
         await self._command_within(data, timeout)
 
-    async def set_valve(self, pwm: int, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+    async def set_valve(self, pwm: int, *, timeout: float | None = MOVE_TIMEOUT) -> None:
         """``M4 E<pwm>``: PWM output 2 (valve, or the V1.1 gripper). As :meth:`set_pump`."""
         data = gcode.set_valve(pwm)
         await self._command_within(data, timeout)
 
-    async def suction_on(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+    async def suction_on(self, *, timeout: float | None = MOVE_TIMEOUT) -> None:
         """Suction cup: pump sucking (``M3 S1000``). As :meth:`set_pump`."""
         await self.set_pump(gcode.PUMP_SUCK, timeout=timeout)
 
-    async def blow(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+    async def blow(self, *, timeout: float | None = MOVE_TIMEOUT) -> None:
         """Suction cup: pump blowing, to release a part (``M3 S500``). As :meth:`set_pump`."""
         await self.set_pump(gcode.PUMP_BLOW, timeout=timeout)
 
-    async def pump_off(self, *, timeout: float | None = DEFAULT_TIMEOUT) -> None:
+    async def pump_off(self, *, timeout: float | None = MOVE_TIMEOUT) -> None:
         """Pump off (``M3 S0``). As :meth:`set_pump`."""
         await self.set_pump(gcode.PUMP_OFF, timeout=timeout)
 
     async def gripper_open(
-        self, *, legacy: bool = False, timeout: float | None = DEFAULT_TIMEOUT
+        self, *, legacy: bool = False, timeout: float | None = MOVE_TIMEOUT
     ) -> None:
         """Open the servo gripper (``M3 S40``; ``legacy=True``: the V1.1 gripper, ``M4 E65``).
 
@@ -53,7 +55,7 @@ class AccessoryCommands(ClientParts):
         await self._command_within(data, timeout)
 
     async def gripper_close(
-        self, *, legacy: bool = False, timeout: float | None = DEFAULT_TIMEOUT
+        self, *, legacy: bool = False, timeout: float | None = MOVE_TIMEOUT
     ) -> None:
         """Close the servo gripper (``M3 S60``; ``legacy=True``: ``M4 E40``).
 

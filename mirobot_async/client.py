@@ -123,6 +123,7 @@ from mirobot_async.accessories import AccessoryCommands
 from mirobot_async.condition import Firmware
 from mirobot_async.deadline import check_timeout, deadline_after
 from mirobot_async.errors import MirobotConnectionError, MirobotTimeoutError, MirobotUsageError
+from mirobot_async.line import parse_line
 from mirobot_async.motion_commands import MotionCommands
 from mirobot_async.parts import (
     CONNECT_TIMEOUT,
@@ -131,6 +132,7 @@ from mirobot_async.parts import (
     MOVE_TIMEOUT,
     RESET_TIMEOUT,
     STATUS_TIMEOUT,
+    default_reply_timeout,
 )
 from mirobot_async.path_commands import PathCommands, PathError
 from mirobot_async.protocol import encode_line
@@ -311,7 +313,7 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
         except TimeoutError as err:
             raise MirobotConnectionError(
                 f"{url_text(self.url)} opened, but no Mirobot answered a status request within "
-                f"{timeout:g} s"
+                f"{timeout:g} s (an arm that is homing answers none until its switch search ends)"
             ) from err
         if self._guard.envelope is not None and self._condition.firmware is None:
             try:  # the envelope's kinematic model: waits for the arm to be at rest
@@ -446,10 +448,18 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
         ``Alarm lock``), :class:`MirobotUsageError` for a line that is not one ASCII line or
         contains a realtime byte (nothing is sent), :class:`MirobotTimeoutError` when no reply
         comes within ``timeout`` seconds (default :data:`DEFAULT_TIMEOUT`) or the reply was lost.
+        A ``timeout`` of :data:`DEFAULT_TIMEOUT` is raised for the lines the firmware answers
+        late (:func:`~mirobot_async.parts.default_reply_timeout`): :data:`HOME_TIMEOUT` for a
+        homing line, :data:`MOVE_TIMEOUT` (plus the dwell) for ``G4`` and the PWM lines
+        ``M3``/``M4``/``M5``, which are answered once the queued motion has ended. While the
+        arm homes the firmware answers nothing, not even ``?``: the call waits, and a link that
+        stays silent longer than homing can take fails naming homing.
         ``$`` commands wait until nothing else is in flight. Cancellation keeps the link in step:
         the reply is consumed and discarded.
         """
         data = encode_line(line, self._wire.rx_buffer_size)
+        if timeout == DEFAULT_TIMEOUT:
+            timeout = default_reply_timeout(parse_line(data))
         deadline = deadline_after(self._running_loop(), timeout)
         what = f"send({data.decode('ascii')!r})"
         if not validate:

@@ -14,6 +14,7 @@ import logging
 import math
 import re
 from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
 from typing import Final, Literal
 
 from mirobot_async.errors import (
@@ -22,7 +23,17 @@ from mirobot_async.errors import (
     MirobotLinkLostError,
 )
 
-__all__ = ["RESET_ONLY_ALARMS", "Firmware", "RobotCondition", "firmware_from_banner"]
+__all__ = [
+    "HOMING_BOUND",
+    "HOMING_DEFAULT_RATES",
+    "HOMING_LINE_RE",
+    "RESET_ONLY_ALARMS",
+    "Firmware",
+    "HomingCycle",
+    "RobotCondition",
+    "firmware_from_banner",
+    "homing_bound",
+]
 
 _log = logging.getLogger("mirobot_async.client")
 
@@ -34,6 +45,63 @@ RESET_ONLY_ALARMS: Final = ("hard limit", "soft limit")
 _VERSION_RE: Final = re.compile(r"Robot\s+(\d{8})(\S*)")
 
 _BannerResult = tuple[str, ...] | BaseException
+
+HOMING_LINE_RE: Final = re.compile(r"^\$H[H0-7E]?$")
+"""The homing lines: ``$H``, ``$HH``, and the 2021 ``$H0``..``$H7``, ``$HE``."""
+HOMING_BOUND: Final = {"$H": 45.0, "$HH": 120.0}
+"""The longest a homing line can stay unanswered at the default homing rates (seconds): the
+firmware answers nothing, not even ``?``, until its switch search ends (oracle). Measured
+searches: ``$H`` 8.2 s (oracle), 10-15 s on real arms (PROTOCOL.md 6.2), the 2021 ``$H0`` with
+its rail 1.5 times longer; ``$HH`` 29.1 s (oracle). The bounds are three to four times those;
+``$H0``..``$H7`` use the ``$H`` bound, ``$HE`` (one group after another) the ``$HH`` one."""
+HOMING_DEFAULT_RATES: Final = (1500.0, 2000.0)
+"""The homing feed ``$24`` and seek ``$25`` (deg/min) the bounds were measured at (both
+profiles' defaults): slower rates stretch the bound in proportion."""
+
+
+def homing_bound(
+    command: str,
+    rates: tuple[float, float] | None = None,
+    bounds: Mapping[str, float] = HOMING_BOUND,
+) -> float:
+    """Seconds the homing line ``command`` may go unanswered: ``bounds`` (default
+    :data:`HOMING_BOUND`), stretched when the homing feed or seek (``rates``: ``$24``, ``$25``;
+    ``None``: the defaults) is slower than :data:`HOMING_DEFAULT_RATES`."""
+    sequential = command in ("$HH", "$HE")
+    base = bounds["$HH" if sequential else "$H"]
+    if rates is None:
+        return base
+    stretch = max(
+        [1.0]
+        + [
+            default / rate
+            for default, rate in zip(HOMING_DEFAULT_RATES, rates, strict=True)
+            if rate > 0
+        ]
+    )
+    return base * stretch
+
+
+@dataclass(frozen=True, slots=True)
+class HomingCycle:
+    """A homing line written and not answered yet: the firmware answers no ``?`` until its
+    switch search ends, which may take up to ``bound`` seconds after ``started``."""
+
+    command: str
+    started: float
+    bound: float
+
+    @property
+    def ends_by(self) -> float:
+        """The loop time by which its reply must have come (else the link is dead)."""
+        return self.started + self.bound
+
+    def describe(self) -> str:
+        """Why the robot is silent, for error messages."""
+        return (
+            f"the arm is homing ({self.command!r}): the firmware answers nothing, not even "
+            f"'?', until its homing search ends (at most {self.bound:g} s)"
+        )
 
 
 def firmware_from_banner(lines: Iterable[str]) -> tuple[Firmware | None, str | None]:
@@ -68,6 +136,26 @@ class RobotCondition:
         # The 2021 base offset $41..$43 from the last $$ listing (None: unknown or changed since).
         self.base_offset: tuple[float, float, float] | None = None
         self._banner_waiters: list[tuple[float, asyncio.Future[_BannerResult]]] = []
+        # The homing line in flight (the robot answers no "?" meanwhile), if any.
+        self.homing: HomingCycle | None = None
+        # The homing feed and seek $24, $25 when known (a $$ listing, or lines that set them).
+        self.homing_rates: tuple[float, float] | None = None
+        self.homing_bounds: dict[str, float] = dict(HOMING_BOUND)
+
+    # ---- homing ----
+
+    def homing_silent(self, now: float) -> HomingCycle | None:
+        """The homing cycle in flight if its search may still be running at ``now`` (then the
+        robot's silence is expected), else ``None``."""
+        homing = self.homing
+        if homing is not None and now < homing.ends_by:
+            return homing
+        return None
+
+    def set_homing_rate(self, number: int, value: float) -> None:
+        """A ``$24=``/``$25=`` line succeeded: the homing bound follows it."""
+        feed, seek = self.homing_rates or HOMING_DEFAULT_RATES
+        self.homing_rates = (value, seek) if number == 24 else (feed, value)
 
     # ---- may anything be sent? ----
 
@@ -117,8 +205,9 @@ class RobotCondition:
             self.reset_only = self.reset_only or (self.alarm or text)
 
     def on_reset(self, now: float) -> None:
-        """A banner started: the robot reset."""
+        """A banner started: the robot reset (a homing search in progress ended with it)."""
         self.reset_epoch += 1
+        self.homing = None
         self.banner_started = now
         self.reset_requested = False
 
@@ -151,6 +240,8 @@ class RobotCondition:
         values = set(numbers)
         if isinstance(numbers, Mapping) and all(n in numbers for n in (41, 42, 43)):
             self.base_offset = (float(numbers[41]), float(numbers[42]), float(numbers[43]))
+        if isinstance(numbers, Mapping) and all(n in numbers for n in (24, 25)):
+            self.homing_rates = (float(numbers[24]), float(numbers[25]))
         if self.firmware is None and values:
             self.firmware = "2021" if 29 in values else "classic"
 

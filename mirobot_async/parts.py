@@ -18,11 +18,11 @@ from typing import TYPE_CHECKING, Final
 
 from mirobot_async import gcode
 from mirobot_async.completion import MotionCompletion
-from mirobot_async.condition import Firmware, RobotCondition
+from mirobot_async.condition import Firmware, HomingCycle, RobotCondition
 from mirobot_async.deadline import deadline_after
 from mirobot_async.errors import MirobotConnectionError, MirobotUsageError
 from mirobot_async.guard import make_guard
-from mirobot_async.line import parse_line
+from mirobot_async.line import ParsedLine, parse_line
 from mirobot_async.poller import StatusPoller
 from mirobot_async.router import EventRouter
 from mirobot_async.scheduler import LineScheduler
@@ -40,6 +40,7 @@ __all__ = [
     "RESET_TIMEOUT",
     "STATUS_TIMEOUT",
     "ClientParts",
+    "default_reply_timeout",
 ]
 
 # ---- documented defaults (seconds) --------------------------------------------------------
@@ -57,11 +58,30 @@ RESET_TIMEOUT: Final = 10.0
 CONNECT_TIMEOUT: Final = 5.0
 """Default ``timeout`` of :meth:`Mirobot.connect` (opening the port and the first status)."""
 
+
+def default_reply_timeout(parsed: ParsedLine) -> float:
+    """The default ``timeout`` of a one-line call sending ``parsed`` (``send()``, the pump and
+    valve commands): :data:`HOME_TIMEOUT` for a homing line (the reply comes when the switch
+    search ends: 8-30 s); :data:`MOVE_TIMEOUT` plus its dwell for a line the firmware answers
+    only once the queued motion has ended (``G4``, the PWM lines ``M3``/``M4``/``M5``, ``M2``/
+    ``M30``; oracle: ``M3 S1000`` behind a 30-degree move at F1000 is answered 1.6 s later),
+    as a ``wait=True`` move waits for the same; else :data:`DEFAULT_TIMEOUT`."""
+    if parsed.is_homing:
+        return HOME_TIMEOUT
+    if parsed.dwell_seconds is not None:
+        return MOVE_TIMEOUT + max(0.0, parsed.dwell_seconds)
+    if parsed.program_end or any(code in (3, 4, 5) for code in parsed.m_codes):
+        return MOVE_TIMEOUT
+    return DEFAULT_TIMEOUT
+
+
 # Raw lines whose success clears a remembered alarm: $X, $H, $HH, $H0..$H7, $HE, M50.
 _UNLOCKING_RE: Final = re.compile(r"^(?:\$X|\$H[H0-7E]?|M0*50)$")
 # Raw lines that may change the base offset $41..$43 (a setting, or restoring the defaults).
 _OFFSET_CHANGE_RE: Final = re.compile(r"^\$(?:0*4[123]=|RST)")
 _SETTING_LINE_RE: Final = re.compile(r"^\$(\d+)\s*=\s*([+-]?(?:\d+\.?\d*|\.\d+))")
+# Raw lines that set the homing feed $24 or seek $25 (the homing bound follows them).
+_HOMING_RATE_RE: Final = re.compile(r"^\$0*(24|25)\s*=\s*(\d+\.?\d*|\.\d+)")
 
 
 class ClientParts:
@@ -119,6 +139,20 @@ class ClientParts:
     @status_timeout.setter
     def status_timeout(self, value: float) -> None:
         self._lines.status_timeout = self._completion.status_timeout = value
+
+    @property
+    def homing(self) -> HomingCycle | None:
+        """The homing line in flight (``$H``...: the robot answers no ``?`` until its switch
+        search ends, at most ``homing.bound`` seconds after ``homing.started``), or ``None``."""
+        return self._condition.homing
+
+    @property
+    def homing_bounds(self) -> dict[str, float]:
+        """Seconds a homing line may go unanswered at the default homing rates: ``"$H"`` (also
+        ``$H0``..``$H7``) and ``"$HH"`` (also ``$HE``); slower ``$24``/``$25`` stretch them. Past
+        it a silent robot is taken for a dead link (see ARCHITECTURE.md, "Timeouts and
+        liveness"). A mutable mapping: tests may lower it."""
+        return self._condition.homing_bounds
 
     @property
     def liveness_interval(self) -> float:
@@ -200,6 +234,10 @@ class ClientParts:
             self._condition.unlocked()
         if _OFFSET_CHANGE_RE.match(parsed.text):
             self._condition.base_offset = None
+        if (rate := _HOMING_RATE_RE.match(parsed.text)) is not None:
+            self._condition.set_homing_rate(int(rate.group(1)), float(rate.group(2)))
+        elif parsed.text.startswith("$RST"):
+            self._condition.homing_rates = None  # the defaults again (or unknown: the same)
         return output
 
     async def _command_within(self, data: bytes, timeout: float | None) -> tuple[str, ...]:

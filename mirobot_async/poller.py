@@ -19,6 +19,15 @@ request too old; it is forgotten when a line's reply arrives that was written mo
 before it reads a later line), and when a banner ends (the robot reset). So nothing is ever
 credited to a request newer than the one it answers, and any number of ignored requests cost
 nothing once a line has been answered.
+
+While homing
+------------
+The firmware answers no ``?`` during its homing search: it prints one report when the search
+ends, however many ``?`` came meanwhile (oracle). So while a homing line may still be searching
+(:meth:`RobotCondition.homing_silent`) one ``?`` at most is written and not retried, and when the
+homing line is answered the ``?`` written before are forgotten (:meth:`on_homing_end`). A wait
+that times out meanwhile says that the arm is homing; ``through_homing`` waits (``statuses()``)
+pause until the search ends instead.
 """
 
 from __future__ import annotations
@@ -144,6 +153,12 @@ class StatusPoller:
             self._wire.stats.status_requests_forgotten += forgotten
             _log.debug("%d status request(s) were ignored by the robot", forgotten)
 
+    def on_homing_end(self) -> None:
+        """The homing line was answered: the ``?`` written during the search were merged into
+        the one report printed at its end; forget them (as after a banner) and ask anew."""
+        self._asks.clear()
+        self.pump()
+
     def on_banner(self) -> None:
         """The robot reset: a ``?`` written before may never be answered; forget them all (a late
         report is then credited to none, so it satisfies no waiter asking for a fresh one)."""
@@ -159,6 +174,7 @@ class StatusPoller:
         timeout: float | None,
         what: str = "a status report",
         depth: int = 1,
+        through_homing: bool = False,
     ) -> tuple[StatusReport, float]:
         """The next report (``fresh``: one answering a ``?`` written after this call started) and
         the write time of the ``?`` it is credited to (``-inf``: none).
@@ -169,20 +185,34 @@ class StatusPoller:
         that the robot samples its state every report instead of once per round trip; only
         while no line is in flight (the reports would delay their replies).
 
-        Raises :class:`MirobotTimeoutError` naming ``what`` after ``timeout`` seconds, what the
-        connection fails with (a lost link, a hard limit). Cancellation is safe.
+        Raises :class:`MirobotTimeoutError` naming ``what`` after ``timeout`` seconds (saying that
+        the arm is homing, if it is), what the connection fails with (a lost link, a hard
+        limit). With ``through_homing`` the timeout is extended while a homing search may still
+        run (the wait pauses until its report comes). Cancellation is safe.
         """
         check_timeout(timeout)
-        self._condition.check_answering()
+        condition = self._condition
+        condition.check_answering()
         loop = self._running_loop()
         waiter = _Waiter(loop.create_future(), loop.time() if fresh else -math.inf, depth)
         self._waiters.append(waiter)
         self.pump()
+        end = None if timeout is None else loop.time() + timeout
         try:
-            async with asyncio.timeout(timeout):
-                result = await waiter.fut
-        except TimeoutError as err:
-            raise MirobotTimeoutError(what, timeout) from err
+            while True:
+                wait = None if end is None else max(0.0, end - loop.time())
+                done, _ = await asyncio.wait((waiter.fut,), timeout=wait)
+                if done:
+                    break
+                homing = condition.homing_silent(loop.time())
+                if through_homing and homing is not None and end is not None:
+                    end = max(end, homing.ends_by + (timeout or 0.0))
+                    continue
+                homing = condition.homing
+                if homing is not None:
+                    what = f"{what} ({homing.describe()})"
+                raise MirobotTimeoutError(what, timeout)
+            result = waiter.fut.result()
         finally:
             if not waiter.fut.done():
                 waiter.fut.cancel()
@@ -211,6 +241,12 @@ class StatusPoller:
             self._stop_timer()
             return
         now = self._running_loop().time()
+        homing = condition.homing_silent(now)
+        if homing is not None and self._asks and self._asks[-1] >= homing.started:
+            # One "?" asked during the homing search gets the one report printed when it ends;
+            # more would only be merged into it. Ask again once the bound has passed.
+            self._arm_timer(homing.ends_by)
+            return
         newest_fresh = max(w.not_before for w in waiting)
         asks = self._asks
         depth = max(w.depth for w in waiting)

@@ -4,18 +4,15 @@ Lines are written in call order (one FIFO lock) and only when they fit in the ro
 receive buffer (GRBL character counting). ``$`` lines are written only when nothing else is in
 flight, and nothing follows them until they are answered (the ``$`` barrier). Each written line
 gets a :class:`Slot` whose future gets its reply. A call waiting for a reply checks the robot's
-liveness after :attr:`LineScheduler.liveness_interval` without progress: a quiet robot that
-answered a ``?`` written well after the oldest unanswered line has lost that line's reply, and
-the line is given up (:class:`MirobotTimeoutError`); the following replies keep their lines.
+liveness after :attr:`LineScheduler.liveness_interval` without progress
+(:class:`~mirobot_async.liveness.ReplyWatch`: lost replies, homing, dwells).
 """
 
 from __future__ import annotations
 
 import asyncio
 import logging
-import math
 from collections.abc import Awaitable, Callable
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Final
 
 from mirobot_async.condition import RobotCondition
@@ -28,8 +25,9 @@ from mirobot_async.errors import (
     MirobotTimeoutError,
     MotionRefusedError,
 )
-from mirobot_async.guard import EnvelopeGuard, NeedPosition, NullGuard, Tracked
+from mirobot_async.guard import EnvelopeGuard, NeedPosition, NullGuard
 from mirobot_async.line import ParsedLine, parse_line
+from mirobot_async.liveness import QUIET, ReplyWatch, Slot
 from mirobot_async.poller import StatusPoller
 from mirobot_async.protocol import (
     DoubtResolved,
@@ -37,10 +35,9 @@ from mirobot_async.protocol import (
     LineAcknowledged,
     LineOutcomeUnknown,
     LineRejected,
-    PendingLine,
     ResetDetected,
 )
-from mirobot_async.replies import State, StatusReport
+from mirobot_async.replies import StatusReport
 from mirobot_async.validation import InvalidLineError, line_problems, validate_line
 from mirobot_async.wire import Wire
 
@@ -51,35 +48,9 @@ __all__ = ["QUIET", "LineScheduler", "Slot", "StreamStopped"]
 
 _log = logging.getLogger("mirobot_async.client")
 
-QUIET: Final = frozenset({State.IDLE, State.ALARM, State.CHECK})
 _PROFILES: Final = ("2021", "classic")
 
 Outcome = LineAcknowledged | LineRejected | BaseException
-
-
-@dataclass(slots=True, eq=False)
-class Slot:
-    """A line written to the robot and owed a reply; ``fut`` is cancelled if the caller leaves."""
-
-    pending: PendingLine
-    command: str
-    fut: asyncio.Future[Outcome]
-    sent_at: float
-    tracked: Tracked | None = None  # what the envelope guard assumed when it was written
-    reply_epoch: int = -1  # the reset epoch when its reply came (a line may run after a reset)
-    # Called synchronously when the reply (or failure) is settled, before anything else runs.
-    watch: Callable[[Slot], None] | None = None
-
-    @property
-    def check(self) -> LineCheck | None:
-        """The envelope's verdict on the line (its target), if it was checked."""
-        return None if self.tracked is None else self.tracked.check
-
-    def settle(self, outcome: Outcome) -> None:
-        """Give the slot its outcome and tell its watcher at once (no loop iteration between)."""
-        self.fut.set_result(outcome)
-        if self.watch is not None:
-            self.watch(self)
 
 
 class StreamStopped(Exception):
@@ -151,12 +122,28 @@ class LineScheduler:
         self.slots: dict[int, Slot] = {}
         self._send_lock = asyncio.Lock()
         self._barrier: int | None = None  # id of an in-flight "$" line (send-response)
-        self._dwell_until = -math.inf
         self.liveness_interval = 1.0
-        self.reply_grace = 0.5
         self.status_timeout = 2.0
-        # The event router's dispatch, for the events of settling the lines in doubt.
-        self.dispatch: Callable[[Event], None] | None = None
+        self.watch = ReplyWatch(wire, condition, poller, guard, self.slots, self._take)
+
+    @property
+    def reply_grace(self) -> float:
+        """A line unanswered although a quiet robot answered a ``?`` sent this long after it
+        is lost (see :class:`~mirobot_async.liveness.ReplyWatch`)."""
+        return self.watch.reply_grace
+
+    @reply_grace.setter
+    def reply_grace(self, value: float) -> None:
+        self.watch.reply_grace = value
+
+    @property
+    def dispatch(self) -> Callable[[Event], None] | None:
+        """The event router's dispatch, for the events of settling the lines in doubt."""
+        return self.watch.dispatch
+
+    @dispatch.setter
+    def dispatch(self, value: Callable[[Event], None] | None) -> None:
+        self.watch.dispatch = value
 
     def start(self, loop: asyncio.AbstractEventLoop) -> None:
         """Use ``loop`` (the connection's)."""
@@ -182,6 +169,7 @@ class LineScheduler:
                 stats.lines_refused += 1
         else:
             stats.lines_rejected += 1
+        self.watch.replied(event.line.id, acknowledged=isinstance(event, LineAcknowledged))
         slot = self._take(event.line.id)
         if slot is None:
             return
@@ -202,7 +190,7 @@ class LineScheduler:
         their slots until their fate is known (:meth:`on_doubt_resolved`, or their replies)."""
         failed = event.failed
         self._barrier = None
-        self._dwell_until = -math.inf
+        self.watch.on_reset()
         for pending in event.in_doubt:
             slot = self.slots.get(pending.id)
             if slot is not None:
@@ -234,6 +222,7 @@ class LineScheduler:
         slot = self.slots.pop(line_id, None)
         if self._barrier == line_id:
             self._barrier = None
+        self.watch.taken(line_id)
         if slot is not None:
             slot.reply_epoch = self._condition.reset_epoch
         return slot
@@ -312,6 +301,11 @@ class LineScheduler:
         With ``idle`` the line is written only when nothing is in flight and a status received
         since shows the robot at rest (the firmware refuses ``$$`` with ``Not idle`` while the
         arm moves); nothing else is written in between (the send lock is held).
+
+        After a homing line's ``ok`` nothing is written until a status received since shows the
+        arm at rest: the firmware zeroes the position when the return move ends, and a line
+        queued behind that move is lost (oracle: a ``G0 X10`` sent right after the ``ok`` of
+        ``$H`` ends at 0).
         """
         condition, guard = self._condition, self._guard
         condition.check_sendable(command, motion=motion)
@@ -353,6 +347,11 @@ class LineScheduler:
                     verdict = found
                     checked_epoch = position_epoch
                     continue
+                if self.watch.homing_return:
+                    limit.what = f"the arm to finish homing (its return move) before {command!r}"
+                    await self.watch.await_homing_return(deadline, self.status_timeout)
+                    limit.what = room
+                    continue
                 if self._ready(exclusive, nbytes):
                     if idle and not at_rest:
                         limit.what = f"the robot to be at rest before sending {command!r}"
@@ -387,8 +386,7 @@ class LineScheduler:
         self.slots[pending.id] = slot
         if exclusive:
             self._barrier = pending.id
-        if dwell is not None and dwell > 0:
-            self._dwell_until = max(self._dwell_until, now) + dwell
+        self.watch.written(slot, now, dwell)
         return slot
 
     async def learn_position(self, command: str, deadline: float | None) -> None:
@@ -423,64 +421,8 @@ class LineScheduler:
             await self.check_liveness(deadline)
 
     async def check_liveness(self, deadline: float | None) -> None:
-        """Ask for a status; if the robot is quiet, give up on lines whose reply was lost."""
-        now = self._now()
-        if deadline is not None and deadline <= now:
-            return  # the caller's own deadline decides
-        report, asked_at = await self._poller.fetch(
-            fresh=True,
-            timeout=clip(self.status_timeout, deadline, now),
-            what="a status reply (checking that the robot is alive while waiting for a reply)",
-        )
-        if report.state in QUIET:
-            self._expire_lost_replies(asked_at, report.state)
-
-    def _expire_lost_replies(self, asked_at: float, state: State) -> None:
-        conn = self._wire.conn
-        if conn.in_banner:
-            return
-        if conn.in_doubt_count and asked_at >= self._condition.banner_started + self.reply_grace:
-            # A quiet robot answered a "?" written well after the banner: every reply to a
-            # line that ran after the reset has come; the others were lost with its buffer.
-            conn.resolve_doubt()
-            dispatch = self.dispatch
-            assert dispatch is not None
-            for event in conn.events():
-                dispatch(event)
-        if asked_at < self._dwell_until + self.reply_grace:
-            return
-        expired = False
-        while conn.pending_count:
-            oldest = conn.pending_lines[0]
-            slot = self.slots.get(oldest.id)
-            if slot is not None and asked_at - slot.sent_at < self.reply_grace:
-                break
-            conn.expire_oldest()
-            self.slots.pop(oldest.id, None)
-            if self._barrier == oldest.id:
-                self._barrier = None
-            self._wire.stats.replies_lost += 1
-            expired = True
-            self._guard.forget("lost")  # did it run? Unknown: forget position and modes
-            command = oldest.line.decode("ascii", "replace")
-            _log.warning(
-                "no reply to %r although the robot is %s and answered a later status request: "
-                "giving up on it",
-                command,
-                state.value,
-            )
-            if slot is not None and not slot.fut.done():
-                elapsed = self._now() - slot.sent_at
-                slot.settle(
-                    MirobotTimeoutError(
-                        f"the reply to {command!r} (lost: the robot is {state.value} and answered "
-                        "a later status request)",
-                        round(elapsed, 3),
-                        command=command,
-                    )
-                )
-        if expired:
-            self._wire.notify()
+        """:meth:`ReplyWatch.check` with this scheduler's status timeout."""
+        await self.watch.check(deadline, self.status_timeout)
 
     async def await_slot(
         self, slot: Slot, deadline: float | None, timeout: float | None

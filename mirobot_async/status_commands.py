@@ -29,7 +29,11 @@ class StatusCommands(ClientParts):
         A corrupted reply is dropped (counted in :attr:`corrupted_status_count`) and asked again;
         an ignored ``?`` is asked again after :attr:`status_retry_interval`, all within
         ``timeout`` seconds (default :data:`STATUS_TIMEOUT`), after which
-        :class:`MirobotTimeoutError` ("a status report") is raised. Cancellation is safe.
+        :class:`MirobotTimeoutError` ("a status report") is raised. While :meth:`home` (or a
+        ``$H`` line) runs, the firmware answers no ``?`` until its switch search ends: a
+        ``timeout`` longer than that returns the report it prints then (state ``Home``); a
+        shorter one raises ``MirobotTimeoutError`` saying that the arm is homing. Cancellation
+        is safe.
         """
         report, _ = await self._poller.fetch(fresh=fresh, timeout=timeout)
         return report
@@ -41,7 +45,10 @@ class StatusCommands(ClientParts):
 
         Several consumers may iterate at once: their requests share the outstanding ``?``, and
         polling never disturbs lines in flight. Each report waits at most ``timeout`` seconds
-        (:class:`MirobotTimeoutError`). Stop by breaking out of the loop (or cancelling the task);
+        (:class:`MirobotTimeoutError`), except while this connection homes the arm: the
+        firmware answers no ``?`` during the switch search, so the reports pause until it ends
+        (at most the homing bound, see :attr:`homing`) and resume with its ``Home`` report.
+        Stop by breaking out of the loop (or cancelling the task);
         prefer ``async with contextlib.aclosing(arm.statuses()) as reports:`` to release it at
         once (it is an async generator, so ``aclosing`` type-checks).
         """
@@ -51,7 +58,7 @@ class StatusCommands(ClientParts):
         loop = self._running_loop()
         next_time = loop.time()
         while True:
-            report, _ = await self._poller.fetch(fresh=False, timeout=timeout)
+            report, _ = await self._poller.fetch(fresh=False, timeout=timeout, through_homing=True)
             yield report
             now = loop.time()
             next_time = max(next_time + interval, now)
@@ -91,7 +98,10 @@ class StatusCommands(ClientParts):
         deadline = deadline_after(self._running_loop(), timeout)
         self._condition.check_sendable("!", motion=False)
         self._wire.write_realtime(self._wire.conn.feed_hold())
-        async with within(deadline, "the robot to stop (Hold)", timeout, command="!"):
+        what = "the robot to stop (Hold)"
+        if self._condition.homing is not None:
+            what += f"; {self._condition.homing.describe()}, and only reset() stops homing"
+        async with within(deadline, what, timeout, command="!"):
             while True:
                 report, _ = await self._poller.fetch(fresh=True, timeout=None)
                 if report.state is not State.RUN:

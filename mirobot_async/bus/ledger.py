@@ -79,6 +79,9 @@ class Owed:
     answered_before: int = 0
     moves: bool = True
     """A LINE that may occupy the arm's planner (see :func:`may_move`)."""
+    copies: int = 1
+    """A status request of the client: how many of its ``?`` it stands for (those written
+    while it waited to be sent; its report, printed after all of them, answers each)."""
     """A status request: the node's lines answered when it was sent (see
     :attr:`NodeLedger.unfinished`)."""
 
@@ -135,7 +138,8 @@ class NodeLedger:
                 if text.startswith(("<Idle", "<Alarm")):
                     self.lines_finished = max(self.lines_finished, owner.answered_before)
                 if owner.for_client:
-                    self._pass(raw)
+                    for _ in range(owner.copies):
+                        self._pass(raw)
             return self._pop_done()
         head = next((o for o in self.owed if o.finals > 0), None)
         if head is None:

@@ -29,6 +29,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from mirobot_async.bus.ledger import Kind, NodeLedger, Owed, may_move
+from mirobot_async.condition import HOMING_BOUND, HOMING_LINE_RE, homing_bound
 from mirobot_async.errors import (
     MirobotLinkLostError,
     MirobotTimeoutError,
@@ -49,9 +50,11 @@ _REALTIME = {b"?": Kind.STATUS, b"!": Kind.REALTIME, b"~": Kind.REALTIME, b"%": 
 class NodeSilentError(MirobotTimeoutError):
     """A node on the bus did not answer in time; names its address."""
 
-    def __init__(self, address: int, command: str, timeout: float) -> None:
+    def __init__(self, address: int, command: str, timeout: float, detail: str = "") -> None:
         self.address = address
-        super().__init__(f"a reply from the controller at @{address:02d}", timeout, command=command)
+        super().__init__(
+            f"a reply from the controller at @{address:02d}{detail}", timeout, command=command
+        )
 
 
 @dataclass(slots=True)
@@ -72,6 +75,10 @@ class BusTiming:
     hold the whole bus until a block ends). ``None``: no limit."""
     window_poll: float = 0.02
     """How often an arm whose window is full is asked for its status."""
+    homing_bounds: dict[str, float] = field(default_factory=lambda: dict(HOMING_BOUND))
+    """How long an arm homing (``$H``...) may answer nothing, not even ``?``, at the default
+    homing rates (:data:`~mirobot_async.condition.HOMING_BOUND`): meanwhile the bus neither
+    probes it nor takes an unanswered status request for a silent node."""
     reply_grace: float = 60.0
     """Each arm's :attr:`Mirobot.reply_grace <mirobot_async.Mirobot.reply_grace>`. A line
     waits in the bus's queue while other nodes talk, and a status request overtakes it, so the
@@ -199,6 +206,14 @@ class LinkSide:
         self._check_open()
         kind = _REALTIME[byte]
         node = self.node(address)
+        if kind is Kind.STATUS:
+            waiting = next((r for r in node.urgent if r.owed.kind is Kind.STATUS), None)
+            if waiting is not None and waiting.owed.for_client:
+                # A "?" still queued for this node answers this one too: its report will be
+                # printed after both were written. (One "?" per report on a slow, shared bus:
+                # a client polling faster than the bus answers would queue them without end.)
+                waiting.owed.copies += 1
+                return
         owed = Owed(kind, byte.decode(), self.ends, status_owed=kind is Kind.STATUS)
         request = _Request(owed, self._wire(address, byte))
         if byte == b"%":
@@ -386,6 +401,17 @@ class LinkSide:
         self.stats.bytes_sent += len(request.wire)
         self.link.write(request.wire)
 
+    def _homing_until(self, node: _Node) -> float | None:
+        """When the homing search of ``node``'s arm must have ended, if it may be running: its
+        oldest owed line is a homing line not answered yet (the firmware answers no ``?``)."""
+        for owed in node.ledger.owed:
+            if owed.kind is Kind.LINE and owed.main_final_pending:
+                text = owed.command.replace(" ", "").upper()
+                if HOMING_LINE_RE.match(text):
+                    return owed.sent_at + homing_bound(text, None, self.timing.homing_bounds)
+                return None
+        return None
+
     def _next_timer(self, now: float) -> float | None:
         holder = self._holder
         timing = self.timing
@@ -398,6 +424,9 @@ class LinkSide:
         deadlines = [quiet_since + timing.settle, quiet_since + timing.probe_interval]
         deadlines += [o.sent_at + timing.answer_timeout for o in holder.ledger.owed]
         deadlines.append(quiet_since + timing.answer_timeout)
+        homing_until = self._homing_until(holder)
+        if homing_until is not None:
+            deadlines.append(homing_until)
         future = [d for d in deadlines if d > now]
         return (min(future) - now if future else 0.0) + 0.0005
 
@@ -419,13 +448,19 @@ class LinkSide:
                 if self._holder is not holder:
                     return
         head = ledger.owed[0]
+        homing_until = self._homing_until(holder)
+        homing = homing_until is not None and now < homing_until
         for owed in ledger.owed:
-            prompt = owed.kind is Kind.CONTROLLER or (owed.kind is Kind.STATUS and owed.status_owed)
+            prompt = owed.kind is Kind.CONTROLLER or (
+                owed.kind is Kind.STATUS and owed.status_owed and not homing
+            )
             waited = now - max(owed.sent_at, holder.last_rx if owed is head else owed.sent_at)
             if prompt and waited >= timing.answer_timeout:
                 self._node_silent(holder, owed)
                 return
         probing = any(o.status_owed for o in ledger.owed)
+        if homing:
+            return  # the arm answers no "?" while it searches its homing switches
         if quiet >= timing.probe_interval and not probing and head.kind is Kind.LINE:
             self.stats.probes += 1
             self._send(holder, self._probe(holder), now)
@@ -434,7 +469,15 @@ class LinkSide:
         """``node`` did not answer ``owed`` in time: a controller command fails alone; a silent
         arm (its status unanswered) fails everything it owes, and its client's link is lost."""
         self.stats.silent_nodes += 1
-        error = NodeSilentError(node.address, owed.command, self.timing.answer_timeout)
+        detail = ""
+        homing_until = self._homing_until(node)
+        if homing_until is not None:
+            homing = next(o for o in node.ledger.owed if o.kind is Kind.LINE)
+            detail = (
+                f" (its arm was homing, {homing.command!r}, and answered nothing for "
+                f"{homing_until - homing.sent_at:g} s, longer than homing can take)"
+            )
+        error = NodeSilentError(node.address, owed.command, self.timing.answer_timeout, detail)
         node.silenced = error
         _log.warning("bus %s: %s", self.url, error)
         if owed.kind is Kind.CONTROLLER:

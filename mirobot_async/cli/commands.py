@@ -110,12 +110,14 @@ async def cmd_monitor(args: argparse.Namespace) -> int:
     """``mirobot monitor``: status samples until Ctrl-C (or ``--samples N``).
 
     An arm that does not answer for a while (the firmware answers no ``?`` while it searches its
-    homing switches) is waited for, with a note on stderr; a lost link ends the command.
+    homing switches, 8-30 s) is waited for and shown as silent, probably homing (also when it
+    is homing as the monitor opens the port); its first report after the search shows ``Home``.
+    A lost link ends the command.
     """
     with open_trace(args.csv, append=True, time_scale=time_scale_of(args)) as trace:
         try:
             with LiveView(sys.stdout) as view:
-                async with open_robot(args) as arm:
+                async with open_robot(args, watch_silent=True) as arm:
                     while args.samples is None or view.samples < args.samples:
                         try:
                             async with sampling(arm, args.interval) as statuses:
@@ -128,6 +130,7 @@ async def cmd_monitor(args: argparse.Namespace) -> int:
                                         break
                         except MirobotTimeoutError as err:
                             note(f"{err}; still waiting (is the arm homing?)")
+                            view.show_silence(datetime.datetime.now().astimezone())
         finally:
             if trace is not None and trace.rows:
                 note(f"{trace.rows} samples written to {trace.path}")

@@ -280,6 +280,21 @@ class LiveView:
         if self._live is not None:
             self._live.stop()
 
+    def show_silence(self, when: datetime.datetime) -> None:
+        """The arm answered no status request for a while: most likely it is homing."""
+        stamp = when.strftime("%H:%M:%S.%f")[:-3]
+        text = (
+            f"{stamp} Home? no status reply: the arm is probably homing (it answers no '?' "
+            "while it searches its switches); waiting"
+        )
+        if self._live is None:
+            self._stream.write(text + "\n")
+            self._stream.flush()
+            return
+        from rich.text import Text
+
+        self._live.update(Text(text), refresh=True)
+
     def show(self, report: StatusReport, when: datetime.datetime) -> None:
         """Show one sample."""
         self.samples += 1

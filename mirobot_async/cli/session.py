@@ -106,9 +106,34 @@ def _check_port(port: str) -> None:
         os.close(fd)  # also releases the lock
 
 
+HOMING_SILENCE_NOTE: Final = (
+    "the arm may be homing: it answers no status request while it searches its switches"
+)
+
+
+async def _connect_port(args: argparse.Namespace, watch_silent: bool) -> Mirobot:
+    """Connect to ``args.port``; with ``watch_silent`` an arm that answers no status request (it may
+    be homing) is connected to anyway, with a note (the caller keeps asking)."""
+    from mirobot_async.client import Mirobot
+    from mirobot_async.errors import MirobotConnectionError
+
+    try:
+        return await Mirobot.connect(args.port, firmware=args.firmware)
+    except MirobotConnectionError as err:
+        if not watch_silent or not isinstance(err.__cause__, TimeoutError):
+            raise
+        note(f"{err}; {HOMING_SILENCE_NOTE}: watching anyway")
+    return await Mirobot.connect(args.port, firmware=args.firmware, probe=False)
+
+
 @contextlib.asynccontextmanager
-async def open_robot(args: argparse.Namespace) -> AsyncIterator[Mirobot]:
-    """The arm at ``--port``, or an embedded virtual Mirobot for the duration of the block."""
+async def open_robot(
+    args: argparse.Namespace, *, watch_silent: bool = False
+) -> AsyncIterator[Mirobot]:
+    """The arm at ``--port``, or an embedded virtual Mirobot for the duration of the block.
+
+    ``watch_silent`` (``monitor``): a port whose arm answers no status request is opened
+    anyway (an arm that is homing answers none until its switch search ends)."""
     from mirobot_async.client import Mirobot
 
     if args.port is not None:
@@ -118,8 +143,11 @@ async def open_robot(args: argparse.Namespace) -> AsyncIterator[Mirobot]:
             args.port = await asyncio.to_thread(find_mirobot)
             note(f"auto: using {args.port}")
         _check_port(args.port)
-        async with Mirobot.connect(args.port, firmware=args.firmware) as arm:
+        arm = await _connect_port(args, watch_silent)
+        try:
             yield arm
+        finally:
+            await arm.close()
         return
 
     from mirobot_async.testing import start_emulator
