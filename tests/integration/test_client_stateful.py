@@ -61,6 +61,12 @@ def _emulator_pool(mirobot_emulator_pool: EmulatorPool) -> Iterator[None]:
     _POOL.remove(mirobot_emulator_pool)
 
 
+def on_the_oracle() -> bool:
+    """The pool lends the vendor's firmware (``MIROBOT_TEST_LINK=oracle``): classic only, and
+    no hard limit on demand (that is the emulator's control channel)."""
+    return bool(_POOL) and _POOL[-1].link == "oracle"
+
+
 T = TypeVar("T")
 TIME_SCALE = 50.0
 JOINT_TOL = 0.05  # half a motor step (the firmware moves in whole steps)
@@ -151,6 +157,8 @@ class ClientMachine(RuleBasedStateMachine):
 
     @initialize(profile=st.sampled_from(["2021", "classic"]))
     def start(self, profile: str) -> None:
+        if on_the_oracle():
+            profile = "classic"  # the vendor's firmware is the classic one
         note(f"profile {profile}")
         self.model = Model(profile)
 
@@ -393,9 +401,9 @@ class ClientMachine(RuleBasedStateMachine):
         self.model.after_reset()
         assert not self.client.needs_reset
 
-    @precondition(lambda self: not self.model.needs_reset)
+    @precondition(lambda self: not self.model.needs_reset and not on_the_oracle())
     @rule()
-    def hard_limit(self) -> None:
+    def hard_limit(self) -> None:  # injected through the emulator's control channel
         assert self.emu is not None
         self.emu.control("hard-limit")
 
