@@ -24,7 +24,8 @@ arm from the pool (it starts emulators itself) is skipped on that link; one that
 for what only the emulator has (the 2021 profile, emulator options, the control channel) is
 skipped by the plugin when it asks, each with the reason. A test marked
 ``@pytest.mark.oracle_differs("why")`` is a strict expected failure there: the real firmware
-does otherwise than the test expects, and the reason says what (a finding to fix, not to hide).
+does otherwise than the test expects, and the reason says what (a finding to fix, not to hide);
+``strict=False`` where it happens only with some timings of the host.
 """
 
 from __future__ import annotations
@@ -55,7 +56,8 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         return
     for item in items:
         for mark in item.iter_markers("oracle_differs"):
-            item.add_marker(pytest.mark.xfail(reason=mark.args[0], strict=True))
+            strict = bool(mark.kwargs.get("strict", True))
+            item.add_marker(pytest.mark.xfail(reason=mark.args[0], strict=strict))
     skip = pytest.mark.skip(
         reason="emulator only: starts its own emulator (borrows no arm from the pool, so "
         "nothing of it would run on the firmware oracle)"
