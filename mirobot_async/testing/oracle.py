@@ -62,16 +62,36 @@ def oracle_command(time_scale: float) -> list[str]:
     return [str(run), "-s", "0" if scale == 0 else repr(scale)]
 
 
+def beyond_the_wire(extra_args: Sequence[str]) -> list[str]:
+    """The emulator options in ``extra_args`` other than those that only make its link like the
+    arm's: ``--baud 115200`` (the simulated UART runs at it) and ``--usb-latency-ms N`` (the
+    oracle's pty has no USB adapter to delay it)."""
+    rest: list[str] = []
+    words = list(extra_args)
+    while words:
+        word = words.pop(0)
+        name, equals, value = word.partition("=")
+        if name in ("--baud", "--usb-latency-ms"):
+            value = value if equals else (words.pop(0) if words else "")
+            if name == "--usb-latency-ms" or value == "115200":
+                continue
+            rest += [name, value]
+            continue
+        rest.append(word)
+    return rest
+
+
 def check_oracle_settings(firmware: str, time_scale: float, extra_args: Sequence[str]) -> None:
     """:class:`OracleUnsupportedError` unless the oracle can be what these emulator settings
-    ask for (the classic profile, no emulator options)."""
+    ask for (the classic profile, no emulator options but those of the arm's own link)."""
     if firmware != ORACLE_FIRMWARE:
         raise OracleUnsupportedError(
             f"the firmware oracle is the {ORACLE_FIRMWARE} firmware, not {firmware!r}"
         )
-    if extra_args:
+    options = beyond_the_wire(extra_args)
+    if options:
         raise OracleUnsupportedError(
-            f"the firmware oracle has no emulator options ({' '.join(extra_args)})"
+            f"the firmware oracle has no emulator options ({' '.join(options)})"
         )
     if not float(time_scale) >= 0:
         raise OracleUnsupportedError(f"time_scale={time_scale!r} must be >= 0")

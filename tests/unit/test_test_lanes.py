@@ -11,6 +11,7 @@ import pytest
 
 from mirobot_async.testing import EmulatorPool
 from mirobot_async.testing.control import LINK_ENV, OracleUnsupportedError, default_link, link_args
+from mirobot_async.testing.oracle import beyond_the_wire
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -48,3 +49,10 @@ def test_the_oracle_refuses_what_only_the_emulator_is(
         with pytest.raises(OracleUnsupportedError, match=words):
             pool.acquire(firmware, 0.0, extra_args=extra_args)
         assert pool.started == 0  # refused before any process starts
+
+
+def test_the_arms_own_link_options_are_the_oracle_as_it_is() -> None:
+    assert beyond_the_wire(["--baud", "115200", "--usb-latency-ms", "16"]) == []
+    assert beyond_the_wire(["--baud=115200"]) == []
+    assert beyond_the_wire(["--baud", "9600"]) == ["--baud", "9600"]
+    assert beyond_the_wire(["--reset-on-open", "--baud", "115200"]) == ["--reset-on-open"]
