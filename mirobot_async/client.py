@@ -36,6 +36,11 @@ come for :attr:`Mirobot.liveness_interval` seconds polls the status. No status r
 that leaves the oldest line unanswered although it was sent more than
 :attr:`Mirobot.reply_grace` seconds before that status request has lost the reply: the line is
 given up (``MirobotTimeoutError`` naming it) and the following replies keep their lines.
+Two silences are expected: during the homing search the firmware answers nothing, not even
+``?``, so no ``?`` is asked until the homing bound (:attr:`Mirobot.homing_bounds`, from the
+homing settings) has passed; and lines behind a ``G4`` dwell keep their slots while the robot
+reports ``Idle`` for the dwell. After homing, nothing is written until the arm is back at zero.
+Every rule, with the robot behaviour it relies on: ARCHITECTURE.md, "Timeouts and liveness".
 
 Cancellation
 ------------

@@ -46,14 +46,16 @@ _VERSION_RE: Final = re.compile(r"Robot\s+(\d{8})(\S*)")
 
 _BannerResult = tuple[str, ...] | BaseException
 
-HOMING_LINE_RE: Final = re.compile(r"^\$H[H0-7E]?$")
-"""The homing lines: ``$H``, ``$HH``, and the 2021 ``$H0``..``$H7``, ``$HE``."""
+HOMING_LINE_RE: Final = re.compile(r"^\$H")
+"""The homing lines: ``$H``, ``$HH``, the 2021 ``$H0``..``$H7``, ``$HE``, and any other ``$H...``
+(the firmware may home for it; a refused one is answered at once, which ends the wait)."""
 HOMING_BOUND: Final = {"$H": 45.0, "$HH": 120.0}
 """The longest a homing line can stay unanswered at the default homing rates (seconds): the
 firmware answers nothing, not even ``?``, until its switch search ends (oracle). Measured
 searches: ``$H`` 8.2 s (oracle), 10-15 s on real arms (PROTOCOL.md 6.2), the 2021 ``$H0`` with
 its rail 1.5 times longer; ``$HH`` 29.1 s (oracle). The bounds are three to four times those;
-``$H0``..``$H7`` use the ``$H`` bound, ``$HE`` (one group after another) the ``$HH`` one."""
+``$H0``..``$H7`` use the ``$H`` bound; ``$HE`` (one group after another) and any other
+``$H...`` the ``$HH`` one."""
 HOMING_DEFAULT_RATES: Final = (1500.0, 2000.0)
 """The homing feed ``$24`` and seek ``$25`` (deg/min) the bounds were measured at (both
 profiles' defaults): slower rates stretch the bound in proportion."""
@@ -67,8 +69,8 @@ def homing_bound(
     """Seconds the homing line ``command`` may go unanswered: ``bounds`` (default
     :data:`HOMING_BOUND`), stretched when the homing feed or seek (``rates``: ``$24``, ``$25``;
     ``None``: the defaults) is slower than :data:`HOMING_DEFAULT_RATES`."""
-    sequential = command in ("$HH", "$HE")
-    base = bounds["$HH" if sequential else "$H"]
+    together = command == "$H" or (len(command) == 3 and "0" <= command[2] <= "7")
+    base = bounds["$H" if together else "$HH"]
     if rates is None:
         return base
     stretch = max(

@@ -37,11 +37,15 @@ from mirobot_async.wire import Wire
 if TYPE_CHECKING:
     from mirobot_async.envelope import LineCheck
 
-__all__ = ["QUIET", "ReplyWatch", "Slot"]
+__all__ = ["DWELL_CLOCK_SLACK", "QUIET", "ReplyWatch", "Slot"]
 
 _log = logging.getLogger("mirobot_async.client")
 
 QUIET: Final = frozenset({State.IDLE, State.ALARM, State.CHECK})
+DWELL_CLOCK_SLACK: Final = 2.0
+"""A dwell is timed by the robot's clock, not the host's: lines pending behind dwells keep their
+slots for this many times the dwells (a simulated firmware slips under load, 2x seen with the
+oracle on a loaded machine); a reply lost after a dwell is given up that much later."""
 
 Outcome = LineAcknowledged | LineRejected | BaseException
 
@@ -199,7 +203,7 @@ class ReplyWatch:
             return -math.inf
         if self._quiet_anchor is None or self._quiet_anchor < self._last_write:
             self._quiet_anchor = max(asked_at, self._last_write, self._now())
-        return self._quiet_anchor + math.fsum(dwells)
+        return self._quiet_anchor + DWELL_CLOCK_SLACK * math.fsum(dwells)
 
     def _expire_lost_replies(self, asked_at: float, state: State) -> None:
         conn = self._wire.conn

@@ -13,6 +13,7 @@ import pytest
 from mirobot_async import (
     Mirobot,
     MirobotLinkLostError,
+    MirobotResetError,
     MirobotTimeoutError,
     State,
     StatusReport,
@@ -124,3 +125,27 @@ async def test_a_silent_link_past_the_homing_bound_names_homing(arm: Mirobot, pr
     with pytest.raises(MirobotTimeoutError, match="homing") as raised:
         await arm.home()
     assert "'$H'" in str(raised.value)
+
+
+async def test_reset_while_homing_fails_home_at_once(arm: Mirobot, profile: str) -> None:
+    homing = asyncio.create_task(arm.home())
+    try:
+        await homing_started(arm)
+        banner = await arm.reset()  # "%" is the one thing the firmware reads while homing
+        assert banner
+        assert arm.homing is None
+        with pytest.raises(MirobotResetError):
+            await homing
+    finally:
+        homing.cancel()
+        with contextlib.suppress(BaseException):
+            await homing
+    assert (await arm.status()).state in (State.ALARM, State.IDLE)  # answering again at once
+
+
+@pytest.mark.timeout(150)
+@pytest.mark.parametrize("profile", ["classic"])
+async def test_send_sequential_home_gets_the_homing_timeout(arm: Mirobot, profile: str) -> None:
+    """``$HH`` answers after 29 s of silence: send()'s default gives it HOME_TIMEOUT."""
+    await arm.send("$HH")
+    assert at_zero(await arm.wait_idle())

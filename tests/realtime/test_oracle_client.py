@@ -86,3 +86,16 @@ async def test_dwell_behind_a_move_runs_in_idle_and_is_not_given_up(oracle: str)
         assert arm.stats.replies_lost == 0
         report = await arm.status(fresh=True)
         assert abs(report.joints[0] - 40) < 0.05, report
+
+
+@pytest.mark.timeout(150)
+async def test_pump_line_behind_more_than_30_seconds_of_motion(oracle: str) -> None:
+    """The old default (30 s) would have given up the pump line: it waits for the motion."""
+    async with Mirobot.connect(oracle) as arm:
+        await arm.unlock()
+        for j1 in (150, -90, 150):  # 9 + 14 + 14 s at F1000
+            await arm.move_joints(j1=j1, speed=1000, wait=False)
+        await arm.set_pump(500)
+        report = await arm.status(fresh=True)
+        assert report.state is State.IDLE and abs(report.joints[0] - 150) < 0.05, report
+        assert report.pump_pwm == 500
