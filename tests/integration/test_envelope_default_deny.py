@@ -90,11 +90,6 @@ async def test_no_absolute_cartesian_line_before_the_base_offset_is_known(
 # ---- item 2: every $H variant homes ---------------------------------------------------------
 
 
-@pytest.mark.oracle_differs(
-    "the classic firmware homes on every $H line ($H8, $H9 and $HX each run a 9 s silent "
-    "homing cycle, oracle -s 1), but the client's liveness check knows only $H, $HH, $H0-$H7 "
-    "and $HE as homing: $H8 times out after 2 s for want of a status reply"
-)
 async def test_homing_variants_forget_the_position(emu: EmulatorProcess) -> None:
     spy = WireSpy()
     arm = await _connect(emu, spy, Envelope(joints={1: (-50, 50)}))
