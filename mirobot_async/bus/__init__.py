@@ -34,7 +34,9 @@ Limits (see ``EXBOX.md``; no controller firmware or device log exists): the pref
 reply shapes (the arm's ``ok`` for each line end relayed, ``O103`` as ``State,<Word>,<n>`` or
 a number, ``O110`` as ``["a","b"]`` or one name per line, a query's bare value) and the
 turnaround are inferred from the vendor's clients and the manual. Prefer
-:meth:`Controller.home` (answered at once) to ``arm.home()`` (holds the bus while homing). A
+:meth:`Controller.home` (answered at once) to ``arm.home()`` (holds the bus while homing);
+meanwhile that arm answers no ``?``, so its client's status requests wait in the bus's queue
+until ``O103`` or the arm's first report says the search is over (other arms go on). A
 status report is ~190 bytes: ~50 ms on the bus at 38400 baud, shared by every arm. A reply lost
 on the wire (a collision) holds the bus; the arm's call times out.
 """

@@ -146,9 +146,12 @@ class Controller:
         manual's bare number 0..5; both parsed)."""
         text = await self._value("O103", timeout)
         try:
-            return _parse_state(text)
+            state = _parse_state(text)
         except ValueError:
             raise ControllerCommandError(self.address, "O103", text) from None
+        if state.word != "Home":
+            self._side.homing_ended(self.address)
+        return state
 
     async def restart(self, *, timeout: float | None = CONTROLLER_TIMEOUT) -> None:
         """``O100``: restart the controller (its arm resets)."""
@@ -173,6 +176,7 @@ class Controller:
         loop = asyncio.get_running_loop()
         started = loop.time()
         await self._set(f"o105={mode}", timeout)
+        self._side.homing_started(self.address, mode)  # the arm answers no "?" meanwhile
         if wait:
             await self.wait_idle(
                 poll_interval=poll_interval,

@@ -119,6 +119,10 @@ class _Node:
     last_window_probe: float = -1e9
     silenced: NodeSilentError | None = None
     """Why the node was given up (it did not answer in time), if it was."""
+    homing_until: float | None = None
+    """Its controller was told to home the arm (``O105``): until then (or the arm's first
+    report, or ``O103`` saying otherwise) the arm answers no ``?``, so its client's status
+    requests wait in the queue (the bus stays free) instead of being taken for silence."""
 
     def queued(self) -> list[_Request]:
         return [*self.urgent, *self.lines]
@@ -254,6 +258,21 @@ class LinkSide:
         node.lines = deque(r for r in node.lines if r.future is not None)
         self._wake.set()
 
+    def homing_started(self, address: int, mode: int) -> None:
+        """The controller at ``address`` homes its arm (``O105=<mode>``; 9 and 10 home one
+        axis or group after another: the ``$HH`` bound, else the ``$H`` one)."""
+        command = "$HH" if mode in (9, 10) else "$H"
+        bound = homing_bound(command, None, self.timing.homing_bounds)
+        self.node(address).homing_until = self._loop.time() + bound
+        self._wake.set()
+
+    def homing_ended(self, address: int) -> None:
+        """The arm at ``address`` is no longer homing (``O103`` says so)."""
+        node = self.nodes.get(address)
+        if node is not None and node.homing_until is not None:
+            node.homing_until = None
+            self._wake.set()
+
     def _wire(self, address: int, body: bytes) -> bytes:
         return b"@" + str(address).encode() + body + self.line_end
 
@@ -275,6 +294,8 @@ class LinkSide:
             raw = bytes(self._rx[: end + 1])
             del self._rx[: end + 1]
             holder = self._holder
+            if holder is not None and raw.startswith(b"<"):
+                holder.homing_until = None  # a report: the arm's homing search is over
             if holder is None:
                 if raw.strip():
                     self.stats.stray_lines += 1
@@ -359,7 +380,9 @@ class LinkSide:
             node = self.nodes.get(address)
             if node is None:
                 continue
-            if node.urgent:
+            if node.homing_until is not None and now >= node.homing_until:
+                node.homing_until = None  # longer than homing can take: ask it again
+            if node.urgent and not (node.homing_until is not None and self._status_only(node)):
                 self._send(node, node.urgent.popleft(), now)
                 return
             if not node.lines:
@@ -373,6 +396,11 @@ class LinkSide:
                 continue
             self._send(node, node.lines.popleft(), now)
             return
+
+    @staticmethod
+    def _status_only(node: _Node) -> bool:
+        """All the node's urgent requests are status requests (held back while it homes)."""
+        return all(r.owed.kind is Kind.STATUS for r in node.urgent)
 
     def _window_full(self, node: _Node) -> bool:
         window = self.timing.planner_window
@@ -403,7 +431,10 @@ class LinkSide:
 
     def _homing_until(self, node: _Node) -> float | None:
         """When the homing search of ``node``'s arm must have ended, if it may be running: its
-        oldest owed line is a homing line not answered yet (the firmware answers no ``?``)."""
+        oldest owed line is a homing line not answered yet, or its controller homes it
+        (``O105``): the firmware answers no ``?``."""
+        if node.homing_until is not None:
+            return node.homing_until
         for owed in node.ledger.owed:
             if owed.kind is Kind.LINE and owed.main_final_pending:
                 text = owed.command.replace(" ", "").upper()
@@ -417,9 +448,11 @@ class LinkSide:
         timing = self.timing
         if holder is None or not holder.ledger:
             gated = [n.last_window_probe for n in self.nodes.values() if n.lines and not n.urgent]
-            if not gated:
+            homing = [n.homing_until for n in self.nodes.values() if n.homing_until is not None]
+            if not gated and not homing:
                 return None
-            return max(0.0, min(gated) + timing.window_poll - now) + 0.0005
+            wakes = [g + timing.window_poll for g in gated] + homing
+            return max(0.0, min(wakes) - now) + 0.0005
         quiet_since = holder.last_rx
         deadlines = [quiet_since + timing.settle, quiet_since + timing.probe_interval]
         deadlines += [o.sent_at + timing.answer_timeout for o in holder.ledger.owed]

@@ -4,6 +4,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import io
 import os
@@ -165,3 +166,30 @@ def test_cli_monitor_shows_an_arm_that_is_homing(
     assert done.returncode == 0, done.stderr
     assert "probably homing" in done.stdout, done.stdout
     assert " Home " in done.stdout, done.stdout  # the report printed when the search ended
+
+
+@pytest.mark.parametrize("profile", ["2021"])
+async def test_bus_controller_homing_keeps_the_arms_client(tmp_path: Path, profile: str) -> None:
+    """``O105`` homes the arm by the controller: the arm answers no ``?`` meanwhile, so the
+    bus holds its client's status requests back (it stays free) instead of giving it up."""
+    with bus_emulator(tmp_path, profile) as path:
+        async with ControllerBus.open(path) as bus:
+            arm = await bus.connect_arm(1)
+            other = await bus.connect_arm(2)
+            homing = asyncio.create_task(bus.controller(1).home())
+            try:
+                async with asyncio.timeout(20):
+                    while (await bus.controller(1).arm_state()).word != "Home":  # noqa: ASYNC110
+                        await asyncio.sleep(0.05)
+                asking = asyncio.create_task(arm.status(timeout=60))
+                assert (await other.status()).state is not None  # the bus stays free
+                await homing
+                report = await asking  # answered once the controller says the search is over
+                assert report.state in (State.HOME, State.RUN, State.IDLE), report
+                report = await arm.wait_idle()
+                assert all(abs(j) < 0.05 for j in report.joints), report
+            finally:
+                homing.cancel()
+                await asyncio.gather(homing, return_exceptions=True)
+            assert bus.stats.silent_nodes == 0
+            assert not arm.closed
