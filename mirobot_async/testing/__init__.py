@@ -487,7 +487,7 @@ def _define_fixtures() -> None:
 
     @pytest.fixture
     def mirobot_link(request: Any) -> str:
-        """The arm's link for this test: ``"pty"``, ``"tcp"`` or ``"oracle"`` (``--mirobot-link``)."""
+        """The arm's link for this test: ``pty``, ``tcp`` or ``oracle`` (``--mirobot-link``)."""
         link: str = getattr(request, "param", None) or default_link()
         return link
 
