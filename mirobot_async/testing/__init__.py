@@ -42,7 +42,13 @@ extra_args=..., listen=..., fresh=...)`` marker, else from the command line opti
 ``--mirobot-firmware`` (default ``2021``), ``--mirobot-time-scale`` (default ``0``: every
 motion completes at once) and ``--mirobot-link`` (``pty``, ``tcp`` or ``both``: every test
 using the fixtures runs once per link; default ``$MIROBOT_TEST_LINK``, else ``pty`` where ptys
-exist). The ``mirobot_link`` fixture names the test's link. The fixtures are
+exist). The ``mirobot_link`` fixture names the test's link. ``--mirobot-link oracle`` (or
+``MIROBOT_TEST_LINK=oracle``) lends the vendor's own firmware in an AVR simulator instead of
+an emulator (classic profile; ``$MIROBOT_ORACLE_SOURCE`` names its folder: see
+:mod:`mirobot_async.testing._oracle`); a time scale of 0 runs it as fast as the host can,
+others at that many simulated seconds per second. A test that asks of it what only the emulator
+has (the 2021 profile, emulator options, the control channel) is skipped, with the reason.
+The fixtures are
 synchronous (the emulator is a separate process), so they work in any test style: plain,
 pytest-asyncio (any mode), anyio or trio.
 
@@ -54,6 +60,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import os
 import signal
 import sys
 from collections.abc import AsyncIterator, Iterator, Sequence
@@ -64,9 +71,11 @@ from mirobot_async.testing._control import (
     CONTROL_TIMEOUT,
     DEFAULT_FIRMWARE,
     DEFAULT_TIME_SCALE,
+    LINK_ENV,
     STARTUP_TIMEOUT,
     STOP_TIMEOUT,
     EmulatorError,
+    OracleUnsupportedError,
     control_reply,
     control_result,
     control_text,
@@ -114,6 +123,7 @@ __all__ = [
     "WireSpy",
     "emulator_command",
     "run_emulator",
+    "session_link",
     "start_emulator",
 ]
 
@@ -396,7 +406,7 @@ _MARKER_HELP = (
     "not one renewed from the pool)"
 )
 _MARKER_KEYS = frozenset({"firmware", "time_scale", "extra_args", "listen", "fresh"})
-LINK_CHOICES = ("pty", "tcp", "both")
+LINK_CHOICES = ("pty", "tcp", "oracle", "both")
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
@@ -419,7 +429,8 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         choices=LINK_CHOICES,
         default=None,
         help="link of the mirobot_emulator fixture: pty, tcp or both (each test runs once per "
-        "link); default $MIROBOT_TEST_LINK, else pty where ptys exist",
+        "link), or oracle (the vendor's firmware in a simulator, $MIROBOT_ORACLE_SOURCE); "
+        "default $MIROBOT_TEST_LINK, else pty where ptys exist",
     )
     group.addoption(
         "--mirobot-pool-size",
@@ -434,6 +445,15 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 def pytest_configure(config: pytest.Config) -> None:
     """Register the ``mirobot_emulator`` marker (works with ``--strict-markers``)."""
     config.addinivalue_line("markers", _MARKER_HELP)
+
+
+def session_link(config: pytest.Config) -> str | None:
+    """The link chosen for the whole session (``--mirobot-link``, else ``$MIROBOT_TEST_LINK``):
+    ``pty``, ``tcp``, ``oracle``, or ``None`` for ``both`` or no choice."""
+    chosen: str | None = config.getoption("--mirobot-link", None)
+    if chosen is None:
+        chosen = default_link() if os.environ.get(LINK_ENV, "").strip() else None
+    return None if chosen == "both" else chosen
 
 
 def _argnames(names: Any) -> list[str]:
@@ -490,7 +510,7 @@ def _define_fixtures() -> None:
 
     @pytest.fixture
     def mirobot_link(request: Any) -> str:
-        """The emulator's link for this test: ``"pty"`` or ``"tcp"`` (see ``--mirobot-link``)."""
+        """The arm's link for this test: ``pty``, ``tcp`` or ``oracle`` (``--mirobot-link``)."""
         link: str = getattr(request, "param", None) or default_link()
         return link
 
@@ -501,7 +521,8 @@ def _define_fixtures() -> None:
         from mirobot_async.testing._pool import DEFAULT_MAX_IDLE, EmulatorPool
 
         size = request.config.getoption("--mirobot-pool-size")
-        with EmulatorPool(DEFAULT_MAX_IDLE if size is None else size) as pool:
+        max_idle = DEFAULT_MAX_IDLE if size is None else size
+        with EmulatorPool(max_idle, link=session_link(request.config)) as pool:
             yield pool
 
     @pytest.fixture
@@ -521,6 +542,24 @@ def _define_fixtures() -> None:
         """The port URL of a virtual Mirobot started for this test."""
         return mirobot_emulator_process.url
 
+    @pytest.hookimpl(wrapper=True)
+    def pytest_runtest_setup(item: pytest.Item) -> Iterator[None]:
+        """A fixture that asked the firmware oracle for what only the emulator has skips."""
+        return (yield from _skip_unsupported())
+
+    @pytest.hookimpl(wrapper=True)
+    def pytest_runtest_call(item: pytest.Item) -> Iterator[None]:
+        """A test that asked the firmware oracle for what only the emulator has skips."""
+        return (yield from _skip_unsupported())
+
+    def _skip_unsupported() -> Iterator[None]:
+        try:
+            return (yield)
+        except OracleUnsupportedError as exc:
+            pytest.skip(f"emulator only: {exc}")
+
+    globals()["pytest_runtest_setup"] = pytest_runtest_setup
+    globals()["pytest_runtest_call"] = pytest_runtest_call
     globals()["mirobot_link"] = mirobot_link
     globals()["mirobot_emulator_pool"] = mirobot_emulator_pool
     globals()["mirobot_emulator_process"] = mirobot_emulator_process

@@ -68,9 +68,17 @@ class EmulatorPool:
     upset timing-sensitive tests on a loaded machine.
     """
 
-    def __init__(self, max_idle: int = DEFAULT_MAX_IDLE, *, start_spares: bool = False) -> None:
+    def __init__(
+        self,
+        max_idle: int = DEFAULT_MAX_IDLE,
+        *,
+        start_spares: bool = False,
+        link: str | None = None,
+    ) -> None:
         self.max_idle = max_idle
         self.start_spares = start_spares
+        self.link = link
+        """The link of a borrower that names none (``None``: :func:`default_link`)."""
         self._lock = threading.Lock()
         self._idle: dict[str, list[SyncEmulatorProcess]] = {}
         self._links: dict[SyncEmulatorProcess, str | None] = {}  # every process not stopped
@@ -98,10 +106,14 @@ class EmulatorPool:
 
         Renewing an idle one takes milliseconds (at most :data:`CONTROL_TIMEOUT` s before it
         is given up for a new process); starting one waits up to ``startup_timeout`` s
-        (:class:`EmulatorError`). ``fresh``: a new process, never pooled.
+        (:class:`EmulatorError`). ``fresh``: a new process, never pooled. On the ``oracle``
+        link the process is a new firmware oracle (:class:`SyncOracleProcess`, never pooled);
+        :class:`OracleUnsupportedError` if these settings ask for what it cannot be.
         """
         emulator_args(firmware, time_scale, extra_args)  # bad settings: MirobotUsageError now
-        link = default_link() if listen is None else listen
+        link = listen or self.link or default_link()
+        if link == "oracle":
+            return self._start_oracle(firmware, time_scale, extra_args)
         pooled = self._pooled(link, extra_args) and not fresh
         try:
             while pooled:
@@ -156,6 +168,22 @@ class EmulatorPool:
             self._stop(emulator)
             raise EmulatorError("the emulator pool is closed")
         return emulator
+
+    def _start_oracle(
+        self, firmware: str, time_scale: float, extra_args: Sequence[str]
+    ) -> SyncEmulatorProcess:
+        from mirobot_async.testing._oracle import SyncOracleProcess, check_oracle_settings
+
+        check_oracle_settings(firmware, time_scale, extra_args)  # before any process starts
+        oracle = SyncOracleProcess(firmware, time_scale, extra_args=extra_args)
+        with self._lock:
+            self.started += 1
+            self._links[oracle] = None  # stopped on its return
+            closed = self._closed
+        if closed:
+            self._stop(oracle)
+            raise EmulatorError("the emulator pool is closed")
+        return oracle
 
     def _start_spare(self, link: str) -> None:
         """Start a process for the next borrower in the background (while this one's test

@@ -427,7 +427,9 @@ async def test_safety_envelope_refuses_moves_before_writing(
 
 
 @pytest.mark.mirobot_emulator(time_scale=1)
-async def test_wait_true_detects_completion_promptly(ready_arm: Mirobot) -> None:
+async def test_wait_true_detects_completion_promptly(
+    ready_arm: Mirobot, on_the_oracle: bool
+) -> None:
     arm = ready_arm
     polls = arm.stats.status_requests
     start = time.monotonic()
@@ -439,8 +441,12 @@ async def test_wait_true_detects_completion_promptly(ready_arm: Mirobot) -> None
     assert_joints(report, (8, 0, 0, 0, 0, 0))
     # detected within a few milliseconds of the end of the motion (margin for a loaded box),
     # by polling back-to-back, not on a 100 ms grid
-    assert 0.8 <= elapsed < 0.8 + 0.08, elapsed
-    assert arm.stats.status_requests - polls > 50
+    assert elapsed >= 0.8, elapsed
+    if not on_the_oracle:  # (its simulated clock slips behind the wall clock under load)
+        assert elapsed < 0.8 + 0.08, elapsed
+    # more than 25 in 0.8 s: on the arm a report takes about 15 ms to print at 115200 baud
+    # (the firmware oracle answers 36 back-to-back requests in this move; a 100 ms grid: 8)
+    assert arm.stats.status_requests - polls > 25
     # the next status is the same: the move had really finished
     assert_joints(await arm.status(), (8, 0, 0, 0, 0, 0))
 

@@ -117,6 +117,14 @@ async def test_a_late_status_reply_is_not_credited_to_a_newer_request(
         await emu.control("delay 0")
 
 
+@pytest.mark.oracle_differs(
+    "a % that arrives while the firmware prints its banner cuts that banner off mid-line (a few "
+    "garbled bytes, no 'Using reset pos!') and prints one new banner: the client ends reset A "
+    "on it, sends the held M50 (answered ok, not failed) and reset B waits for a second banner "
+    "that never comes (MirobotTimeoutError after 5 s); the emulator prints A's banner whole, "
+    "then B's (when B's % reaches the firmware before A's banner has ended: host timing)",
+    strict=False,
+)
 async def test_no_line_is_written_while_a_second_concurrent_reset_awaits_its_banner(
     ready_arm: Mirobot, wire_spy: WireSpy
 ) -> None:
@@ -145,17 +153,21 @@ async def test_no_line_is_written_while_a_second_concurrent_reset_awaits_its_ban
     await arm.reset(timeout=5.0)
     assert second
     reset_b = second[0]
-    async with asyncio.timeout(5):
-        await b_wrote_its_reset.wait()  # B started after A's banner had: its own "%"
-    assert not reset_b.done()  # B still waits for its banner: nothing may be written
-    mark = wire_spy.mark()
-    # Held back until B's banner, then failed as documented for lines waiting for their turn.
-    with pytest.raises(MirobotResetError, match="not sent"):
+    try:
+        async with asyncio.timeout(5):
+            await b_wrote_its_reset.wait()  # B started after A's banner had: its own "%"
+        assert not reset_b.done()  # B still waits for its banner: nothing may be written
+        mark = wire_spy.mark()
+        # Held back until B's banner, then failed as documented for lines waiting for their turn.
+        with pytest.raises(MirobotResetError, match="not sent"):
+            await arm.send("M50", timeout=5.0)
+        assert wire_spy.lines(mark) == []
+        await reset_b
         await arm.send("M50", timeout=5.0)
-    assert wire_spy.lines(mark) == []
-    await reset_b
-    await arm.send("M50", timeout=5.0)
-    assert wire_spy.lines(mark) == [b"M50\n"]
+        assert wire_spy.lines(mark) == [b"M50\n"]
+    finally:  # a failure above leaves no task behind with an unread exception
+        reset_b.cancel()
+        await asyncio.gather(reset_b, return_exceptions=True)
 
 
 class _PortSpy:

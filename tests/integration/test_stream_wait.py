@@ -87,6 +87,12 @@ async def test_stream_wait_continues_past_errors_when_asked_and_then_waits(
 
 
 @pytest.mark.mirobot_emulator(time_scale=1)
+@pytest.mark.oracle_differs(
+    "a % during motion makes the firmware print 'ALARM: Abort during cycle' before its banner "
+    "(and the dwell's ok after it): on a loaded host the stream's G4 P0 then fails with "
+    "MirobotAlarmError ('the robot is in Alarm: Abort during cycle'), not MirobotResetError",
+    strict=False,
+)
 async def test_a_reset_while_a_stream_waits_for_the_motion_fails_it(
     ready_arm: Mirobot, first_status: Callable[..., Awaitable[None]]
 ) -> None:

@@ -56,6 +56,7 @@ SCRIPT = """
         result = arm.stream(["G90", "M21 G01 X5 F2000", "M20 G00 X200 Y0 Z200 A0 B0 C0"],
                             on_progress=progress.append)
         print("stream", result.sent, result.acknowledged, len(progress))
+        arm.wait_idle()  # the streamed moves were accepted, not finished (on a real arm)
         for number, status in enumerate(arm.statuses(0.01)):
             if number == 2:
                 break

@@ -1,0 +1,135 @@
+"""What the user-flow tests of this directory share: an arm at its own speed, lent by the
+session's pool (the plugin's ``mirobot_emulator_pool``), and the CLI as a child process.
+
+``ARMS``: the emulator at ``--time-scale 1`` in both profiles, and ``oracle``, the vendor's
+classic firmware in its simulator at real time (``run.sh -s 1``, the pool's ``oracle`` link).
+Without the oracle built, its cases skip, unless ``MIROBOT_REQUIRE_ORACLE=1`` (CI) makes that a
+failure.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from mirobot_async.testing import EmulatorError, EmulatorPool
+from mirobot_async.testing._oracle import oracle_command
+
+ARMS = ("2021", "classic", "oracle")
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@contextlib.contextmanager
+def arm_at_real_speed(pool: EmulatorPool, arm: str) -> Iterator[str]:
+    """The port of ``arm`` (a profile, or ``oracle``) running at real speed, powered on."""
+    if arm == "oracle":
+        try:
+            oracle_command(1.0)
+        except EmulatorError as missing:
+            if os.environ.get("MIROBOT_REQUIRE_ORACLE") == "1":
+                raise
+            pytest.skip(str(missing))
+        with pool.lend("classic", 1.0, listen="oracle") as oracle:
+            yield oracle.url
+        return
+    with pool.lend(arm, 1.0) as emulator:
+        yield emulator.url
+
+
+class Spawned:
+    """``python -m mirobot_async ARGS`` in its own process group (as a terminal runs it: a
+    Ctrl-C there reaches the group), its output read as it comes by two threads."""
+
+    def __init__(self, *args: str) -> None:
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "mirobot_async", *args],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            stdin=subprocess.DEVNULL,
+            text=True,
+            cwd=ROOT,
+            start_new_session=True,
+        )
+        self._out: list[str] = []
+        self._err: list[str] = []
+        self._readers = [
+            threading.Thread(target=self._read, args=(pipe, into), daemon=True)
+            for pipe, into in ((self.proc.stdout, self._out), (self.proc.stderr, self._err))
+        ]
+        for reader in self._readers:
+            reader.start()
+
+    @staticmethod
+    def _read(pipe: object, into: list[str]) -> None:
+        for line in pipe:  # type: ignore[attr-defined]
+            into.append(line)
+
+    @property
+    def stdout(self) -> str:
+        return "".join(self._out)
+
+    @property
+    def stderr(self) -> str:
+        return "".join(self._err)
+
+    def wait_for(self, text: str, timeout: float, *, count: int = 1) -> None:
+        """Return once ``text`` has appeared ``count`` times on stderr (``AssertionError`` after
+        ``timeout`` s, or when the command ends first)."""
+        deadline = time.monotonic() + timeout
+        while self.stderr.count(text) < count:
+            if self.proc.poll() is not None:
+                for reader in self._readers:
+                    reader.join(5)
+                if self.stderr.count(text) >= count:
+                    return
+                raise AssertionError(
+                    f"ended ({self.proc.returncode}) before {text!r}: {self.stderr}"
+                )
+            if time.monotonic() > deadline:
+                raise AssertionError(f"no {text!r} x{count} within {timeout} s: {self.stderr}")
+            time.sleep(0.01)
+
+    def interrupt(self) -> None:
+        """Ctrl-C in the terminal: SIGINT to the command's process group."""
+        os.killpg(self.proc.pid, signal.SIGINT)
+
+    def finish(self, timeout: float) -> int:
+        """Wait for the command to exit (killed after ``timeout`` s); its exit status."""
+        try:
+            self.proc.wait(timeout)
+        except subprocess.TimeoutExpired:
+            self.kill()
+            raise
+        for reader in self._readers:
+            reader.join(5)
+        return self.proc.returncode
+
+    def kill(self) -> None:
+        if self.proc.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(self.proc.pid, signal.SIGKILL)
+            self.proc.wait()
+        for reader in self._readers:
+            reader.join(5)
+
+
+@contextlib.contextmanager
+def spawned(*args: str) -> Iterator[Spawned]:
+    """:class:`Spawned`, killed with its group if it is still running when the block ends."""
+    command = Spawned(*args)
+    try:
+        yield command
+    finally:
+        command.kill()
+        for pipe in (command.proc.stdout, command.proc.stderr):
+            if pipe is not None:
+                pipe.close()
