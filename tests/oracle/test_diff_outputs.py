@@ -95,10 +95,11 @@ def test_answered_at_once(pair: Pair, case: tuple[tuple[str, ...], str]) -> None
 
 
 def test_output_line_with_motion(pair: Pair) -> None:
-    """The wait comes first; the line's own move (from the position ``M21`` read before the
-    wait) follows it."""
+    """The wait comes first; the line's own move follows it (relative to the position ``M21``
+    read before the wait: ``M21 G91 X1 M3 S1000`` ends near J1 1, not 31; the step it then
+    reads depends on the instant, so this compares an absolute target)."""
     pair.lines("M50")
-    status_on_reply(pair, f"{MOVE}\nM21 G91 X1 M3 S1000\n".encode(), note="during the wait")
+    status_on_reply(pair, f"{MOVE}\nM21 G90 X5 M3 S1000\n".encode(), note="during the wait")
     pair.send(b"", Until(terminals=1), note="the held line's reply")
     pair.settle()
     pair.status()
