@@ -96,3 +96,25 @@ def test_resynchronising_burst_ends_where_the_oracles_does(
     fw.advance(5.0)
     assert fw.state == "Idle"
     assert f"{fw.joints[0]:.3f}" == f"{j1:.3f}"
+
+
+def test_2021_step_grid_follows_the_device_printout() -> None:
+    """The 2021 manual's device printout (vectors.json corrupted_status_lines[0]) lies on the
+    classic steps-per-degree grid: commanded to its angles, the 2021 model stops exactly there
+    (the manual's own $100..$106 table would stop J1 at 90.016)."""
+    import json
+    from pathlib import Path
+
+    vectors = json.loads((Path(__file__).parents[1] / "data" / "vectors.json").read_text())
+    printed = vectors["corrupted_status_lines"][0]
+    device = printed.split("Angle(ABCDXYZ):")[1].split(",Cartesian")[0]
+    a, b, c, _rail, x, y, z = (float(v) for v in device.split(","))
+    fw = Firmware("2021")
+    fw.read_output()
+    for line in ("$X", "M50", f"M21 G90 G0 X{x:.0f} Y{y:.0f} Z{z:.0f} A{a:.0f} B{b:.0f} C{c:.0f}"):
+        fw.receive(f"{line}\n".encode())
+        fw.advance(0.5)
+    fw.advance(30.0)
+    assert fw.state == "Idle"
+    ours = fw.status_line().split("Angle(ABCDXYZ):")[1].split(",Cartesian")[0]
+    assert ours == device
