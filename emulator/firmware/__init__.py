@@ -21,6 +21,9 @@ Layout
 * :mod:`.system`: the ``$`` commands and homing; :mod:`.reports`: status and banner.
 * :mod:`.machine`: the shared state; :mod:`.facade`: :class:`Firmware`; :mod:`.codes`: texts.
 
+Every 2021 behaviour that no 2021 manual or 2021 device log shows (the ASSUMED ones), and why
+each is not simply classic's: ``docs/2021-profile.md``.
+
 What is modelled (checked against the oracle where it says so)
 ----------------------------------------------------------------
 * Line discipline: ``\\r`` or ``\\n`` end a line, every empty line gets ``ok``, bytes
@@ -85,8 +88,8 @@ ASSUMED points implemented (each in one constant or function, named here)
   ``ok`` (oracle); ``GOAL OUT OF WORKSPACE... THETA3!`` has ``ok`` glued to it on the same line
   (oracle: ``codes.TEXTS_WITHOUT_LINE_END``).
 * ``Machine.reset_condition``: only power-on locks the axes (oracle; PROTOCOL 6.1 said every
-  ``%`` too); after a reset the 2021 profile is in ``Alarm`` (ASSUMED, its power-on state), the
-  classic profile only when the reset interrupted motion.
+  ``%`` too); the 2021 profile powers on in ``Alarm`` (PROTOCOL 1); after a reset both profiles
+  are in ``Alarm`` only when the reset interrupted motion (oracle, PROTOCOL 3).
 * ``facade.m50_allowed_in_alarm``: on 2021 a bare ``M50`` line is accepted in ``Alarm`` and
   clears it (the 2021 manual unlocks with ``M50`` right after power-on, when the arm is in
   ``Alarm``); on classic ``M50`` in ``Alarm`` gets ``error: Alarm lock`` like any G-code.
@@ -164,8 +167,8 @@ ASSUMED points implemented (each in one constant or function, named here)
   word in between leaves another group; first in a line they take the feed-mode group:
   ``M21 G93`` is a violation);
   ASSUMED the same on 2021. ``M40``/``M41`` (calibration) are not modelled.
-* ``$I``: ``[0.9j.20160303:<stored info>--ZDX&LEAH(201306)]`` on classic (oracle); 2021 the same
-  GRBL build without the suffix (ASSUMED).
+* ``$I``: ``[0.9j.20160303:<stored info>--ZDX&LEAH(201306)]`` (oracle; the same on 2021, where
+  no evidence shows it).
 * ``reports.fmt``: status reports follow the ``$10`` mask like the open firmware (bit 0 angles
   and pose, bit 5 the PWMs, bit 6 ``Motion_MODE``, bits 2/3/4 ``Buf``/``RX``/``Lim``); a number
   that would print as ``-0.000`` prints ``0.000`` (the vectors never show ``-0.000``).
