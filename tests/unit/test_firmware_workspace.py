@@ -61,7 +61,8 @@ def test_2021_m20_path_starts_where_queued_motion_ends() -> None:
         f"M20 G90 G1 X{182 + 20 * math.cos(a):.3f} Y{20 * math.sin(a):.3f} Z160 A0 B0 C0 F2000\n"
         for a in (2 * math.pi * i / 30 for i in range(1, 31))
     ]
-    start, sent, in_flight, worst = fw.now, 0, [], 0.0
+    start, sent, worst = fw.now, 0, 0.0
+    in_flight: list[int] = []
     while sent < len(chords) or fw.planner.busy or in_flight:
         while sent < len(chords) and sum(in_flight) + len(chords[sent]) <= 127:
             fw.receive(chords[sent].encode())
