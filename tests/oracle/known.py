@@ -35,4 +35,11 @@ KNOWN_DIFFERENCES: dict[str, str] = {
     "test_diff_workspace::test_target[soft-on M20 G90 X200 Y0 Z170 A0 B-90 C0-G1 F2000]": (
         "as the G0 case: J4 -180.000 vs 180.000 and Rx/Rz at gimbal lock"
     ),
+    "test_diff_workspace::test_target[soft-off M20 G91 B60-G0]": (
+        "forward kinematics rounding (as cart-g1-fk-digit): same joints, the oracle prints X "
+        "200.014, ours 200.013 (float32 FK of the firmware)"
+    ),
+    "test_diff_workspace::test_target[soft-off M20 G91 B60-G1 F2000]": (
+        "as the G0 case: X 200.014 (oracle) vs 200.013 (ours), float32 FK's last digit"
+    ),
 }
