@@ -88,8 +88,8 @@ ASSUMED points implemented (each in one constant or function, named here)
   ``ok`` (oracle); ``GOAL OUT OF WORKSPACE... THETA3!`` has ``ok`` glued to it on the same line
   (oracle: ``codes.TEXTS_WITHOUT_LINE_END``).
 * ``Machine.reset_condition``: only power-on locks the axes (oracle; PROTOCOL 6.1 said every
-  ``%`` too); the 2021 profile powers on in ``Alarm`` (PROTOCOL 1); after a reset both profiles
-  are in ``Alarm`` only when the reset interrupted motion (oracle, PROTOCOL 3).
+  ``%`` too); the 2021 profile powers on in ``Alarm`` (PROTOCOL 1); a reset makes an ``Alarm``
+  only when it interrupts motion and keeps one (oracle, PROTOCOL 3; both profiles).
 * ``facade.m50_allowed_in_alarm``: on 2021 a bare ``M50`` line is accepted in ``Alarm`` and
   clears it (the 2021 manual unlocks with ``M50`` right after power-on, when the arm is in
   ``Alarm``); on classic ``M50`` in ``Alarm`` gets ``error: Alarm lock`` like any G-code.

@@ -77,7 +77,13 @@ def test_2021_m20_path_starts_where_queued_motion_ends() -> None:
 
 
 def test_2021_reset_alarms_only_when_it_interrupts_motion() -> None:
-    fw = boot("2021")
+    """As classic (oracle): a reset makes an Alarm only when it interrupts motion, and keeps
+    one (the 2021 power-on Alarm survives a reset until ``$X``)."""
+    fw = Firmware("2021")
+    fw.receive(b"%")
+    fw.advance(1.0)
+    assert fw.state == "Alarm"
+    fw = boot("2021")  # $X, M50
     fw.receive(b"%")
     fw.advance(1.0)
     assert fw.state == "Idle"
