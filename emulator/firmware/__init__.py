@@ -183,6 +183,12 @@ Taken from GRBL 0.9j / the open firmware where PROTOCOL.md is silent
 * ``!`` while idle enters ``Hold`` as well (oracle); while held, received lines wait until ``~``.
 * ``Pump PWM`` / ``Valve PWM`` are the last ``S`` / ``E`` words (with or without ``M3``/``M4``;
   ``M5`` does not clear them); a reset and a homing set both to 0 (GRBL's ``gc_init``).
+* Lines that wait for queued motion to end (oracle, ``gcode.waits_for_motion``): an ``M3``/
+  ``M4``/``M5`` that changes the output mode, a new ``S``/``E`` while ``M3`` or ``M4`` is on (the
+  status keeps the old PWM until the wait ends), an ``M8``/``M9`` that changes the coolant
+  state; the rest of the line (its motion too) runs after the wait.
+* A joint line whose target rounds to the steps already planned makes no block (GRBL drops
+  it): a burst of resynchronising ``M21 G91`` lines never waits for a planner slot (oracle).
 * ``Soft limit triggered:<axis>`` names the first offending axis in the firmware's order
   a..g = J4, J5, J6, D, J1, J2, J3 (letters A B C D X Y Z).
 * On 2021 every line with an ``M20``/``M21`` word prints its ``Info`` line (the firmware runs
