@@ -13,7 +13,14 @@ J3: ``$110`` is the max rate of J4, ``$114`` the one of J1.
 **ASSUMED** here (each in one table or function below):
 
 * ``$0..$6``, ``$11..$13``, ``$23``, ``$26``, ``$28`` and the classic ``$100..$106`` defaults are
-  the open firmware's; the 2021 ``$100..$106`` are the 2021 manual's.
+  the open firmware's.
+* The 2021 steps per degree of J1..J6 (``$100..$102``, ``$104..$106``) are classic's (56.73,
+  113.33, 64, 16, 22.22, 11.11), not the 2021 manual's table (38.482, 113.1, 40, 32, 22.712,
+  11.356): a device log outranks a manual, and the 2021 manual's own device printout
+  (``vectors.json`` ``corrupted_status_lines[0]``: J1..J6 = 90.005, 30.001, -20.000, 10.000,
+  19.982, 45.005) is 5106, 3400, -1280, 160, 444, 500 whole steps of the classic grid on all six
+  axes and lies on the manual's grid on none (J1 would read 90.016). The rail's ``$103`` stays
+  the manual's 211.111 (no 2021 device output shows the rail's grid).
 * The classic profile (firmware 20191228_2) has GRBL's settings, ``$28``, the axis groups
   ``$100..$156``; the DH lengths are not settings there (PROTOCOL 7).
 * Both profiles have ``$28`` and ``$150..$156`` (calibration, "reset distance"); the classic
@@ -117,7 +124,7 @@ _ROBOT_2021: Final = (
 # Axis groups: (base number, description suffix, classic defaults a..g, 2021 defaults a..g).
 _AXIS_GROUPS: Final = (
     (100, ", step/mm", (16.0, 22.22, 11.11, 200.0, 56.73, 113.33, 64.0),
-     (32.0, 22.712, 11.356, 211.111, 38.482, 113.1, 40.0)),
+     (16.0, 22.22, 11.11, 211.111, 56.73, 113.33, 64.0)),  # see the module docstring
     (110, " max rate, mm/min", (1800, 1500, 2500, 500, 2000, 2000, 2000),
      (1800, 1500, 2500, 500, 1800, 1500, 1800)),
     (120, " accel, mm/sec^2", (50,) * 7, (50,) * 7),

@@ -21,6 +21,9 @@ Layout
 * :mod:`.system`: the ``$`` commands and homing; :mod:`.reports`: status and banner.
 * :mod:`.machine`: the shared state; :mod:`.facade`: :class:`Firmware`; :mod:`.codes`: texts.
 
+Every 2021 behaviour that no 2021 manual or 2021 device log shows (the ASSUMED ones), and why
+each is not simply classic's: ``docs/2021-profile.md``.
+
 What is modelled (checked against the oracle where it says so)
 ----------------------------------------------------------------
 * Line discipline: ``\\r`` or ``\\n`` end a line, every empty line gets ``ok``, bytes
@@ -85,8 +88,8 @@ ASSUMED points implemented (each in one constant or function, named here)
   ``ok`` (oracle); ``GOAL OUT OF WORKSPACE... THETA3!`` has ``ok`` glued to it on the same line
   (oracle: ``codes.TEXTS_WITHOUT_LINE_END``).
 * ``Machine.reset_condition``: only power-on locks the axes (oracle; PROTOCOL 6.1 said every
-  ``%`` too); after a reset the 2021 profile is in ``Alarm`` (ASSUMED, its power-on state), the
-  classic profile only when the reset interrupted motion.
+  ``%`` too); the 2021 profile powers on in ``Alarm`` (PROTOCOL 1); a reset makes an ``Alarm``
+  only when it interrupts motion and keeps one (oracle, PROTOCOL 3; both profiles).
 * ``facade.m50_allowed_in_alarm``: on 2021 a bare ``M50`` line is accepted in ``Alarm`` and
   clears it (the 2021 manual unlocks with ``M50`` right after power-on, when the arm is in
   ``Alarm``); on classic ``M50`` in ``Alarm`` gets ``error: Alarm lock`` like any G-code.
@@ -164,8 +167,8 @@ ASSUMED points implemented (each in one constant or function, named here)
   word in between leaves another group; first in a line they take the feed-mode group:
   ``M21 G93`` is a violation);
   ASSUMED the same on 2021. ``M40``/``M41`` (calibration) are not modelled.
-* ``$I``: ``[0.9j.20160303:<stored info>--ZDX&LEAH(201306)]`` on classic (oracle); 2021 the same
-  GRBL build without the suffix (ASSUMED).
+* ``$I``: ``[0.9j.20160303:<stored info>--ZDX&LEAH(201306)]`` (oracle; the same on 2021, where
+  no evidence shows it).
 * ``reports.fmt``: status reports follow the ``$10`` mask like the open firmware (bit 0 angles
   and pose, bit 5 the PWMs, bit 6 ``Motion_MODE``, bits 2/3/4 ``Buf``/``RX``/``Lim``); a number
   that would print as ``-0.000`` prints ``0.000`` (the vectors never show ``-0.000``).
@@ -180,6 +183,12 @@ Taken from GRBL 0.9j / the open firmware where PROTOCOL.md is silent
 * ``!`` while idle enters ``Hold`` as well (oracle); while held, received lines wait until ``~``.
 * ``Pump PWM`` / ``Valve PWM`` are the last ``S`` / ``E`` words (with or without ``M3``/``M4``;
   ``M5`` does not clear them); a reset and a homing set both to 0 (GRBL's ``gc_init``).
+* Lines that wait for queued motion to end (oracle, ``gcode.waits_for_motion``): an ``M3``/
+  ``M4``/``M5`` that changes the output mode, a new ``S``/``E`` while ``M3`` or ``M4`` is on (the
+  status keeps the old PWM until the wait ends), an ``M8``/``M9`` that changes the coolant
+  state; the rest of the line (its motion too) runs after the wait.
+* A joint line whose target rounds to the steps already planned makes no block (GRBL drops
+  it): a burst of resynchronising ``M21 G91`` lines never waits for a planner slot (oracle).
 * ``Soft limit triggered:<axis>`` names the first offending axis in the firmware's order
   a..g = J4, J5, J6, D, J1, J2, J3 (letters A B C D X Y Z).
 * On 2021 every line with an ``M20``/``M21`` word prints its ``Info`` line (the firmware runs

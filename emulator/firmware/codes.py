@@ -11,8 +11,9 @@ VERSIONS: Final = {"classic": "20191228_2", "2021": "20210516"}
 GRBL_VERSION: Final = "0.9j"
 GRBL_BUILD: Final = "20160303"
 """GRBL's build date in ``$I`` (the classic firmware's; ASSUMED the same on 2021)."""
-BUILD_INFO_SUFFIX: Final = {"classic": "--ZDX&LEAH(201306)", "2021": ""}
-"""What ``$I`` appends to the stored build info (classic firmware; ASSUMED none on 2021)."""
+BUILD_INFO_SUFFIX: Final = {"classic": "--ZDX&LEAH(201306)", "2021": "--ZDX&LEAH(201306)"}
+"""What ``$I`` appends to the stored build info (the classic firmware's, oracle; on 2021 the
+same, no 2021 evidence shows ``$I``: docs/2021-profile.md)."""
 
 # --- GRBL 0.9j status codes ---------------------------------------------------------------
 EXPECTED_COMMAND_LETTER: Final = 1

@@ -102,7 +102,7 @@ class Firmware:
         self.settings: dict[int, float] = self._m.settings
         self._gcode = GcodeExecutor(self._m)
         self._system = SystemCommands(self._m, self.reset, self._gcode.execute)
-        self._m.reset_condition(interrupted=False)
+        self._m.reset_condition(interrupted=False, power_on=True)
         self._m.parser_init(feed=200.0)
         self._m.emit_lines(banner(self._m))
         self.uart.sync(self._m.printed, self.now)  # the power-on banner is out before any host

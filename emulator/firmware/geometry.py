@@ -61,11 +61,25 @@ FW_LETTERS: Final = "ABCDXYZ"  # soft-limit letters in the firmware's axis order
 
 
 class Refusal(Exception):
-    """A motion refused with one of the "ok but dropped" texts."""
+    """A motion refused with one of the "ok but dropped" texts (``then``: a second text the
+    firmware prints after it, see :meth:`MoveBuilder.plan`)."""
 
-    def __init__(self, text: str) -> None:
+    def __init__(self, text: str, then: str | None = None) -> None:
         super().__init__(text)
         self.text = text
+        self.then = then
+
+
+def _shoulder_front(pose: Sequence[float], q1: float, dh: kin.DH, tool: Sequence[float]) -> bool:
+    """Whether ``q1`` faces the wrist centre of ``pose`` (the shoulder-front branch)."""
+    rot = kin.rpy_to_matrix(pose[3], pose[4], pose[5])
+    wx = pose[0] - (rot[0][0] * tool[0] + rot[0][1] * tool[1] + rot[0][2] * tool[2])
+    wy = pose[1] - (rot[1][0] * tool[0] + rot[1][1] * tool[1] + rot[1][2] * tool[2])
+    wx, wy = wx - dh.l * rot[0][2], wy - dh.l * rot[1][2]
+    if math.hypot(wx, wy) < 1e-9:
+        return True  # on the base axis: any J1 faces it
+    facing = math.degrees(math.atan2(wy, wx))
+    return abs((q1 - facing + 180.0) % 360.0 - 180.0) < 90.0
 
 
 def kinematics_refusal(exc: kin.Unreachable | kin.OutOfLimits) -> Refusal:
@@ -155,10 +169,11 @@ class Geometry:
         checks no joint range here: the soft limits (``$20``) or the switches do; a wrist centre
         behind the shoulder is solved mirrored (:func:`shoulder_mirrored_pose`)."""
         dh = self.dh()
+        solved = shoulder_mirrored_pose(pose, dh, self.tool())
         try:
-            return tuple(
+            q = tuple(
                 kin.inverse(
-                    shoulder_mirrored_pose(pose, dh, self.tool()),
+                    solved,
                     dh,
                     "firmware",
                     tool=self.tool(),
@@ -167,6 +182,11 @@ class Geometry:
             )
         except (kin.Unreachable, kin.OutOfLimits) as exc:
             raise kinematics_refusal(exc) from None
+        if not _shoulder_front(solved, q[0], dh, self.tool()):
+            # the firmware solves the shoulder-front branch only (oracle: X50 Y0 Z100 A0 B0 C0,
+            # whose only solutions reach over the back with J1 = 180, has no THETA3)
+            raise Refusal(c.TEXT_UNREACHABLE)
+        return q
 
     def limits(self) -> AxisLimits:
         """The planner's axis limits from the current settings (rebuilt when they change)."""

@@ -127,10 +127,13 @@ class Machine:
             return "Run"
         return "Idle"  # oracle: a G4 dwell reports Idle
 
-    def reset_condition(self, *, interrupted: bool) -> None:
-        """Alarm after a reset that interrupted motion; ASSUMED: on 2021 always (its power-on
-        state). The axis lock is not touched: only power-on sets it (oracle)."""
-        self.alarm = interrupted or self.profile == "2021"
+    def reset_condition(self, *, interrupted: bool, power_on: bool = False) -> None:
+        """Alarm after a reset that interrupted motion (oracle; PROTOCOL 3, both profiles) and
+        at the 2021 profile's power-on (PROTOCOL 1); an Alarm survives a reset (oracle: a second
+        ``%`` after ``ALARM: Abort during cycle`` still reports ``Alarm``; GRBL keeps its state),
+        so only ``$X``, ``M50`` or homing clear it. The axis lock is not touched: only power-on
+        sets it (oracle)."""
+        self.alarm = interrupted or (power_on and self.profile == "2021") or self.alarm
 
     def parser_init(self, *, feed: float) -> None:
         """GRBL ``gc_init`` with ``feed``; the pose is the FK of the planned joints."""

@@ -115,6 +115,14 @@ class MoveBuilder:
     def __init__(self, geometry: Geometry, settings: Mapping[int, float]) -> None:
         self.geometry = geometry
         self.settings = settings
+        self.last_target: Vec7 = motion.ZERO
+        """The joints of the last point-to-point target: a joint line's within the soft
+        limits, or the IK of a Cartesian one even when the soft limits refuse it. A Cartesian
+        target without a THETA3 leaves them and the soft limits check them (oracle): after
+        ``M20 G90 G0 X100 Y0 Z50`` (J2 -59.654: ``Soft limit triggered:Y``) an unreachable
+        target prints ``GOAL OUT OF WORKSPACE...THETA3!``, ``Soft limit triggered:Y``, ``ok``;
+        after ``M21 G90 X10`` only ``...THETA3!ok``; a refused ``M21 G90 Y80`` stores nothing.
+        Power-on: zero; ASSUMED kept by a reset (the firmware's globals)."""
 
     def linear_lines(self) -> bool:
         """Whether ``M20 G1`` runs a straight Cartesian line: on 2021 with ``$35=1``; on classic
@@ -140,11 +148,20 @@ class MoveBuilder:
         if not cart:
             if locked:
                 raise Refusal(c.TEXT_LOCKED)
+            if self.geometry.soft_violation(target) is None:
+                self.last_target = target
             rate = None if motion_mode == 0 else feed
             return self.joint_move(start, target, rate, feed_mode, check=check)
         if motion_mode == 0 or (motion_mode == 1 and not self.linear_lines()):
-            q = self.geometry.ik(target[:6])
+            try:
+                q = self.geometry.ik(target[:6])
+            except Refusal as refusal:
+                letter = self.geometry.soft_violation(self.last_target)
+                if refusal.text == c.TEXT_UNREACHABLE and letter is not None:
+                    raise Refusal(refusal.text, then=c.TEXT_SOFT_LIMIT + letter) from None
+                raise
             end = vec7((*q, target[6]))
+            self.last_target = end
             if locked:
                 raise Refusal(c.TEXT_LOCKED)
             rate = None if motion_mode == 0 else feed
@@ -185,13 +202,17 @@ class MoveBuilder:
         length = math.sqrt(math.fsum((b - a) ** 2 for a, b in zip(start, end, strict=True)))
         if length == 0.0:
             return [], None, end
+        limits = self.geometry.limits()
+        if limits.steps is not None and limits.to_steps(start) == limits.to_steps(end):
+            # GRBL drops a block of no steps: it takes no planner slot (oracle: a burst of 25
+            # ``M21 G91 X1`` lines ends at J1 1.040, each later line resynchronised near 0)
+            return [], None, end
         if feed is not None and feed_mode == 93:
             feed = feed * length
         if feed is not None and not math.isfinite(feed):
             feed = None  # the max rates limit the motion
         elif feed is not None and feed <= 0.0:
             feed = MIN_FEED
-        limits = self.geometry.limits()
         cut = self.geometry.switch_crossing(start, end)
         try:
             if cut is None:

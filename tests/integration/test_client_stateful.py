@@ -117,8 +117,9 @@ class Model:
         return DH_2021 if self.profile == "2021" else DH_CLASSIC
 
     def after_reset(self) -> None:
-        # the axis lock survives a reset: only power-on sets it (oracle), M50 / homing clear it
-        self.alarm = self.profile == "2021" or self.needs_reset
+        # the axis lock survives a reset: only power-on sets it (oracle), M50 / homing clear it;
+        # so does an Alarm (oracle: a second % after an abort still reports Alarm)
+        self.alarm = self.alarm or self.needs_reset
         self.needs_reset = False
         self.pump = self.valve = 0
         self.mode = 0

@@ -87,6 +87,13 @@ BURSTS: dict[str, list[str]] = {
     "m20-after-m21": ["M21 G90 X10 F2000", "M20 G91 G0 X5"],
     "g91-without-m21": ["M21 G91 X1 F2000", "X1", "X1", "X1"],
     "cart-rel-g1-twice": ["M20 G91 G1 X-10 Y10 Z-10 F1000", "M20 G91 G1 Z10"],
+    # more lines than the planner holds: a line whose target rounds to the steps already
+    # planned makes no block (GRBL drops it), so the later lines never wait for a slot and
+    # each is resynchronised near the start (oracle: J1 1.040, 5.041, 0.159)
+    "m21-resync-25": ["M21 G91 X1 F3000"] * 25,
+    "m21-resync-25-x5": ["M21 G91 X5 F3000"] * 25,
+    "m21-resync-30-slow": ["M21 G91 X0.1 F500"] * 30,
+    "m21-resync-25-two-axes": ["M21 G91 Y2 Z1 F2000"] * 25,
 }
 
 
@@ -94,6 +101,23 @@ BURSTS: dict[str, list[str]] = {
 def test_burst(pair: Pair, program: str) -> None:
     pair.lines("M50")
     pair.send("".join(line + "\n" for line in BURSTS[program]))
+    pair.settle()
+    pair.status()
+    pair.check()
+
+
+# Cartesian lines parse slower (about 14 ms) than their bytes arrive: the receive ring fills
+# and drops bytes, so the reply is read until one wall second of silence.
+OVERFLOWING_BURSTS: dict[str, list[str]] = {
+    "m20-rel-g0-20": ["M20 G91 G0 X1"] * 20,
+    "m20-rel-g1-20": ["M20 G91 G1 X1 F2000"] * 20,
+}
+
+
+@pytest.mark.parametrize("program", OVERFLOWING_BURSTS)
+def test_overflowing_burst(pair: Pair, program: str) -> None:
+    pair.lines("M50")
+    pair.send("".join(line + "\n" for line in OVERFLOWING_BURSTS[program]), Until(quiet=1.0))
     pair.settle()
     pair.status()
     pair.check()

@@ -35,6 +35,19 @@ def test_reset_during_motion(pair: Pair) -> None:
     pair.check()
 
 
+def test_reset_keeps_the_alarm(pair: Pair) -> None:
+    """A second ``%`` after the abort's Alarm: still Alarm (GRBL keeps its state); where the
+    abort stopped the arm depends on the instant, so statuses are compared by format."""
+    pair.lines("M50", LONG_MOVE)
+    pair.reset()
+    pair.reset()
+    pair.status(moving=True)
+    pair.lines("$X")
+    pair.reset()
+    pair.status(moving=True)
+    pair.check()
+
+
 def filler(length: int) -> str:
     """A valid line of exactly ``length`` characters (before its newline), mostly spaces."""
     head = "M21 G90 X1 F2000"

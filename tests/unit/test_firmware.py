@@ -573,7 +573,7 @@ def test_cartesian_line_stays_on_its_line() -> None:
         t = sum(a * b for a, b in zip(v, d, strict=True)) / norm
         off = math.sqrt(max(sum(a * a for a in v) - t * t, 0.0))
         assert off <= MOVING_TOLERANCE, st_
-        assert -0.001 <= t <= norm + 0.001
+        assert -POSE_TOLERANCE <= t <= norm + POSE_TOLERANCE  # the ends are whole steps
         assert st_.pose[3:] == pytest.approx((0.0, 0.0, 0.0), abs=MOVING_TOLERANCE)
     assert samples[-1].pose[:3] == posed(p1)
 
