@@ -14,7 +14,7 @@ machine (:mod:`mirobot_async._core.protocol`), whose events resolve asyncio futu
 call sends is
 **registered with the state machine before it is written**, with no ``await`` in between, so its
 reply slot exists before the robot can answer. Lines are written in call order (one FIFO lock)
-and only when they fit in the robot's 128-byte receive buffer (GRBL character counting), so the
+and only when they fit in the robot's receive buffer (127 bytes) (GRBL character counting), so the
 planner never starves and no byte is ever lost to an overflow. ``$`` commands (settings, homing,
 ``$X``, ``$$``) are sent only when nothing else is in flight and nothing else is sent until they
 are answered (GRBL's send-response rule for commands that are unsafe to stream).

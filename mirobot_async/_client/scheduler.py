@@ -1,6 +1,6 @@
 """The line scheduler: when a line may be written, and what its reply means.
 
-Lines are written in call order (one FIFO lock) and only when they fit in the robot's 128-byte
+Lines are written in call order (one FIFO lock) and only when they fit in the robot's 127-byte
 receive buffer (GRBL character counting). ``$`` lines are written only when nothing else is in
 flight, and nothing follows them until they are answered (the ``$`` barrier). Each written line
 gets a :class:`Slot` whose future gets its reply. A call waiting for a reply checks the robot's

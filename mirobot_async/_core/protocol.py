@@ -1,10 +1,11 @@
 """The connection state machine (sans-IO, h11 style; PURE: no asyncio, no serial, no OS calls).
 
 :class:`MirobotConnection` knows which lines are owed a reply and how many bytes sit in the robot's
-128-byte receive buffer; it turns the bytes the robot prints into :data:`Event` objects. It never
-reads or writes anything itself: the caller writes what :meth:`MirobotConnection.send_line` and the
-realtime helpers return, feeds every received byte to :meth:`MirobotConnection.receive_data`, and
-drains :meth:`MirobotConnection.next_event` (or :meth:`MirobotConnection.events`).
+127 bytes of receive buffer; it turns the bytes the robot prints into :data:`Event` objects. It
+never reads or writes anything itself: the caller writes what :meth:`MirobotConnection.send_line`
+and the realtime helpers return, feeds every received byte to
+:meth:`MirobotConnection.receive_data`, and drains :meth:`MirobotConnection.next_event` (or
+:meth:`MirobotConnection.events`).
 
 The rules (PROTOCOL.md sections 2-4 and 10):
 
@@ -91,7 +92,9 @@ _STATUS_START = 0x3C  # "<"
 class MirobotConnection:
     """Sans-IO state of one link to a Mirobot: lines owed a reply, bytes in flight, events.
 
-    ``rx_buffer_size`` is the robot's receive buffer (128 bytes on every known firmware);
+    ``rx_buffer_size`` is what the robot's receive buffer holds: its ring has 128 slots and one
+    stays free, so 127 bytes (the firmware oracle: with 128 counted in flight a byte is lost when
+    the firmware prints a status report as the buffer fills; with 127 never);
     ``max_reply_length`` bounds a line from the robot: a longer one is reported once as a
     :class:`ProtocolViolation` and skipped up to the next line end, so memory stays bounded
     whatever the robot (or line noise) sends. ``max_output_lines`` bounds the text lines kept
@@ -124,7 +127,7 @@ class MirobotConnection:
     )
 
     def __init__(
-        self, *, rx_buffer_size: int = 128, max_reply_length: int = 512, max_output_lines: int = 256
+        self, *, rx_buffer_size: int = 127, max_reply_length: int = 512, max_output_lines: int = 256
     ) -> None:
         if rx_buffer_size < 2:
             raise MirobotUsageError(f"rx_buffer_size must be at least 2, not {rx_buffer_size}")

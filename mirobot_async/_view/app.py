@@ -318,7 +318,7 @@ class ViewController:
         def progress(result: object) -> None:
             number = getattr(result, "number", 0)
             _set_value(bar, 100.0 * number / max(total, 1))
-            # acknowledged, not yet run: the arm queues up to 128 bytes of lines ahead
+            # acknowledged, not yet run: the arm queues up to 127 bytes of lines ahead
             self.panel.say(f"{number}/{total} lines acknowledged by the arm; it runs them in order")
 
         result = await self.arm.stream(

@@ -82,6 +82,7 @@ PINNED_ALL = {
         "WireSpy",
         "emulator_command",
         "run_emulator",
+        "session_link",
         "start_emulator",
     ],
 }
@@ -156,7 +157,7 @@ def _hints(obj: object) -> dict[str, object]:
     try:
         return typing.get_type_hints(obj)
     except (NameError, TypeError):  # a TYPE_CHECKING import: resolve with the public names
-        namespace: dict[str, object] = {}
+        namespace: dict[str, object] = {"pytest": pytest}
         for module_name in PUBLIC_MODULES:
             module = importlib.import_module(module_name)
             namespace.update({n: getattr(module, n) for n in getattr(module, "__all__", [])})
