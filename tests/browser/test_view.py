@@ -151,7 +151,7 @@ def _run_points(path: Path) -> list[tuple[float, ...]]:
     lines = [line for line in path.read_text().splitlines() if not line.startswith("(")]
 
     async def drive() -> list[tuple[float, ...]]:
-        reached = []
+        reached: list[tuple[float, ...]] = []
         async with start_emulator(time_scale=100) as url, Mirobot.connect(url) as arm:
             await arm.home()
             await arm.stream([lines[0]], wait=True)

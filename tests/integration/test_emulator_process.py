@@ -126,7 +126,8 @@ class Emulator:
 
     def port(self, timeout: float = 0.05) -> serial.Serial:
         # A pty opens as serial.Serial, socket:// as its own class with the same reading API.
-        return typing.cast(serial.Serial, serial.serial_for_url(self.path, 115200, timeout=timeout))
+        port: object = serial.serial_for_url(self.path, 115200, timeout=timeout)
+        return typing.cast(serial.Serial, port)
 
     def stop(self, sig: int = signal.SIGTERM, timeout: float = 5.0) -> tuple[int, str]:
         """Signal the process, wait for it; return (exit status, stderr)."""

@@ -24,8 +24,7 @@ from mcp.types import CallToolResult, TextContent
 
 from mirobot_async._cli.arguments import build_parser
 from mirobot_async._cli.commands import cmd_mcp
-from mirobot_async.testing import EmulatorPool
-from mirobot_async.testing._pool import BorrowedEmulatorProcess
+from mirobot_async.testing import EmulatorPool, EmulatorProcess
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -117,7 +116,7 @@ async def mcp_server(
         await asyncio.sleep(0.05)
 
 
-async def lines_received(emulator: BorrowedEmulatorProcess) -> int:
+async def lines_received(emulator: EmulatorProcess) -> int:
     words = (await emulator.control("stats")).split()
     counts = {name: value for name, _, value in (w.partition("=") for w in words if "=" in w)}
     return int(counts["lines_in"])

@@ -14,13 +14,12 @@ from mirobot_async import Mirobot
 from mirobot_async._core.replies import State
 from mirobot_async._mcp_server.service import ArmService, default_envelope, program_lines
 from mirobot_async.errors import MirobotUsageError
-from mirobot_async.testing import EmulatorPool
-from mirobot_async.testing._pool import BorrowedEmulatorProcess
+from mirobot_async.testing import EmulatorPool, EmulatorProcess
 
 pytestmark = pytest.mark.timeout(60)
 
 
-async def lines_received(emulator: BorrowedEmulatorProcess) -> int:
+async def lines_received(emulator: EmulatorProcess) -> int:
     words = (await emulator.control("stats")).split()
     counts = {name: value for name, _, value in (w.partition("=") for w in words if "=" in w)}
     return int(counts["lines_in"])
@@ -29,7 +28,7 @@ async def lines_received(emulator: BorrowedEmulatorProcess) -> int:
 @pytest.fixture
 async def arm_and_twin(
     mirobot_emulator_pool: EmulatorPool,
-) -> AsyncIterator[tuple[ArmService, BorrowedEmulatorProcess, BorrowedEmulatorProcess]]:
+) -> AsyncIterator[tuple[ArmService, EmulatorProcess, EmulatorProcess]]:
     async with (
         mirobot_emulator_pool.lend_async("2021", 0.0) as arm_emulator,
         mirobot_emulator_pool.lend_async("2021", 0.0) as twin_emulator,
@@ -42,7 +41,7 @@ async def arm_and_twin(
 
 
 async def test_every_motion_runs_on_the_twin_first(
-    arm_and_twin: tuple[ArmService, BorrowedEmulatorProcess, BorrowedEmulatorProcess],
+    arm_and_twin: tuple[ArmService, EmulatorProcess, EmulatorProcess],
 ) -> None:
     service, _, twin_emulator = arm_and_twin
     await service.home()
@@ -58,7 +57,7 @@ async def test_every_motion_runs_on_the_twin_first(
 
 
 async def test_a_failure_on_the_twin_sends_nothing_to_the_arm(
-    arm_and_twin: tuple[ArmService, BorrowedEmulatorProcess, BorrowedEmulatorProcess],
+    arm_and_twin: tuple[ArmService, EmulatorProcess, EmulatorProcess],
 ) -> None:
     service, arm_emulator, twin_emulator = arm_and_twin
     await service.home()
@@ -108,7 +107,7 @@ async def test_hold_while_homing_is_refused_with_the_way_out(
 
 
 async def test_check_program_reports_problems_and_run_program_refuses_them(
-    arm_and_twin: tuple[ArmService, BorrowedEmulatorProcess, BorrowedEmulatorProcess],
+    arm_and_twin: tuple[ArmService, EmulatorProcess, EmulatorProcess],
 ) -> None:
     service, arm_emulator, _ = arm_and_twin
     await service.home()

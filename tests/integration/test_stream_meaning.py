@@ -16,7 +16,7 @@ from conftest import Cli
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
-from mirobot_async import Mirobot, MotionChainError
+from mirobot_async import Mirobot, MotionChainError, StatusReport
 from mirobot_async._cli.exits import EXIT_FAILED
 from mirobot_async.testing import EmulatorPool, EmulatorProcess
 
@@ -53,6 +53,8 @@ def test_streamed_programs_end_where_stepped_ones_do(
             return
         event("streamed")
         assert not isinstance(one_at_a_time, MotionChainError)
+        assert isinstance(through_stream, StatusReport), through_stream
+        assert isinstance(one_at_a_time, StatusReport), one_at_a_time
         assert joints_of(through_stream) == pytest.approx(joints_of(one_at_a_time), abs=STEP)
 
     check()

@@ -16,7 +16,7 @@ import pytest
 from hypothesis import HealthCheck, Phase, event, given, settings
 from integration.chaining_programs import joints_of, programs, stepped, streamed, to_zero
 
-from mirobot_async import Mirobot, MotionChainError
+from mirobot_async import Mirobot, MotionChainError, StatusReport
 
 from .harness import Device, spawn_oracle
 
@@ -61,6 +61,8 @@ def test_streamed_programs_end_where_stepped_ones_do(oracle_port: str) -> None:
             return
         event("streamed")
         assert not isinstance(one_at_a_time, MotionChainError)
+        assert isinstance(through_stream, StatusReport), through_stream
+        assert isinstance(one_at_a_time, StatusReport), one_at_a_time
         assert joints_of(through_stream) == pytest.approx(joints_of(one_at_a_time), abs=STEP)
 
     check()

@@ -98,7 +98,7 @@ def test_export_passes_check_with_modes_stated_once(
 
 def test_teach_table_edits() -> None:
     table = TeachTable()
-    points = [TaughtPoint((float(i),) + (0.0,) * 5, None, (0.0,) * 6) for i in range(3)]  # type: ignore[arg-type]
+    points = [TaughtPoint((float(i),) + (0.0,) * 5, None, (0.0,) * 6) for i in range(3)]
     for p in points:
         table.add(p)
     assert table.move(3, -1) == 2
