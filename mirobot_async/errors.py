@@ -8,15 +8,24 @@ command involved and quotes the firmware's own words.
 
     MirobotError
     ├── MirobotUsageError (also ValueError)      bad arguments, caught before a byte is written
+    │   ├── InvalidLineError                     a raw line the firmware would refuse or misread
+    │   ├── MotionChainError                     a line streaming would make end elsewhere
+    │   ├── PathRefused                          a path point refused (its index)
+    │   └── Unreachable, OutOfLimits, BehindShoulder   kinematics: no (reachable) solution
     ├── MirobotConnectionError                   the serial link could not be opened or failed
     │   └── MirobotLinkLostError                 the link closed or broke while in use
     ├── MirobotProtocolError                     garbled or unexpected bytes from the robot
     ├── MirobotTimeoutError (also TimeoutError)  a reply or condition did not come in time
+    │   └── NodeSilentError                      a controller on the bus did not answer
     ├── MirobotResetError                        the robot reset while commands were pending
     ├── MirobotOutcomeUnknownError               a reset cut a line: whether it ran is unknown
+    ├── PathError                                a path failed at one point (index, point, cause)
+    ├── EmulatorError                            the emulator process failed or refused a command
+    │   └── OracleUnsupportedError               the firmware oracle cannot do what was asked
     └── MirobotCommandError                      the firmware refused a line (error: / Error, Ennn)
         ├── MotionRefusedError                   "ok but dropped": locked, soft limit, unreachable
-        └── MirobotAlarmError                    the robot is in Alarm (hard limit, abort, ...)
+        ├── MirobotAlarmError                    the robot is in Alarm (hard limit, abort, ...)
+        └── ControllerCommandError               a bus controller refused its own command
 """
 
 from __future__ import annotations
@@ -24,6 +33,10 @@ from __future__ import annotations
 import enum
 
 __all__ = [
+    "BehindShoulder",
+    "ControllerCommandError",
+    "EmulatorError",
+    "InvalidLineError",
     "MirobotAlarmError",
     "MirobotCommandError",
     "MirobotConnectionError",
@@ -36,7 +49,13 @@ __all__ = [
     "MirobotUsageError",
     "MotionChainError",
     "MotionRefusedError",
+    "NodeSilentError",
+    "OracleUnsupportedError",
+    "OutOfLimits",
+    "PathError",
+    "PathRefused",
     "RefusalReason",
+    "Unreachable",
 ]
 
 
@@ -207,3 +226,85 @@ class MirobotAlarmError(MirobotCommandError):
     def _message(self) -> str:
         where = f"{self.command!r} failed: " if self.command else ""
         return f"{where}the robot is in Alarm: {self.text!r}"
+
+
+# ---- errors of the parts (kinematics, validation, paths, the bus, the emulator process) ----
+
+
+class Unreachable(MirobotUsageError):
+    """The pose is outside the workspace: there is no valid value for theta3."""
+
+
+class OutOfLimits(MirobotUsageError):
+    """The pose has IK solutions, but none (of the requested branch) is within the joint limits."""
+
+
+class BehindShoulder(MirobotUsageError):
+    """The firmware does not go to this pose: its wrist centre lies behind the shoulder (within
+    ``A1`` of the base axis); it solves the pose mirrored in front of the shoulder and the arm
+    goes there (oracle: ``X1 Y5 Z182 A0 B0 C0`` ends at X 11.551 Y 57.749). ``actual``: that pose.
+    """
+
+    def __init__(self, message: str, actual: tuple[float, ...]) -> None:
+        super().__init__(message)
+        self.actual = actual
+
+
+class InvalidLineError(MirobotUsageError):
+    """A raw line refused before sending: the firmware would refuse it or read it otherwise
+    (:attr:`problems` lists why, as :func:`check_line` reports them)."""
+
+    def __init__(self, message: str, problems: tuple[str, ...]) -> None:
+        super().__init__(message)
+        self.problems = problems
+
+
+class PathError(MirobotError):
+    """A path failed at one point: :attr:`index` (0-based) and :attr:`point`; the robot's own
+    error (a :class:`MotionRefusedError`, :class:`MirobotCommandError`, a reset...) is
+    :attr:`error` (also the ``__cause__``)."""
+
+    def __init__(self, index: int, point: tuple[float | None, ...], error: BaseException) -> None:
+        super().__init__(f"path point {index} {point}: {error}")
+        self.index = index
+        self.point = point
+        self.error = error
+
+
+class PathRefused(MirobotUsageError):
+    """:meth:`EnvelopeGuard.preview` refused the line at :attr:`index`."""
+
+    def __init__(self, index: int, message: str) -> None:
+        super().__init__(message)
+        self.index = index
+
+
+class NodeSilentError(MirobotTimeoutError):
+    """A node on the bus did not answer in time; names its address."""
+
+    def __init__(self, address: int, command: str, timeout: float, detail: str = "") -> None:
+        self.address = address
+        super().__init__(
+            f"a reply from the controller at @{address:02d}{detail}", timeout, command=command
+        )
+
+
+class ControllerCommandError(MirobotCommandError):
+    """The controller answered ``error`` (or something else than expected) to a command."""
+
+    def __init__(self, address: int, command: str, text: str) -> None:
+        self.address = address
+        super().__init__(command, text)
+
+    def _message(self) -> str:
+        return f"controller @{self.address:02d} refused {self.command!r}: {self.text!r}"
+
+
+class EmulatorError(MirobotError):
+    """The emulator process could not be started, died, or refused a control command."""
+
+
+class OracleUnsupportedError(EmulatorError):
+    """The firmware oracle cannot be what was asked of an emulator (the 2021 profile, emulator
+    options, the control channel): the pytest plugin skips the test that asked, with this
+    message as the reason."""

@@ -22,7 +22,12 @@ from typing import Literal, TypeAlias
 import numpy as np
 import numpy.typing as npt
 
-from mirobot_async.errors import MirobotUsageError
+from mirobot_async.errors import (  # defined with the error tree
+    BehindShoulder,
+    MirobotUsageError,
+    OutOfLimits,
+    Unreachable,
+)
 
 __all__ = [
     "BEHIND_SHOULDER_TOL",
@@ -76,25 +81,6 @@ _REACH_EPS = 1e-12
 _DUP_TOL = 1e-9
 #: How far (mm) a wrist centre may lie behind the shoulder before the mirrored pose counts.
 BEHIND_SHOULDER_TOL = 1e-6
-
-
-class Unreachable(MirobotUsageError):
-    """The pose is outside the workspace: there is no valid value for theta3."""
-
-
-class OutOfLimits(MirobotUsageError):
-    """The pose has IK solutions, but none (of the requested branch) is within the joint limits."""
-
-
-class BehindShoulder(MirobotUsageError):
-    """The firmware does not go to this pose: its wrist centre lies behind the shoulder (within
-    ``A1`` of the base axis); it solves the pose mirrored in front of the shoulder and the arm
-    goes there (oracle: ``X1 Y5 Z182 A0 B0 C0`` ends at X 11.551 Y 57.749). ``actual``: that pose.
-    """
-
-    def __init__(self, message: str, actual: Pose) -> None:
-        super().__init__(message)
-        self.actual = actual
 
 
 @dataclass(frozen=True, slots=True)

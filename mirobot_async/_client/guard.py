@@ -38,7 +38,12 @@ from mirobot_async._safety.firmware_memory import (
     soft_limits_from_settings,
     state_after_refusal,
 )
-from mirobot_async.errors import MirobotUsageError, MotionChainError, RefusalReason
+from mirobot_async.errors import (
+    MirobotUsageError,
+    MotionChainError,
+    PathRefused,  # defined with the error tree
+    RefusalReason,
+)
 
 if TYPE_CHECKING:  # imported when an envelope is used (it needs numpy)
     from mirobot_async._safety.envelope import Envelope
@@ -58,14 +63,6 @@ __all__ = [
 _log = logging.getLogger("mirobot_async.client")
 
 _QUIET: Final = frozenset({State.IDLE, State.ALARM, State.CHECK})
-
-
-class PathRefused(MirobotUsageError):
-    """:meth:`EnvelopeGuard.preview` refused the line at :attr:`index`."""
-
-    def __init__(self, index: int, message: str) -> None:
-        super().__init__(message)
-        self.index = index
 
 
 class NeedPosition:

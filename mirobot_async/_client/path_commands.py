@@ -24,7 +24,11 @@ from mirobot_async._client.streaming import Stream
 from mirobot_async._core import gcode
 from mirobot_async._core.line import parse_line
 from mirobot_async._core.replies import StatusReport
-from mirobot_async.errors import MirobotError, MirobotUsageError
+from mirobot_async.errors import (
+    MirobotError,
+    MirobotUsageError,
+    PathError,  # defined with the error tree
+)
 
 if TYPE_CHECKING:
     from mirobot_async._safety.envelope import LineCheck
@@ -32,18 +36,6 @@ if TYPE_CHECKING:
 __all__ = ["PathCommands", "PathError"]
 
 Point = Sequence[float | None]
-
-
-class PathError(MirobotError):
-    """A path failed at one point: :attr:`index` (0-based) and :attr:`point`; the robot's own
-    error (a :class:`MotionRefusedError`, :class:`MirobotCommandError`, a reset...) is
-    :attr:`error` (also the ``__cause__``)."""
-
-    def __init__(self, index: int, point: tuple[float | None, ...], error: BaseException) -> None:
-        super().__init__(f"path point {index} {point}: {error}")
-        self.index = index
-        self.point = point
-        self.error = error
 
 
 class PathCommands(ClientParts):

@@ -39,7 +39,11 @@ from mirobot_async._core.values import (
     check_firmware,
     show_number,
 )
-from mirobot_async.errors import MirobotUsageError, MotionChainError
+from mirobot_async.errors import (
+    InvalidLineError,  # defined with the error tree
+    MirobotUsageError,
+    MotionChainError,
+)
 
 __all__ = [
     "InvalidLineError",
@@ -434,15 +438,6 @@ def check_program(lines: Iterable[str | bytes], *, firmware: str = "2021") -> li
             (number, problem) for problem in check_line(line, firmware=profile, state=state)
         )
     return found
-
-
-class InvalidLineError(MirobotUsageError):
-    """A raw line refused before sending: the firmware would refuse it or read it otherwise
-    (:attr:`problems` lists why, as :func:`check_line` reports them)."""
-
-    def __init__(self, message: str, problems: tuple[str, ...]) -> None:
-        super().__init__(message)
-        self.problems = problems
 
 
 def validate_line(

@@ -17,7 +17,11 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from mirobot_async.errors import MirobotCommandError, MirobotTimeoutError, MirobotUsageError
+from mirobot_async.errors import (
+    ControllerCommandError,  # defined with the error tree
+    MirobotTimeoutError,
+    MirobotUsageError,
+)
 
 if TYPE_CHECKING:
     from mirobot_async.bus._link import LinkSide
@@ -43,17 +47,6 @@ PINS = ("A0", "A1", "D0", "D1")
 
 _STATE_WORDS = {0: "Offline", 1: "Idle", 2: "Alarm", 3: "Home", 4: "Busy", 5: "Run"}
 _NAME = re.compile(r"^[A-Za-z0-9_\-]+$")
-
-
-class ControllerCommandError(MirobotCommandError):
-    """The controller answered ``error`` (or something else than expected) to a command."""
-
-    def __init__(self, address: int, command: str, text: str) -> None:
-        self.address = address
-        super().__init__(command, text)
-
-    def _message(self) -> str:
-        return f"controller @{self.address:02d} refused {self.command!r}: {self.text!r}"
 
 
 @dataclass(frozen=True, slots=True)

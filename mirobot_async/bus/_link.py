@@ -33,8 +33,8 @@ from mirobot_async._client.transport import SerialLink
 from mirobot_async.bus._ledger import Kind, NodeLedger, Owed, may_move
 from mirobot_async.errors import (
     MirobotLinkLostError,
-    MirobotTimeoutError,
     MirobotUsageError,
+    NodeSilentError,  # defined with the error tree
 )
 
 __all__ = ["DEFAULT_BUS_BAUD", "BusStats", "BusTiming", "LinkSide", "NodeSilentError"]
@@ -45,16 +45,6 @@ DEFAULT_BUS_BAUD = 38400
 """What every vendor example opens the bus at (the factory default is INFERRED, EXBOX.md 1)."""
 
 _REALTIME = {b"?": Kind.STATUS, b"!": Kind.REALTIME, b"~": Kind.REALTIME, b"%": Kind.REALTIME}
-
-
-class NodeSilentError(MirobotTimeoutError):
-    """A node on the bus did not answer in time; names its address."""
-
-    def __init__(self, address: int, command: str, timeout: float, detail: str = "") -> None:
-        self.address = address
-        super().__init__(
-            f"a reply from the controller at @{address:02d}{detail}", timeout, command=command
-        )
 
 
 @dataclass(slots=True)

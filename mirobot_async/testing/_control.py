@@ -9,7 +9,11 @@ import shlex
 import sys
 from collections.abc import Sequence
 
-from mirobot_async.errors import MirobotError, MirobotUsageError
+from mirobot_async.errors import (
+    EmulatorError,  # defined with the error tree
+    MirobotUsageError,
+    OracleUnsupportedError,
+)
 
 __all__ = [
     "CONTROL_TIMEOUT",
@@ -83,16 +87,6 @@ def link_args(listen: str | None) -> list[str]:
     if not sep or not port.isdigit():
         raise MirobotUsageError(f"listen={listen!r} must be 'pty', 'tcp' or 'HOST:PORT'")
     return ["--listen", link]
-
-
-class EmulatorError(MirobotError):
-    """The emulator process could not be started, died, or refused a control command."""
-
-
-class OracleUnsupportedError(EmulatorError):
-    """The firmware oracle cannot be what was asked of an emulator (the 2021 profile, emulator
-    options, the control channel): the pytest plugin skips the test that asked, with this
-    message as the reason."""
 
 
 def emulator_args(
