@@ -26,6 +26,9 @@ enough)::
         async with Mirobot.connect(mirobot_emulator) as arm:
             ...
 
+The ``mirobot_virtual_arm`` fixture yields instead the ``virtual://N`` URL of an
+:class:`InProcessArm`: the firmware model in the test's own process (milliseconds per test; no
+serial pacing, faults or control channel).
 The ``mirobot_emulator`` fixture yields the port URL of an emulator for the test;
 ``mirobot_emulator_process`` yields its :class:`SyncEmulatorProcess` handle (``.url``,
 ``.control(cmd)``, ``.kill()``). The emulator is exactly what a process started for the test
@@ -542,6 +545,22 @@ def _define_fixtures() -> None:
         """The port URL of a virtual Mirobot started for this test."""
         return mirobot_emulator_process.url
 
+    @pytest.fixture
+    def mirobot_virtual_arm(request: Any) -> Iterator[str]:
+        """The ``virtual://N`` URL of a virtual Mirobot inside the test's own process
+        (:class:`InProcessArm`: no subprocess, no pty), for ``Mirobot.connect``; the marker's
+        ``firmware`` and ``time_scale`` apply (its process options do not)."""
+        firmware, time_scale, extra, _link, _fresh = _fixture_settings(request, "pty")
+        if extra:
+            raise MirobotUsageError(
+                "mirobot_virtual_arm runs in this process: extra_args (the emulator process's "
+                "options) do not apply; use the mirobot_emulator fixture"
+            )
+        from mirobot_async.testing._virtual import InProcessArm
+
+        with InProcessArm(firmware, time_scale) as arm:
+            yield arm.url
+
     @pytest.hookimpl(wrapper=True)
     def pytest_runtest_setup(item: pytest.Item) -> Iterator[None]:
         """A fixture that asked the firmware oracle for what only the emulator has skips."""
@@ -564,6 +583,7 @@ def _define_fixtures() -> None:
     globals()["mirobot_emulator_pool"] = mirobot_emulator_pool
     globals()["mirobot_emulator_process"] = mirobot_emulator_process
     globals()["mirobot_emulator"] = mirobot_emulator
+    globals()["mirobot_virtual_arm"] = mirobot_virtual_arm
 
 
 if "pytest" in sys.modules:

@@ -105,3 +105,15 @@ async def test_process_options_are_refused_in_process() -> None:
         InProcessArm("2019")
     with pytest.raises(MirobotUsageError):
         InProcessArm(time_scale=-1)
+
+
+@pytest.mark.mirobot_emulator(firmware="classic", time_scale=0)
+async def test_the_plugin_fixture_lends_an_in_process_arm(mirobot_virtual_arm: str) -> None:
+    """As a user's own test would: the plugin's fixture, the marker's profile, no process."""
+    assert mirobot_virtual_arm.startswith("virtual://")
+    async with Mirobot.connect(mirobot_virtual_arm) as arm:
+        assert await arm.detect_firmware() == "classic"
+        await arm.home()
+        lines = ["M21 G90 G21 G0 X0 F2000"] + [f"G0 X{i % 20}" for i in range(1, 100)]
+        assert (await arm.stream(lines, wait=True)).ok
+        assert (await arm.status()).joints[0] == pytest.approx(19, abs=0.02)
