@@ -70,7 +70,7 @@ def test_check_and_run_agree_on_what_is_only_in_comments(
     with mirobot_emulator_pool.lend(time_scale=0) as emulator:
         ran = cli("run", str(program), "--port", emulator.url, "--home")
     assert ran.returncode == 0, ran.stderr
-    assert "4/4 lines 100%" in ran.stderr and "29.988" in ran.stdout  # J1 at 30 (its steps)
+    assert "4/4 lines 100%" in ran.stderr and "30.002" in ran.stdout  # J1 at 30 (its whole steps)
 
 
 def test_check_and_run_agree_on_a_realtime_byte_outside_comments(
