@@ -128,6 +128,10 @@ class MotionCommands(ClientParts):
         :meth:`hold`, :meth:`reset` or :meth:`hold_on_exit`).
         """
         values = (j1, j2, j3, j4, j5, j6)
+        if timeout == MOVE_TIMEOUT:  # the default: long enough for this move at its speed
+            timeout = motion_timeout(
+                self._poller.last_status, values, rail, speed, relative, joints=True
+            )
         deadline = deadline_after(self._running_loop(), timeout)
         # Argument errors first (the rail range depends on the firmware: checked below).
         if rail is None or any(v is not None for v in values):
@@ -212,6 +216,10 @@ class MotionCommands(ClientParts):
         :meth:`move_joints`.
         """
         values = (x, y, z, rx, ry, rz)
+        if timeout == MOVE_TIMEOUT:  # the default: long enough for this move at its speed
+            timeout = motion_timeout(
+                self._poller.last_status, values, None, speed, relative, joints=False
+            )
         deadline = deadline_after(self._running_loop(), timeout)
 
         def build(mode_word: bool) -> bytes:
@@ -420,3 +428,73 @@ def _with_units(data: bytes) -> bytes:
     would make the firmware read its numbers as inches."""
     line = data.rstrip(b"\n")
     return line if b"G21" in line.split() else line + b" G21"
+
+
+_FAR: Final = (270.0, 1000.0)  # degrees of the widest joint range; mm across the workspace
+
+
+def motion_timeout(
+    last: StatusReport | None,
+    values: Sequence[float | None],
+    rail: float | None,
+    speed: float | None,
+    relative: bool,
+    *,
+    joints: bool,
+) -> float:
+    """The default ``timeout`` of a move: :data:`MOVE_TIMEOUT`, or twice the time the farthest
+    axis needs at ``speed`` (deg/min or mm/min) plus 10 s when that is longer, so that a slow
+    move is never given up while the arm is still on its way (J1 over 260 deg at F100: 156 s).
+    The start is the last status when one was seen, else the farthest an axis can be."""
+    if speed is None or speed <= 0:
+        return MOVE_TIMEOUT  # G0: every axis at its maximum rate
+    current = (last.joints if joints else last.pose) if last is not None else None
+    travel = 0.0
+    for index, value in enumerate(values):
+        if value is None:
+            continue
+        if relative:
+            travel = max(travel, abs(value))
+        elif current is not None:
+            travel = max(travel, abs(value - current[index]))
+        else:
+            travel = max(travel, _FAR[0] if joints else _FAR[1])
+    if rail is not None:
+        start = last.rail if last is not None and last.rail is not None else None
+        travel = max(travel, abs(rail) if relative or start is None else abs(rail - start))
+    if not joints and not relative and current is not None:
+        travel = max(
+            travel,
+            sum((v - c) ** 2 for v, c in zip(values[:3], current[:3], strict=True) if v is not None)
+            ** 0.5,
+        )
+    return max(MOVE_TIMEOUT, 2.0 * travel / speed * 60.0 + 10.0)
+
+
+def path_timeout(
+    last: StatusReport | None,
+    points: Sequence[Sequence[float | None]],
+    speed: float | None,
+    *,
+    joints: bool,
+) -> float:
+    """The default ``timeout`` of a path: :data:`MOVE_TIMEOUT`, or twice its length over its
+    feed plus 10 s when that is longer (each leg counted as its farthest axis for joint paths,
+    its straight length in x, y, z for poses; from the last status, else from far away)."""
+    if speed is None or speed <= 0 or not points:
+        return MOVE_TIMEOUT
+    current = (last.joints if joints else last.pose) if last is not None else None
+    total = 0.0 if current is not None else (_FAR[0] if joints else _FAR[1])
+    previous: Sequence[float | None] | None = current
+    for point in points:
+        if previous is not None:
+            pairs = [(a, b) for a, b in zip(point, previous, strict=False) if a is not None]
+            if joints:
+                total += max((abs(a - (b or 0.0)) for a, b in pairs), default=0.0)
+            else:
+                total += sum((a - (b or 0.0)) ** 2 for a, b in pairs[:3]) ** 0.5
+        previous = [
+            p if p is not None else (q or 0.0)
+            for p, q in zip(point, previous or point, strict=False)
+        ]
+    return max(MOVE_TIMEOUT, 2.0 * total / speed * 60.0 + 10.0)

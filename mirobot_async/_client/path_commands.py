@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 from mirobot_async._client.completion import Target
 from mirobot_async._client.deadline import deadline_after
 from mirobot_async._client.guard import NeedPosition, PathRefused
-from mirobot_async._client.motion_commands import absolute_pose, write_move
+from mirobot_async._client.motion_commands import absolute_pose, path_timeout, write_move
 from mirobot_async._client.parts import MOVE_TIMEOUT, ClientParts
 from mirobot_async._client.streaming import Stream
 from mirobot_async._core import gcode
@@ -103,10 +103,13 @@ class PathCommands(ClientParts):
         joints: bool,
         timeout: float | None,
     ) -> StatusReport:
+        header = build_header(True)
+        if timeout == MOVE_TIMEOUT and points:  # the default: long enough for this path
+            speed = parse_line(header.rstrip(b"\n")).value("F")
+            timeout = path_timeout(self._poller.last_status, points, speed, joints=joints)
         deadline = deadline_after(self._running_loop(), timeout)
         if not points:
             raise MirobotUsageError("a path needs at least one point")
-        header = build_header(True)
         motion = header.split()[2].decode("ascii")
         firmware = self._condition.firmware or "2021"
         lines = [header.rstrip(b"\n")]
