@@ -57,7 +57,8 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     for item in items:
         for mark in item.iter_markers("oracle_differs"):
             strict = bool(mark.kwargs.get("strict", True))
-            item.add_marker(pytest.mark.xfail(reason=mark.args[0], strict=strict))
+            run = bool(mark.kwargs.get("run", True))
+            item.add_marker(pytest.mark.xfail(reason=mark.args[0], strict=strict, run=run))
     skip = pytest.mark.skip(
         reason="emulator only: starts its own emulator (borrows no arm from the pool, so "
         "nothing of it would run on the firmware oracle)"
