@@ -39,8 +39,10 @@ async def test_a_line_waits_for_planner_room_behind_slow_moves(
 async def test_a_line_sent_to_a_held_arm_waits(ready: Mirobot, profile: str) -> None:
     await ready.move_joints(j1=60, speed=600, wait=False)  # 6 s
     queued = [asyncio.create_task(ready.move_joints(j1=0, speed=600, wait=False))]
-    for _ in range(16):  # fill the planner, so the next line waits for room
-        queued.append(asyncio.create_task(ready.move_joints(j1=1, speed=600, wait=False)))
+    for i in range(16):  # fill the planner, so the next line waits for room (each line moves:
+        # a line whose target rounds to the steps already planned makes no block, as on GRBL)
+        target = 1 + i % 2
+        queued.append(asyncio.create_task(ready.move_joints(j1=target, speed=600, wait=False)))
     try:
         async with contextlib.aclosing(ready.statuses(interval=0.05)) as reports:
             async for report in reports:
