@@ -15,8 +15,7 @@ from .harness import Pair, Until
 from .per_side import status_on_reply
 
 # 30 degrees at F300: 6 s of motion, so the ? sent on the first reply finds the arm still
-# moving however late a loaded host sends it (at F1000, 1.6 s: a host stall of 0.3 s wall at -s 0
-# let the oracle finish first)
+# moving however late a loaded host sends it
 MOVE = "M21 G90 X30 F300"
 
 # (lines before the move, the line behind it)
