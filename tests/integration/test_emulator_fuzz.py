@@ -62,7 +62,9 @@ STRICT_STATUS = re.compile(
 STATUS = re.compile(r"<(Idle|Run|Hold|Home|Alarm|Check|Door)(,[A-Za-z_ ()]+:?[-0-9.,:]*)*>")
 FINAL = re.compile(
     r"ok|error: [^\r\n]+|Error, E1\d\d,[^\r\n]+|in homeing moving\.\.\.ok|"
-    r"Info, in homing moving\.\.\.ok"
+    r"Info, in homing moving\.\.\.ok|"
+    # the firmware prints this refusal without a line end: its ``ok`` follows on the same line
+    r"GOAL OUT OF WORKSPACE, THERE IS NO VAILD VALUS FOR  THETA3!ok"
 )
 OTHER = re.compile(
     "|".join(
@@ -114,6 +116,7 @@ def test_the_classifier_knows_the_shapes() -> None:
         "Error, E120,Unsupported command",
         "in homeing moving...ok",
         "Info, in homing moving...ok",
+        "GOAL OUT OF WORKSPACE, THERE IS NO VAILD VALUS FOR  THETA3!ok",
         "ALARM: Hard limit",
         "[Reset to continue]",
         "['$H'|'$X' to unlock]",
@@ -138,9 +141,9 @@ def test_the_classifier_knows_the_shapes() -> None:
     bad = ["ok ok", "okk", "error:", "<Idle", "Idle>", "ALARM: nope", "Soft limit triggered:Q"]
     assert all(well_formed(line) for line in good), [g for g in good if not well_formed(g)]
     assert not any(well_formed(line) for line in bad), [b for b in bad if well_formed(b)]
-    assert [is_final(line) for line in good[:5]] == [True] * 5
+    assert [is_final(line) for line in good[:6]] == [True] * 6
     assert not is_final("G0X1ok")  # a startup line's reply: owed to no line sent
-    assert STRICT_STATUS.fullmatch(good[16]) and not STRICT_STATUS.fullmatch(good[17])
+    assert STRICT_STATUS.fullmatch(good[17]) and not STRICT_STATUS.fullmatch(good[18])
 
 
 def test_the_finals_counter_knows_the_line_discipline() -> None:
