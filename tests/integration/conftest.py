@@ -44,7 +44,14 @@ import pytest
 
 from mirobot_async import Mirobot, State
 from mirobot_async._cli import main
-from mirobot_async.testing import EmulatorPool, EmulatorProcess, WireSpy, session_link
+from mirobot_async.testing import (
+    EmulatorError,
+    EmulatorPool,
+    EmulatorProcess,
+    InProcessArm,
+    WireSpy,
+    session_link,
+)
 
 PROFILES = ("2021", "classic")
 
@@ -83,13 +90,68 @@ def profile(request: pytest.FixtureRequest) -> str:
     return str(request.param)
 
 
+class InProcessEmulator(EmulatorProcess):
+    """The ``emu`` of a test on the in-process link: an :class:`InProcessArm` behind the
+    :class:`EmulatorProcess` API's ``url``; what only a process has (the control channel, a
+    port, signals) fails with the way to ask for a process."""
+
+    def __init__(self, arm: InProcessArm) -> None:
+        # Not EmulatorProcess.__init__: there is no process.
+        self.arm = arm
+        self.url = arm.url
+        self.command = ["in-process", arm.firmware_name, str(arm.time_scale)]
+
+    def _no_process(self, what: str) -> EmulatorError:
+        return EmulatorError(
+            f"cannot {what}: this test's emulator runs in-process; mark the test (or its "
+            "module) @pytest.mark.emulator_process to get a process"
+        )
+
+    @property
+    def pid(self) -> int:
+        raise self._no_process("read the pid")
+
+    @property
+    def returncode(self) -> int | None:
+        return None
+
+    async def control(self, command: str, *, timeout: float = 5.0) -> str:
+        raise self._no_process(f"send {command!r}")
+
+    async def renew(self, *args: object, **kwargs: object) -> str:
+        raise self._no_process("renew")
+
+    def kill(self) -> None:
+        raise self._no_process("kill it")
+
+    async def stop(self, timeout: float = 5.0) -> int:
+        raise self._no_process("stop it")
+
+
+def runs_in_process(request: pytest.FixtureRequest, options: dict[str, Any]) -> bool:
+    """Whether this test's ``emu`` is an in-process arm: README's test command (no link
+    chosen) runs every client test on one, except those that need a process (marked
+    ``emulator_process``, or asking for process options). ``--mirobot-link pty|tcp|oracle``
+    (or ``$MIROBOT_TEST_LINK``) runs them all over that link instead."""
+    if session_link(request.config) is not None:
+        return False
+    if request.node.get_closest_marker("emulator_process") is not None:
+        return False
+    return not (options["extra_args"] or options.get("listen") or options.get("fresh"))
+
+
 @pytest.fixture
 async def emu(
     request: pytest.FixtureRequest, profile: str, mirobot_emulator_pool: EmulatorPool
 ) -> AsyncIterator[EmulatorProcess]:
     """An emulator for this test as a new process would be (renewed from the session's pool,
-    or started); returned to the pool afterwards (or stopped, if it was killed or closed)."""
+    or started); returned to the pool afterwards (or stopped, if it was killed or closed).
+    On README's test command, an in-process arm unless the test needs a process."""
     options = emulator_options(request, profile)
+    if runs_in_process(request, options):
+        with InProcessArm(options["firmware"], options["time_scale"]) as arm:
+            yield InProcessEmulator(arm)
+        return
     async with mirobot_emulator_pool.lend_async(
         options["firmware"],
         options["time_scale"],

@@ -53,6 +53,7 @@ async def test_connect_to_a_missing_path_fails_at_once(tmp_path: os.PathLike[str
     assert not isinstance(info.value, MirobotLinkLostError)
 
 
+@pytest.mark.emulator_process
 async def test_a_second_client_on_a_busy_port_fails_at_once(emu: EmulatorProcess) -> None:
     async with Mirobot.connect(emu.url) as arm:
         start = time.monotonic()
@@ -452,6 +453,7 @@ async def test_wait_true_detects_completion_promptly(
 
 
 @pytest.mark.mirobot_emulator(time_scale=1)
+@pytest.mark.emulator_process
 async def test_wait_false_then_wait_idle_hold_and_resume(
     emu: EmulatorProcess, ready_arm: Mirobot
 ) -> None:
@@ -539,6 +541,7 @@ asyncio.run(main(URL))
 
 
 @pytest.mark.mirobot_emulator(time_scale=100)
+@pytest.mark.emulator_process
 async def test_readme_example_runs_as_written(emu: EmulatorProcess) -> None:
     program = README_EXAMPLE.replace("URL", repr(emu.url))
     proc = await asyncio.create_subprocess_exec(

@@ -36,7 +36,11 @@ from mirobot_async import (
 )
 from mirobot_async.testing import EmulatorProcess
 
-pytestmark = [pytest.mark.timeout(60), pytest.mark.usefixtures("no_leftover_tasks")]
+pytestmark = [
+    pytest.mark.timeout(60),
+    pytest.mark.usefixtures("no_leftover_tasks"),
+    pytest.mark.emulator_process,  # faults on the wire: the emulator's control channel
+]
 
 CHAOS_SECONDS = 2.0
 CALL_TIMEOUT = 1.5

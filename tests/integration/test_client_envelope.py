@@ -34,7 +34,6 @@ from mirobot_async import (
     State,
     StatusReport,
 )
-from mirobot_async._client.transport import SerialLink
 from mirobot_async._core import gcode
 from mirobot_async.kinematics import (
     DH_2021,
@@ -44,31 +43,14 @@ from mirobot_async.kinematics import (
     forward_many,
     inverse,
 )
-from mirobot_async.testing import EmulatorProcess
+from mirobot_async.testing import EmulatorProcess, WireSpy
 
 pytestmark = [pytest.mark.timeout(60)]
 emulated = pytest.mark.usefixtures("no_leftover_tasks")
 
 
-class WireSpy:
-    """Records every chunk the client hands to the transport (lines and realtime bytes)."""
-
-    def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
-        self.writes: list[bytes] = []
-        original = SerialLink.write
-
-        def write(link: SerialLink, data: bytes) -> None:
-            self.writes.append(bytes(data))
-            original(link, data)
-
-        monkeypatch.setattr(SerialLink, "write", write)
-
-    def mark(self) -> int:
-        return len(self.writes)
-
-    def since(self, mark: int) -> list[bytes]:
-        """Everything written since ``mark``."""
-        return self.writes[mark:]
+class EnvelopeSpy(WireSpy):
+    """The wire spy, with the lines written since a mark (status requests left out)."""
 
     def lines_since(self, mark: int) -> list[bytes]:
         """The lines written since ``mark`` (status requests left out)."""
@@ -76,13 +58,20 @@ class WireSpy:
 
 
 @pytest.fixture
-def spy(monkeypatch: pytest.MonkeyPatch) -> WireSpy:
-    return WireSpy(monkeypatch)
+def spy() -> EnvelopeSpy:
+    return EnvelopeSpy()
 
 
 @contextlib.asynccontextmanager
-async def connected(emu: EmulatorProcess, envelope: Envelope, *, unlock: bool = True) -> Any:
-    async with Mirobot.connect(emu.url, envelope=envelope) as arm:
+async def connected(
+    emu: EmulatorProcess,
+    envelope: Envelope,
+    *,
+    unlock: bool = True,
+    spy: EnvelopeSpy | None = None,
+) -> Any:
+    opener = (spy or EnvelopeSpy()).opener
+    async with Mirobot.connect(emu.url, envelope=envelope, open_transport=opener) as arm:
         if unlock:
             await arm.unlock()
             await arm.send("G21")  # units are unknown at connect (an earlier G20 survives)
@@ -102,7 +91,7 @@ def stated(line: bytes, *, mode: bool = True) -> bytes:
 
 async def assert_refused(
     arm: Mirobot,
-    spy: WireSpy,
+    spy: EnvelopeSpy,
     call: Callable[[], Awaitable[object]],
     *fragments: str,
     reads_position: bool = False,
@@ -145,10 +134,10 @@ def assert_joints(report: StatusReport | None, expected: tuple[float, ...]) -> N
 
 @emulated
 async def test_moves_inside_the_envelope_arrive_byte_for_byte(
-    emu: EmulatorProcess, spy: WireSpy
+    emu: EmulatorProcess, spy: EnvelopeSpy
 ) -> None:
     envelope = Envelope(x=(100, 260), y=(-160, 160), z=(100, 300), joints={1: (-60, 60)})
-    async with connected(emu, envelope) as arm:
+    async with connected(emu, envelope, spy=spy) as arm:
         mark = spy.mark()
         assert_joints(await arm.move_joints(j1=30, j2=10), (30, 10, 0, 0, 0, 0))
         assert spy.lines_since(mark) == [stated(gcode.move_joints(30, 10), mode=False)]
@@ -180,10 +169,10 @@ async def test_moves_inside_the_envelope_arrive_byte_for_byte(
 
 @emulated
 async def test_targets_outside_the_envelope_are_refused_with_nothing_written(
-    emu: EmulatorProcess, spy: WireSpy
+    emu: EmulatorProcess, spy: EnvelopeSpy
 ) -> None:
     envelope = Envelope(x=(100, 260), z=(100, None), joints={1: (-60, 60)})
-    async with connected(emu, envelope) as arm:
+    async with connected(emu, envelope, spy=spy) as arm:
         await assert_refused(
             arm, spy, lambda: arm.move_joints(j1=75), "j1=75.000", "J1 range -60..60 deg"
         )
@@ -205,12 +194,12 @@ async def test_targets_outside_the_envelope_are_refused_with_nothing_written(
 
 @emulated
 async def test_a_joint_space_path_that_leaves_the_box_is_refused(
-    emu: EmulatorProcess, spy: WireSpy
+    emu: EmulatorProcess, spy: EnvelopeSpy
 ) -> None:
     # J1 swings the tool point around the base: from -25 to +25 deg it passes x = 198.67 (2021)
     # or 202 (classic) at J1 = 0, above the box, although both ends are inside it.
     envelope = Envelope(x=(None, 190))
-    async with connected(emu, envelope) as arm:
+    async with connected(emu, envelope, spy=spy) as arm:
         # Home is outside the box: a move back inside that never goes farther out is allowed.
         assert_joints(await arm.move_joints(j1=-25), (-25, 0, 0, 0, 0, 0))
         error = await assert_refused(
@@ -222,12 +211,12 @@ async def test_a_joint_space_path_that_leaves_the_box_is_refused(
 
 @emulated
 async def test_a_linear_path_that_needs_joints_outside_the_envelope_is_refused(
-    emu: EmulatorProcess, spy: WireSpy
+    emu: EmulatorProcess, spy: EnvelopeSpy
 ) -> None:
     # Along y at x=200, z=200 the elbow (J3) is highest in the middle: with J3 <= -10 both ends
     # (y = -/+150) are allowed on both geometries, the middle of the straight line is not.
     envelope = Envelope(joints={3: (None, -10)})
-    async with connected(emu, envelope) as arm:
+    async with connected(emu, envelope, spy=spy) as arm:
         report = await arm.move_pose(x=200, y=-150, z=200)
         assert report is not None and report.pose[:3] == pytest.approx((200, -150, 200), abs=0.1)
         if arm.firmware == "classic":
@@ -252,10 +241,10 @@ async def test_a_linear_path_that_needs_joints_outside_the_envelope_is_refused(
 
 @emulated
 async def test_relative_moves_are_checked_against_the_last_position(
-    emu: EmulatorProcess, spy: WireSpy
+    emu: EmulatorProcess, spy: EnvelopeSpy
 ) -> None:
     envelope = Envelope(z=(100, None), joints={1: (-60, 60)})
-    async with connected(emu, envelope) as arm:
+    async with connected(emu, envelope, spy=spy) as arm:
         assert_joints(await arm.move_joints(j1=40), (40, 0, 0, 0, 0, 0))
         assert_joints(await arm.move_joints(j1=15, relative=True), (55, 0, 0, 0, 0, 0))
         await assert_refused(
@@ -282,10 +271,10 @@ async def test_relative_moves_are_checked_against_the_last_position(
 
 @emulated
 async def test_concurrent_moves_are_checked_in_the_order_they_are_written(
-    emu: EmulatorProcess, spy: WireSpy
+    emu: EmulatorProcess, spy: EnvelopeSpy
 ) -> None:
     envelope = Envelope(joints={1: (-60, 60)})
-    async with connected(emu, envelope) as arm:
+    async with connected(emu, envelope, spy=spy) as arm:
         mark = spy.mark()
         first = asyncio.ensure_future(arm.move_joints(j1=50, wait=False))
         second = asyncio.ensure_future(arm.move_joints(j1=15, relative=True, wait=False))
@@ -298,10 +287,10 @@ async def test_concurrent_moves_are_checked_in_the_order_they_are_written(
 
 @emulated
 async def test_after_homing_the_position_is_read_before_the_next_move(
-    emu: EmulatorProcess, spy: WireSpy
+    emu: EmulatorProcess, spy: EnvelopeSpy
 ) -> None:
     envelope = Envelope(joints={1: (-60, 60)})
-    async with connected(emu, envelope) as arm:
+    async with connected(emu, envelope, spy=spy) as arm:
         assert_joints(await arm.move_joints(j1=40), (40, 0, 0, 0, 0, 0))
         await arm.home()
         mark = spy.mark()
@@ -313,10 +302,10 @@ async def test_after_homing_the_position_is_read_before_the_next_move(
 
 @emulated
 async def test_a_failed_move_does_not_shift_the_predicted_position(
-    emu: EmulatorProcess, spy: WireSpy, profile: str
+    emu: EmulatorProcess, spy: EnvelopeSpy, profile: str
 ) -> None:
     envelope = Envelope(joints={1: (-60, 60)})
-    async with connected(emu, envelope, unlock=False) as arm:
+    async with connected(emu, envelope, unlock=False, spy=spy) as arm:
         # Both profiles power on locked: 2021 answers "Alarm lock", classic "ok" but dropped.
         with pytest.raises(MirobotAlarmError if profile == "2021" else MotionRefusedError):
             await arm.move_joints(j1=40)
@@ -327,10 +316,10 @@ async def test_a_failed_move_does_not_shift_the_predicted_position(
 
 @emulated
 async def test_the_position_is_read_again_after_an_unchecked_move(
-    emu: EmulatorProcess, spy: WireSpy, caplog: pytest.LogCaptureFixture
+    emu: EmulatorProcess, spy: EnvelopeSpy, caplog: pytest.LogCaptureFixture
 ) -> None:
     envelope = Envelope(joints={1: (-60, 60)})
-    async with connected(emu, envelope) as arm:
+    async with connected(emu, envelope, spy=spy) as arm:
         with caplog.at_level(logging.WARNING, logger="mirobot_async"):
             await arm.send("M21 G90 G0 X75", check_envelope=False)
         await arm.wait_idle()
@@ -351,10 +340,10 @@ async def test_the_position_is_read_again_after_an_unchecked_move(
 
 @emulated
 async def test_raw_lines_that_move_the_arm_are_parsed_and_checked(
-    emu: EmulatorProcess, spy: WireSpy
+    emu: EmulatorProcess, spy: EnvelopeSpy
 ) -> None:
     envelope = Envelope(z=(100, None), joints={1: (-60, 60)})
-    async with connected(emu, envelope) as arm:
+    async with connected(emu, envelope, spy=spy) as arm:
         # The distance mode is unknown after connecting: a line must state it.
         await assert_refused(
             arm, spy, lambda: arm.send("G0 X10"), "distance mode (G90/G91)", "unknown"
@@ -379,11 +368,11 @@ async def test_raw_lines_that_move_the_arm_are_parsed_and_checked(
 @emulated
 @pytest.mark.parametrize("continue_on_error", [False, True])
 async def test_a_stream_stops_before_the_line_that_leaves_the_envelope(
-    emu: EmulatorProcess, spy: WireSpy, continue_on_error: bool
+    emu: EmulatorProcess, spy: EnvelopeSpy, continue_on_error: bool
 ) -> None:
     envelope = Envelope(joints={1: (-60, 60)})
     lines = ["M21 G91 G0 X20", "G0 X20", "G0 X30", "G0 X-10"]  # 20, 40, 70 (refused), 60
-    async with connected(emu, envelope) as arm:
+    async with connected(emu, envelope, spy=spy) as arm:
         mark, sent = spy.mark(), arm.stats.lines_sent
         result = await arm.stream(lines, continue_on_error=continue_on_error)
         assert result.sent == 2 and result.acknowledged == 2
@@ -417,10 +406,10 @@ async def test_a_stream_iterated_reports_the_refused_line(emu: EmulatorProcess) 
 
 @emulated
 async def test_opting_out_is_loud_and_sends(
-    emu: EmulatorProcess, spy: WireSpy, caplog: pytest.LogCaptureFixture
+    emu: EmulatorProcess, spy: EnvelopeSpy, caplog: pytest.LogCaptureFixture
 ) -> None:
     envelope = Envelope(joints={1: (-60, 60)})
-    async with connected(emu, envelope) as arm:
+    async with connected(emu, envelope, spy=spy) as arm:
         caplog.clear()
         with caplog.at_level(logging.WARNING, logger="mirobot_async"):
             mark = spy.mark()
@@ -456,11 +445,11 @@ async def test_opting_out_is_loud_and_sends(
 
 @emulated
 async def test_a_classic_arm_gets_the_classic_geometry(
-    emu: EmulatorProcess, spy: WireSpy, profile: str
+    emu: EmulatorProcess, spy: EnvelopeSpy, profile: str
 ) -> None:
     # The tool point at home: z = 230.72 mm (2021), 181 mm (classic).
     envelope = Envelope(z=(None, 200))
-    async with connected(emu, envelope) as arm:
+    async with connected(emu, envelope, spy=spy) as arm:
         assert arm.firmware == profile  # detected at connect ($$) because of the envelope
         assert arm.envelope is not None
         if profile == "classic":

@@ -31,7 +31,11 @@ from mirobot_async import (
 )
 from mirobot_async.testing import EmulatorProcess
 
-pytestmark = [pytest.mark.timeout(60), pytest.mark.usefixtures("no_leftover_tasks")]
+pytestmark = [
+    pytest.mark.timeout(60),
+    pytest.mark.usefixtures("no_leftover_tasks"),
+    pytest.mark.emulator_process,  # faults on the wire: the emulator's control channel
+]
 
 SLOW_MOVES = [f"M21 G90 G1 X{10 + (i % 2) * 10} F600" for i in range(60)]  # ~1 s each
 # A lost reply is found by a liveness check: after this long without progress (the client's

@@ -37,6 +37,7 @@ async def wait_until(condition: Callable[[], bool], limit: float = 5.0) -> None:
 
 
 @pytest.mark.mirobot_emulator(time_scale=1)
+@pytest.mark.emulator_process
 async def test_a_stalled_link_keeps_every_reply_with_its_own_call(
     ready_arm: Mirobot, emu: EmulatorProcess
 ) -> None:
@@ -81,6 +82,7 @@ async def _wait_idle_seconds(arm: Mirobot, times: int = 7) -> float:
     return statistics.median(spans)
 
 
+@pytest.mark.emulator_process
 async def test_fifty_ignored_status_requests_cost_nothing_later(
     ready_arm: Mirobot, emu: EmulatorProcess
 ) -> None:
@@ -128,6 +130,7 @@ async def test_overlapping_resets_share_one_reset_and_its_banner(
     assert arm.stats.resets == resets + 1
 
 
+@pytest.mark.emulator_process
 async def test_lines_run_after_a_spontaneous_reset_are_reported_as_run(
     ready_arm: Mirobot, emu: EmulatorProcess, wire_spy: WireSpy
 ) -> None:

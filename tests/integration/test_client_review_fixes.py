@@ -21,6 +21,7 @@ from mirobot_async.testing import EmulatorProcess, WireSpy
 pytestmark = [pytest.mark.timeout(60), pytest.mark.usefixtures("no_leftover_tasks")]
 
 
+@pytest.mark.emulator_process
 async def test_stream_writes_nothing_after_the_failing_reply_arrived(
     ready_arm: Mirobot, emu: EmulatorProcess, wire_spy: WireSpy
 ) -> None:
@@ -85,6 +86,7 @@ async def test_bad_timeouts_are_refused_before_anything_is_written(
     assert (await arm.status()).state is not None  # still usable
 
 
+@pytest.mark.emulator_process
 async def test_a_late_status_reply_is_not_credited_to_a_newer_request(
     ready_arm: Mirobot, emu: EmulatorProcess
 ) -> None:

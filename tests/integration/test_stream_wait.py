@@ -26,6 +26,7 @@ async def motion_ends(emu: EmulatorProcess) -> list[float]:
 
 
 @pytest.mark.mirobot_emulator(time_scale=4)
+@pytest.mark.emulator_process
 async def test_stream_wait_returns_once_the_arm_has_stopped_at_the_last_line(
     emu: EmulatorProcess, ready_arm: Mirobot, wire_spy: WireSpy
 ) -> None:
@@ -112,6 +113,7 @@ async def test_a_reset_while_a_stream_waits_for_the_motion_fails_it(
 
 
 @pytest.mark.mirobot_emulator(time_scale=1)
+@pytest.mark.emulator_process
 async def test_a_hard_limit_while_a_stream_waits_for_the_motion_fails_it_at_once(
     emu: EmulatorProcess, ready_arm: Mirobot, first_status: Callable[..., Awaitable[None]]
 ) -> None:
