@@ -140,6 +140,35 @@ def runs_in_process(request: pytest.FixtureRequest, options: dict[str, Any]) -> 
     return not (options["extra_args"] or options.get("listen") or options.get("fresh"))
 
 
+EmulatorLender = Callable[..., contextlib.AbstractContextManager[str]]
+
+
+@pytest.fixture
+def lend_emulator(
+    request: pytest.FixtureRequest, mirobot_emulator_pool: EmulatorPool
+) -> EmulatorLender:
+    """``with lend_emulator(firmware, time_scale) as url:`` an arm for one hypothesis example
+    (a fresh power-on each time): in-process on README's test command, else a process of the
+    session's pool on its link (as ``emu``). ``in_process_time_scale``: the time scale to use
+    in-process instead (there lines reach the firmware the instant they are written, so a
+    faster arm still moves while the lines after it are parsed)."""
+
+    @contextlib.contextmanager
+    def lend(
+        firmware: str, time_scale: float, *, in_process_time_scale: float | None = None
+    ) -> Iterator[str]:
+        options = {"firmware": firmware, "time_scale": time_scale, "extra_args": ()}
+        if runs_in_process(request, options):
+            scale = time_scale if in_process_time_scale is None else in_process_time_scale
+            with InProcessArm(firmware, scale) as arm:
+                yield arm.url
+            return
+        with mirobot_emulator_pool.lend(firmware, time_scale) as emulator:
+            yield emulator.url
+
+    return lend
+
+
 @pytest.fixture
 async def emu(
     request: pytest.FixtureRequest, profile: str, mirobot_emulator_pool: EmulatorPool

@@ -12,16 +12,19 @@ from pathlib import Path
 
 import pytest
 from chaining_programs import joints_of, programs, stepped, streamed, to_zero
-from conftest import Cli
+from conftest import Cli, EmulatorLender
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from mirobot_async import Mirobot, MotionChainError, StatusReport
 from mirobot_async._cli.exits import EXIT_FAILED
-from mirobot_async.testing import EmulatorPool, EmulatorProcess
+from mirobot_async.testing import EmulatorProcess
 
 TIME_SCALE = 4.0
 """Fast enough for many examples, slow enough that lines are parsed while the arm moves."""
+IN_PROCESS_TIME_SCALE = 40.0
+"""In-process, a line reaches the firmware the instant it is written: the arm still moves while
+the lines after it are parsed at this speed too."""
 STEP = 0.06
 """Two whole motor steps of the coarsest joint, in degrees (J3: 64 steps/degree)."""
 
@@ -36,7 +39,7 @@ async def _both(url: str, program: list[str]) -> tuple[object, object]:
 
 @pytest.mark.parametrize("firmware", ["2021", "classic"])
 def test_streamed_programs_end_where_stepped_ones_do(
-    mirobot_emulator_pool: EmulatorPool, firmware: str
+    lend_emulator: EmulatorLender, firmware: str
 ) -> None:
     @settings(
         max_examples=25,
@@ -45,8 +48,10 @@ def test_streamed_programs_end_where_stepped_ones_do(
     )
     @given(program=programs(firmware))
     def check(program: list[str]) -> None:
-        with mirobot_emulator_pool.lend(firmware, TIME_SCALE) as emulator:
-            through_stream, one_at_a_time = asyncio.run(_both(emulator.url, program))
+        with lend_emulator(
+            firmware, TIME_SCALE, in_process_time_scale=IN_PROCESS_TIME_SCALE
+        ) as url:
+            through_stream, one_at_a_time = asyncio.run(_both(url, program))
         if isinstance(through_stream, MotionChainError):
             event("refused before the first byte")
             assert "G4 P0" in str(through_stream) and "once at the top" in str(through_stream)
@@ -93,7 +98,7 @@ async def _client_moves(
 
 @pytest.mark.parametrize("firmware", ["2021", "classic"])
 def test_the_clients_own_moves_chain_without_waiting(
-    mirobot_emulator_pool: EmulatorPool, firmware: str
+    lend_emulator: EmulatorLender, firmware: str
 ) -> None:
     """``move_joints``/``move_pose`` with ``wait=False`` end where the same calls with
     ``wait=True`` do: the client states M20/M21 only when the mode changes (and makes the arm
@@ -106,9 +111,11 @@ def test_the_clients_own_moves_chain_without_waiting(
     )
     @given(moves=_MOVES)
     def check(moves: list[tuple[bool, bool, list[int]]]) -> None:
-        with mirobot_emulator_pool.lend(firmware, TIME_SCALE) as emulator:
-            queued = asyncio.run(_client_moves(emulator.url, moves, wait=False))
-            waited = asyncio.run(_client_moves(emulator.url, moves, wait=True))
+        with lend_emulator(
+            firmware, TIME_SCALE, in_process_time_scale=IN_PROCESS_TIME_SCALE
+        ) as url:
+            queued = asyncio.run(_client_moves(url, moves, wait=False))
+            waited = asyncio.run(_client_moves(url, moves, wait=True))
         assert queued == pytest.approx(waited, abs=STEP)
 
     check()
