@@ -1,18 +1,15 @@
 """The client's side of the safety envelope: line checks and position prediction.
 
 :class:`EnvelopeGuard` checks each line against the ``Envelope`` right before it is written,
-from the machine state predicted from every line written before it (modal words including the
-units, position, the 2021 base offset ``$41..$43`` and gate lift ``$49``), kept up to date. The
-check is default-deny (:func:`~mirobot_async._safety.prediction.predict`): a line passes only when
-its exact effect is predicted. What is unknown at connect stays unknown until a line states it
-(``G21``, ``M20``...), a status at rest shows it (the position) or a listing gives it: before the
-first line that moves the arm the guard asks (:meth:`EnvelopeGuard.wanted_queries`) for ``$$``
-(soft limits, base offset, ``$35``), ``$N`` (startup lines, applied after every reset and homing),
-``$#`` and ``$G`` (work offsets); an unchecked line that changes one makes it unknown again. The
-parser's position is kept apart from the arm's after a move the firmware refused (locked: the
-parser moved to the target). :class:`NullGuard` is the same interface without an envelope: every
-line passes, nothing is tracked. No I/O here: the scheduler learns the position (a status at rest)
-when :meth:`EnvelopeGuard.verdict` asks for it.
+from the machine state predicted from every line written before it (modal words, units,
+position, the 2021 base offset ``$41..$43`` and gate lift ``$49``). The check is default-deny
+(:func:`~mirobot_async._safety.prediction.predict`): a line passes only when its exact effect is
+predicted. What is unknown at connect stays unknown until a line states it, a status at rest
+shows it (the position) or a listing gives it: the guard asks (:meth:`wanted_queries`) for
+``$$``, ``$N`` (startup lines), ``$#`` and ``$G`` before the first line that moves the arm. The
+parser's position is kept apart from the arm's after a refused move. :class:`NullGuard` is the
+same interface without an envelope: every line passes, only the modal words are followed. No
+I/O here: the scheduler learns the position when :meth:`EnvelopeGuard.verdict` asks for it.
 """
 
 from __future__ import annotations
@@ -81,11 +78,12 @@ class Tracked:
 
     line_id: int
     check: LineCheck | None  # the envelope's verdict on the line (its target), if it had one
-    state_before: MachineState  # the predicted machine state before the line
+    state_before: MachineState | None  # the predicted machine state before it (no envelope: None)
     moved: bool
     modes_changed: bool
     epoch: int = 0  # the guard's epoch when it was written (a later change: do not undo)
     coordinate: int | None = None  # the work coordinate system in effect before it
+    modes_before: MotionModes | None = None  # no envelope: the modes before the line
 
 
 class Guard(Protocol):
@@ -137,6 +135,7 @@ class NullGuard:
     def __init__(self) -> None:
         self._modes = MotionModes.unknown()
         self.chain = Chaining()  # which joints may still move, which a mode word re-read
+        self._last_line_id: int | None = None  # the last line written
 
     @property
     def envelope(self) -> Envelope | None:
@@ -148,10 +147,7 @@ class NullGuard:
         """The modal words stated by the lines written since connect (``None``: unknown)."""
         return self._modes
 
-    @property
-    def wants_settings(self) -> bool:
-        """Never: no settings are needed."""
-        return False
+    wants_settings = False  # no settings are needed
 
     def wanted_queries(self) -> tuple[str, ...]:
         """None: nothing stored in the firmware is needed."""
@@ -196,25 +192,30 @@ class NullGuard:
         what: str | None,
         warn_unchecked: bool,
     ) -> Tracked | None:
-        """Follow the line's modal words and chaining; nothing else is tracked."""
+        """Follow the line's modal words and chaining (tracked: a line that changed them)."""
         self.chain = self.chain.after(parsed, self._modes)
-        if parsed.kind == "dollar" or parsed.codes:
-            self._modes = update_modes(parsed, self._modes)
-        return None
+        self._last_line_id = line_id
+        if not (parsed.kind == "dollar" or parsed.codes):
+            return None
+        before, self._modes = self._modes, update_modes(parsed, self._modes)
+        changed = self._modes != before
+        return Tracked(line_id, None, None, False, True, 0, None, before) if changed else None
 
     def line_failed(
         self, tracked: Tracked, *, rejected: bool, reason: RefusalReason | None = None
     ) -> None:
-        """Nothing to undo."""
+        """A rejected line (nothing of it ran: ``M20 ...`` in Alarm) changed no mode: undone if
+        it was the last line written, else unknown. A refused move ran its modal words."""
+        if rejected:
+            last = tracked.line_id == self._last_line_id
+            self._modes = (tracked.modes_before if last else None) or MotionModes.unknown()
 
     def forget(self, why: str) -> None:
         """A reset restores the power-on modes; a lost reply makes them unknown."""
-        if why == "reset":
-            self._modes = MotionModes()
-            self.chain = Chaining()
-        elif why == "lost":
-            self._modes = MotionModes.unknown()
-            self.chain = self.chain.moved_anything()
+        self._last_line_id = None
+        if why in ("reset", "lost"):
+            self._modes = MotionModes() if why == "reset" else MotionModes.unknown()
+            self.chain = Chaining() if why == "reset" else self.chain.moved_anything()
 
     def warn_stream_unchecked(self) -> None:
         """No envelope, nothing to warn about."""
@@ -536,6 +537,7 @@ class EnvelopeGuard:
         if not tracked.moved and not (rejected and tracked.modes_changed):
             return
         before = tracked.state_before
+        assert before is not None  # (the envelope's guard always predicts it)
         last = tracked.line_id == self._last_line_id and tracked.epoch == self.epoch
         if last and rejected:  # nothing was written after it: undo it
             self._state, self._work.coordinate = before, tracked.coordinate

@@ -27,7 +27,7 @@ from mirobot_async import (
     State,
     StatusReport,
 )
-from mirobot_async.testing import EmulatorProcess, SyncEmulatorProcess, start_emulator
+from mirobot_async.testing import EmulatorProcess, SyncEmulatorProcess, WireSpy, start_emulator
 
 pytestmark = [pytest.mark.timeout(60), pytest.mark.usefixtures("no_leftover_tasks")]
 
@@ -579,3 +579,17 @@ def test_pytest_plugin_process_fixture_is_usable_without_a_loop(
             return await arm.detect_firmware(), arm.corrupted_status_count
 
     assert asyncio.run(main()) == ("2021", 1)
+
+
+@pytest.mark.mirobot_emulator(firmware="2021")
+async def test_a_move_rejected_in_alarm_changes_no_mode(arm: Mirobot, wire_spy: WireSpy) -> None:
+    """An ``M20`` line the firmware rejects (``Alarm lock``: nothing of it ran) leaves the arm
+    in joint mode: the next Cartesian move states ``M20`` again and goes where it was sent."""
+    with pytest.raises(MirobotAlarmError):
+        await arm.move_pose(200, 0, 200, 0, 0, 0)
+    await arm.unlock()
+    mark = wire_spy.mark()
+    report = await arm.move_pose(200, 0, 200, 0, 0, 0)
+    assert [line for line in wire_spy.lines(mark) if line.startswith(b"M20")], wire_spy.lines(mark)
+    assert report.motion_mode == 1
+    assert report.pose[:3] == pytest.approx((200, 0, 200), abs=0.05)
