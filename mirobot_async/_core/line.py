@@ -276,6 +276,13 @@ def _dollar(text: str) -> DollarLine:
     return DollarLine("setting", parameter, value.value, canonical)
 
 
+_MOTION_G: Final = frozenset({0, 1, 2, 3, 5, 80})
+_DISTANCE_G: Final = frozenset({90, 91})
+_UNITS_G: Final = frozenset({20, 21})
+_COORDINATE_M: Final = frozenset({20, 21})
+_NO_AXES: Final[Mapping[str, float]] = MappingProxyType({})
+
+
 @dataclass(frozen=True, slots=True)
 class ParsedLine:
     """A raw line parsed once: what the firmware will read from it (immutable).
@@ -296,18 +303,59 @@ class ParsedLine:
     """Every word in order (``G``/``M`` words are :class:`CodeWord`)."""
     dollar: DollarLine | None = None
     syntax_error: str | None = None
-    # Derived once from ``words`` (the line is read many times: validation, guard, chaining).
+    # Derived once from ``words`` (the line is read many times: validation, guard, chaining,
+    # the scheduler), so that every property below is a plain read.
     _codes: tuple[CodeWord, ...] = field(init=False, repr=False, compare=False)
     _values: Mapping[str, float] = field(init=False, repr=False, compare=False)
+    _g_codes: tuple[int, ...] = field(init=False, repr=False, compare=False)
+    _m_codes: tuple[int, ...] = field(init=False, repr=False, compare=False)
+    _repeated: tuple[str, ...] = field(init=False, repr=False, compare=False)
+    _axis_words: Mapping[str, float] = field(init=False, repr=False, compare=False)
+    _motion: int | None = field(init=False, repr=False, compare=False)
+    _distance: int | None = field(init=False, repr=False, compare=False)
+    _units: int | None = field(init=False, repr=False, compare=False)
+    _coordinate_mode: int | None = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        codes = tuple(w for w in self.words if isinstance(w, CodeWord))
+        codes: list[CodeWord] = []
         values: dict[str, float] = {}
+        twice: list[str] = []
+        g_codes: list[int] = []
+        m_codes: list[int] = []
+        motion = distance = units = coordinate = None
         for w in self.words:
-            if not isinstance(w, CodeWord):
-                values.setdefault(w.letter, w.value)
-        object.__setattr__(self, "_codes", codes)
-        object.__setattr__(self, "_values", MappingProxyType(values))
+            if isinstance(w, CodeWord):
+                codes.append(w)
+                code = w.code
+                if w.letter == "G":
+                    g_codes.append(code)
+                    if motion is None and code in _MOTION_G:
+                        motion = code
+                    elif distance is None and code in _DISTANCE_G:
+                        distance = code
+                    elif units is None and code in _UNITS_G:
+                        units = code
+                else:
+                    m_codes.append(code)
+                    if coordinate is None and code in _COORDINATE_M:
+                        coordinate = code
+            elif w.letter in values:
+                if w.letter not in twice:
+                    twice.append(w.letter)
+            else:
+                values[w.letter] = w.value
+        setter = object.__setattr__
+        setter(self, "_codes", tuple(codes))
+        setter(self, "_values", MappingProxyType(values))
+        setter(self, "_g_codes", tuple(g_codes))
+        setter(self, "_m_codes", tuple(m_codes))
+        setter(self, "_repeated", tuple(twice))
+        axes = {k: values[k] for k in AXIS_LETTERS if k in values}
+        setter(self, "_axis_words", MappingProxyType(axes) if axes else _NO_AXES)
+        setter(self, "_motion", motion)
+        setter(self, "_distance", distance)
+        setter(self, "_units", units)
+        setter(self, "_coordinate_mode", coordinate)
 
     # ---- the words -------------------------------------------------------------------------
 
@@ -319,12 +367,12 @@ class ParsedLine:
     @property
     def g_codes(self) -> tuple[int, ...]:
         """The ``G`` numbers as the firmware reads them."""
-        return tuple(w.code for w in self._codes if w.letter == "G")
+        return self._g_codes
 
     @property
     def m_codes(self) -> tuple[int, ...]:
         """The ``M`` numbers as the firmware reads them."""
-        return tuple(w.code for w in self._codes if w.letter == "M")
+        return self._m_codes
 
     @property
     def values(self) -> Mapping[str, float]:
@@ -334,51 +382,36 @@ class ParsedLine:
     @property
     def repeated(self) -> tuple[str, ...]:
         """Value letters written more than once (the firmware: ``Invalid gcode ID:25``)."""
-        seen: set[str] = set()
-        twice: list[str] = []
-        for w in self.words:
-            if isinstance(w, CodeWord):
-                continue
-            if w.letter in seen and w.letter not in twice:
-                twice.append(w.letter)
-            seen.add(w.letter)
-        return tuple(twice)
+        return self._repeated
 
     def value(self, letter: str) -> float | None:
         """The value of word ``letter`` as the firmware reads it, or None."""
-        return self.values.get(letter)
+        return self._values.get(letter)
 
     @property
     def axis_words(self) -> Mapping[str, float]:
         """The axis words ``X Y Z A B C D`` present, as the firmware reads them."""
-        values = self.values
-        return MappingProxyType({k: values[k] for k in AXIS_LETTERS if k in values})
-
-    def _first(self, letter: str, choices: frozenset[int]) -> int | None:
-        for w in self._codes:
-            if w.letter == letter and w.code in choices:
-                return w.code
-        return None
+        return self._axis_words
 
     @property
     def motion(self) -> int | None:
         """The motion code stated in the line (G0 G1 G2 G3 G5 G80), or None."""
-        return self._first("G", frozenset({0, 1, 2, 3, 5, 80}))
+        return self._motion
 
     @property
     def distance(self) -> int | None:
         """90 (absolute) or 91 (relative) when stated."""
-        return self._first("G", frozenset({90, 91}))
+        return self._distance
 
     @property
     def units(self) -> int | None:
         """20 (inches) or 21 (mm) when stated."""
-        return self._first("G", frozenset({20, 21}))
+        return self._units
 
     @property
     def coordinate_mode(self) -> int | None:
         """20 (Cartesian, ``M20``) or 21 (joints, ``M21``) when stated."""
-        return self._first("M", frozenset({20, 21}))
+        return self._coordinate_mode
 
     @property
     def dwell_seconds(self) -> float | None:

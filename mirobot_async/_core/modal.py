@@ -204,7 +204,7 @@ class Chaining:
     def after_refusal(self, parsed: ParsedLine) -> Chaining:
         """``parsed`` was refused ("ok" but dropped): the joints it would have moved are where
         the parser, not the arm, went (any mode: the modes it ran in are not known here)."""
-        moved = _moves(parsed, MotionModes.unknown())
+        moved = _moves(parsed, modes_of(parsed, MotionModes.unknown()))
         if not moved:
             return self
         text = parsed.source.strip() or parsed.text
@@ -221,7 +221,9 @@ class Chaining:
         streamed than when sent after the arm stopped (or than intended, after a refused line),
         with the fix; ``None`` when it would not."""
         stale = self._stale_at(parsed)
-        read = _reads(parsed, modes, firmware) & stale
+        if not stale:
+            return None
+        read = _reads(parsed, modes_of(parsed, modes), firmware) & stale
         if not read:
             return None
         joints = ", ".join(_joint_name(k) for k in JOINT_LETTERS if k in read)
@@ -254,7 +256,9 @@ class Chaining:
     ) -> bool:
         """``parsed`` (without a mode word) reads a joint the parser has elsewhere: a mode word
         on it, parsed at rest, would set the parser to where the arm is first."""
-        return bool(_reads(parsed, modes, firmware) & self.stale)
+        if not self.stale:
+            return False
+        return bool(_reads(parsed, modes_of(parsed, modes), firmware) & self.stale)
 
     def _stale_at(self, parsed: ParsedLine) -> frozenset[str]:
         """The stale joints while ``parsed`` is executed (its own mode word restarts first)."""
@@ -276,10 +280,13 @@ class Chaining:
         stale, resync, refused = self.stale, self.resync, self.refused
         if parsed.coordinate_mode is not None:
             stale, resync, refused = self.moving, parsed.source.strip() or parsed.text, False
-        # reported once: what the line read is set by it (as the firmware does, from there on)
-        stale = stale - _reads(parsed, modes, firmware) - _writes(parsed, modes)
         moving = frozenset() if 4 in parsed.g_codes else self.moving
-        moving |= _moves(parsed, modes)
+        if parsed.axis_words:
+            new = modes_of(parsed, modes)
+            # reported once: what the line read is set by it (as the firmware does, from there on)
+            if stale:
+                stale = stale - _reads(parsed, new, firmware) - _writes(parsed, new)
+            moving |= _moves(parsed, new)
         return Chaining(moving, stale, resync if stale else None, refused and bool(stale))
 
 
@@ -287,28 +294,23 @@ def _joint_name(letter: str) -> str:
     return "the rail" if letter == "D" else f"J{JOINT_LETTERS.index(letter) + 1}"
 
 
-def _frames(parsed: ParsedLine, modes: MotionModes) -> tuple[bool, ...]:
-    """The coordinate modes the line may run in: (True,) Cartesian, (False,) joints, or both."""
-    current = modes_of(parsed, modes).cartesian
-    return (True, False) if current is None else (current,)
+def _either(mode: bool | None) -> tuple[bool, ...]:
+    """The values a mode may have: both when it is unknown."""
+    return (True, False) if mode is None else (mode,)
 
 
-def _distances(parsed: ParsedLine, modes: MotionModes) -> tuple[bool, ...]:
-    current = modes_of(parsed, modes).relative
-    return (True, False) if current is None else (current,)
-
-
-def _reads(parsed: ParsedLine, modes: MotionModes, firmware: str | None) -> frozenset[str]:
-    """The joints whose parser value decides where ``parsed`` ends (see :class:`Chaining`)."""
+def _reads(parsed: ParsedLine, new: MotionModes, firmware: str | None) -> frozenset[str]:
+    """The joints whose parser value decides where ``parsed`` ends (see :class:`Chaining`);
+    ``new`` is :func:`modes_of` the line (the modes it runs in)."""
     if parsed.kind != "gcode" or parsed.syntax_error is not None:
         return frozenset()
     axes = frozenset(parsed.axis_words)
     if not axes:
         return frozenset()
-    motion = modes_of(parsed, modes).motion
+    motion = new.motion
     read: set[str] = set()
-    for cartesian in _frames(parsed, modes):
-        for relative in _distances(parsed, modes):
+    for cartesian in _either(new.cartesian):
+        for relative in _either(new.relative):
             if relative:  # the words add to the parser, the omitted axes stay there
                 read |= set(JOINT_LETTERS)
                 continue
@@ -322,11 +324,11 @@ def _reads(parsed: ParsedLine, modes: MotionModes, firmware: str | None) -> froz
     return frozenset(read)
 
 
-def _writes(parsed: ParsedLine, modes: MotionModes) -> frozenset[str]:
-    """The joints an absolute line sets regardless of the parser (given axes; a full pose)."""
+def _writes(parsed: ParsedLine, new: MotionModes) -> frozenset[str]:
+    """The joints an absolute line sets regardless of the parser (given axes; a full pose);
+    ``new`` as in :func:`_reads`."""
     if parsed.kind != "gcode" or parsed.syntax_error is not None:
         return frozenset()
-    new = modes_of(parsed, modes)
     if new.relative is not False or new.cartesian is None:
         return frozenset()
     axes = frozenset(parsed.axis_words)
@@ -338,13 +340,13 @@ def _writes(parsed: ParsedLine, modes: MotionModes) -> frozenset[str]:
     return frozenset(written)
 
 
-def _moves(parsed: ParsedLine, modes: MotionModes) -> frozenset[str]:
-    """The joints the line's motion may move (conservative)."""
+def _moves(parsed: ParsedLine, new: MotionModes) -> frozenset[str]:
+    """The joints the line's motion may move (conservative); ``new`` as in :func:`_reads`."""
     axes = frozenset(parsed.axis_words)
     if not axes:
         return frozenset()
     moved: set[str] = set()
-    for cartesian in _frames(parsed, modes):
+    for cartesian in _either(new.cartesian):
         if cartesian:
             moved |= ({"D"} & axes) | (_WRIST_AND_ARM if axes & _POSE_LETTERS else set())
         else:

@@ -52,6 +52,7 @@ __all__ = [
     "check_program",
     "first_restart",
     "line_problems",
+    "may_differ_by_profile",
     "parse_words",
     "validate_line",
 ]
@@ -415,6 +416,29 @@ def _syntax_problems(parsed: ParsedLine, profile: str, state: ModalState) -> lis
     return problems
 
 
+_PROFILE_G_CODES: Final = _G_CODES["2021"] - _G_CODES["classic"]
+"""G codes only the 2021 profile knows (the other G and M codes are judged alike)."""
+
+
+def may_differ_by_profile(parsed: ParsedLine, state: ModalState) -> bool:
+    """False when :func:`line_problems` certainly finds the same problems for ``parsed`` (from
+    ``state``) on both profiles, so a caller that does not know the profile need not judge it
+    twice. Conservative: True whenever a profile-dependent rule may apply (``$`` lines, the
+    2021-only G codes, the rail's range, and the 2021 path start of a Cartesian line, which
+    :class:`~mirobot_async._core.modal.Chaining` reads)."""
+    if parsed.kind == "dollar":
+        return True
+    if parsed.kind != "gcode" or parsed.syntax_error is not None:
+        return False
+    if "D" in parsed.values or any(code in _PROFILE_G_CODES for code in parsed.g_codes):
+        return True
+    if not parsed.axis_words:
+        return False
+    coordinate = parsed.coordinate_mode
+    cartesian = state.cartesian if coordinate is None else coordinate == 20
+    return cartesian is not False
+
+
 def check_line(
     line: str | bytes, *, firmware: str = "2021", state: ModalState | None = None
 ) -> list[str]:
@@ -465,23 +489,39 @@ def validate_line(
 
 
 def first_restart(
-    lines: Iterable[str | bytes], *, firmware: str | None, state: ModalState
+    lines: Iterable[str | bytes | ParsedLine], *, firmware: str | None, state: ModalState
 ) -> tuple[int, str, str] | None:
     """The first of ``lines`` (1-based number, text, why and the fix) that, streamed from
     ``state``, would end elsewhere than sent one at a time after the arm stopped (its
     ``M20``/``M21`` restarts from where the moving arm is:
     :class:`~mirobot_async._core.modal.Chaining`), or ``None``. Other problems are not judged here.
-    ``firmware=None``: a line counts only if it does on both profiles. ``state`` is not changed."""
+    ``firmware=None``: a line counts only if it does on both profiles. ``state`` is not changed.
+    Lines already parsed (:class:`ParsedLine`) are not parsed again; each other line is parsed
+    once for both profiles."""
     profiles = (check_firmware(firmware),) if firmware is not None else ("classic", "2021")
-    found: list[tuple[int, str, str] | None] = []
+    items = iter(lines)
+    parsed_lines: list[ParsedLine] = []  # parsed so far (the next profile reads them again)
+
+    def parsed_at(index: int) -> ParsedLine | None:
+        while len(parsed_lines) <= index:
+            line = next(items, None)
+            if line is None:
+                return None
+            parsed_lines.append(line if isinstance(line, ParsedLine) else parse_line(line))
+        return parsed_lines[index]
+
+    found: tuple[int, str, str] | None = None
     for profile in profiles:
         current = ModalState(state.cartesian, state.relative, state.motion, state.chain)
         first = None
-        for number, line in enumerate(lines, start=1):
-            parsed = parse_line(line)
+        index = 0
+        while (parsed := parsed_at(index)) is not None:
+            index += 1
             chain = _problems(parsed, profile, current)[1]
             if chain is not None:
-                first = (number, parsed.source.strip() or parsed.text, chain)
+                first = (index, parsed.source.strip() or parsed.text, chain)
                 break
-        found.append(first)
-    return None if any(item is None for item in found) else found[0]
+        if first is None:
+            return None  # a line counts only if it does on every profile
+        found = first if found is None else found
+    return found
