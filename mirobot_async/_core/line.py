@@ -69,8 +69,20 @@ def normalize_line(line: str | bytes) -> str:
     return normalize_text(text)[0]
 
 
+_PLAIN: Final = {
+    **{code: None for code in range(0x21)},
+    ord("/"): None,
+    **{ord(char): None for char in REALTIME_BYTES},
+    **{code: code - 0x20 for code in range(ord("a"), ord("z") + 1)},
+}
+"""``str.translate`` table of a line without comments: what :func:`normalize_text` drops and
+upper-cases, character by character."""
+
+
 def normalize_text(text: str) -> tuple[str, bool]:
     """(normalized text, True if a ``(`` comment was left open)."""
+    if "(" not in text and ";" not in text:
+        return text.translate(_PLAIN), False  # no comment: each character alone decides
     out: list[str] = []
     in_comment = False
     for char in text:
@@ -109,54 +121,48 @@ class FirmwareNumber:
     """The value as the firmware computes it, in single precision (for command numbers)."""
 
 
-def read_number(text: str, start: int) -> FirmwareNumber | None:
-    """Read a number at ``text[start:]`` as GRBL 0.9j does; None when no digit follows."""
-    i = start
-    n = len(text)
-    negative = False
-    if i < n and text[i] in "+-":
-        negative = text[i] == "-"
-        i += 1
-    intval = 0
-    exp = 0
-    ndigit = 0
-    lossy = False
-    decimal = False
-    while i < n:
-        char = text[i]
-        if "0" <= char <= "9":
-            ndigit += 1
-            if ndigit <= MAX_INT_DIGITS:
-                if decimal:
-                    exp -= 1
-                intval = intval * 10 + (ord(char) - 48)
-            else:
-                lossy = lossy or char != "0"
-                if not decimal:
-                    exp += 1
-        elif char == "." and not decimal:
-            decimal = True
-        else:
-            break
-        i += 1
+_NUMBER: Final = re.compile(r"([+-]?)([0-9]*)(?:\.([0-9]*))?")
+"""A number as ``read_float`` takes it: a sign, digits, at most one point (ASCII digits only)."""
+
+
+def read_number(text: str, start: int, *, single: bool = True) -> FirmwareNumber | None:
+    """Read a number at ``text[start:]`` as GRBL 0.9j does; None when no digit follows.
+    ``single=False`` skips :attr:`FirmwareNumber.single` (left 0.0; only command words use it)."""
+    match = _NUMBER.match(text, start)
+    assert match is not None  # every part is optional
+    sign, whole, fraction = match.groups()
+    fraction = fraction or ""
+    ndigit = len(whole) + len(fraction)
     if ndigit == 0:
         return None
+    if ndigit <= MAX_INT_DIGITS:
+        intval = int(whole + fraction)
+        exp = -len(fraction)
+        lossy = False
+    else:
+        digits = whole + fraction
+        intval = int(digits[:MAX_INT_DIGITS])
+        lossy = digits[MAX_INT_DIGITS:].strip("0") != ""
+        # dropped integer digits scale it up, kept fraction digits down: they add up to this
+        exp = len(whole) - MAX_INT_DIGITS
     # The firmware computes in single precision; the value here is the exact decimal number of
     # the kept digits (they differ by less than a micrometre in any reachable range).
     value = intval / 10 ** (-exp) if exp < 0 else float(intval * 10**exp)
-    single = _f32(float(intval))
-    if single != 0.0:
-        while exp <= -2:
-            single = _f32(single * _f32(0.01))
-            exp += 2
-        if exp < 0:
-            single = _f32(single * _f32(0.1))
-        while exp > 0:
-            single = _f32(single * 10.0)
-            exp -= 1
-    if negative:
-        value, single = -value, -single
-    return FirmwareNumber(value, i, ndigit, lossy, single)
+    result = 0.0
+    if single:
+        result = _f32(float(intval))
+        if result != 0.0:
+            while exp <= -2:
+                result = _f32(result * _f32(0.01))
+                exp += 2
+            if exp < 0:
+                result = _f32(result * _f32(0.1))
+            while exp > 0:
+                result = _f32(result * 10.0)
+                exp -= 1
+    if sign == "-":
+        value, result = -value, -result
+    return FirmwareNumber(value, match.end(), ndigit, lossy, result)
 
 
 def _c_round(x: float) -> int:
@@ -191,15 +197,21 @@ class CodeWord(Word):
     """The firmware's command number: the value truncated to a byte (``M16404`` is 20)."""
     fraction_error: bool = False
     """The firmware refuses it: hundredths not zero (``Invalid gcode ID:23``, e.g. ``M20.5``)."""
+    _canonical: bool = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(
+            self,
+            "_canonical",
+            not self.fraction_error
+            and _INTEGER_TEXT.fullmatch(self.text) is not None
+            and int(self.text.split(".")[0]) == self.code,
+        )
 
     @property
     def canonical(self) -> bool:
         """True when the word is written as the plain integer it means (``G01``, ``M3``)."""
-        return (
-            not self.fraction_error
-            and _INTEGER_TEXT.fullmatch(self.text) is not None
-            and int(self.text.split(".")[0]) == self.code
-        )
+        return self._canonical
 
 
 def _code_word(letter: str, text: str, number: FirmwareNumber) -> CodeWord:
@@ -315,6 +327,7 @@ class ParsedLine:
     _distance: int | None = field(init=False, repr=False, compare=False)
     _units: int | None = field(init=False, repr=False, compare=False)
     _coordinate_mode: int | None = field(init=False, repr=False, compare=False)
+    _odd_numbers: bool = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         codes: list[CodeWord] = []
@@ -323,8 +336,11 @@ class ParsedLine:
         g_codes: list[int] = []
         m_codes: list[int] = []
         motion = distance = units = coordinate = None
+        odd = False
         for w in self.words:
+            odd = odd or w.lossy
             if isinstance(w, CodeWord):
+                odd = odd or not w.canonical
                 codes.append(w)
                 code = w.code
                 if w.letter == "G":
@@ -356,6 +372,7 @@ class ParsedLine:
         setter(self, "_distance", distance)
         setter(self, "_units", units)
         setter(self, "_coordinate_mode", coordinate)
+        setter(self, "_odd_numbers", odd)
 
     # ---- the words -------------------------------------------------------------------------
 
@@ -460,7 +477,7 @@ class ParsedLine:
     @property
     def has_odd_numbers(self) -> bool:
         """A word the firmware reads differently from its text (digits dropped, odd G/M form)."""
-        return any(w.lossy or (isinstance(w, CodeWord) and not w.canonical) for w in self.words)
+        return self._odd_numbers
 
     @property
     def coordinate_conflict(self) -> str | None:
@@ -507,11 +524,12 @@ def _scan(text: str) -> tuple[tuple[Word, ...], str | None]:
         letter = text[pos]
         if not "A" <= letter <= "Z":
             return tuple(words), "Expected command letter"
-        number = read_number(text, pos + 1)
+        command = letter in "GM"
+        number = read_number(text, pos + 1, single=command)
         if number is None:
             return tuple(words), "Bad number format"
         written = text[pos + 1 : number.end]
-        if letter in "GM":
+        if command:
             words.append(_code_word(letter, written, number))
         else:
             words.append(Word(letter, written, number.value, number.lossy))

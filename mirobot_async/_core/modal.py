@@ -83,17 +83,20 @@ def modes_after(parsed: ParsedLine, modes: MotionModes) -> MotionModes:
     return new
 
 
+_GROUPS: Final = (
+    frozenset({0, 1, 2, 3, 5, 80}),
+    frozenset({90, 91}),
+    frozenset({20, 21}),
+)
+
+
 def _group_conflict(parsed: ParsedLine) -> bool:
     """Two words of one modal group (motion, distance, units, coordinate mode) in the line."""
-    groups = (
-        frozenset({0, 1, 2, 3, 5, 80}),
-        frozenset({90, 91}),
-        frozenset({20, 21}),
-    )
     g_codes = parsed.g_codes
-    if any(sum(code in group for code in g_codes) > 1 for group in groups):
+    if len(g_codes) > 1 and any(sum(code in group for code in g_codes) > 1 for group in _GROUPS):
         return True
-    return sum(code in (20, 21) for code in parsed.m_codes) > 1
+    m_codes = parsed.m_codes
+    return len(m_codes) > 1 and sum(code in (20, 21) for code in m_codes) > 1
 
 
 def update_modes(line: str | bytes | ParsedLine, modes: MotionModes) -> MotionModes:

@@ -16,6 +16,7 @@ opt-out is explicit). Pure module: no I/O.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Final
@@ -92,6 +93,8 @@ _REALTIME: Final[dict[str, str]] = {
     "%": "a soft reset of the robot",
     "@": "the safety door (it stops reading lines until '~')",
 }
+_ODD_SOURCE: Final = re.compile("[\r\n" + re.escape(REALTIME_BYTES) + "]|[^\x00-\x7e]")
+"""A character :func:`_syntax_problems` reports: a line break, a realtime byte, not ASCII."""
 _DOLLAR_SIMPLE: Final = frozenset({"$", "$$", "$#", "$G", "$I", "$N", "$C", "$X", "$H", "$HH"})
 _DOLLAR_2021: Final = frozenset({*(f"$H{n}" for n in range(8)), "$HE", "$M"})
 
@@ -388,19 +391,69 @@ def _problems(parsed: ParsedLine, profile: str, state: ModalState) -> tuple[list
     return problems, chain
 
 
+def _follow(parsed: ParsedLine, profile: str, state: ModalState) -> str | None:
+    """What :func:`_problems` does to ``state`` (and its chaining problem), without judging
+    the rest of the line: for :func:`first_restart`, which reports only chaining. Keep in step
+    with :func:`_check_dollar` and :func:`_check_gcode` (a unit test compares them)."""
+    before = state.modes()
+    chain = state.chain.problem(parsed, before, profile)
+    if parsed.syntax_error is None:
+        if parsed.kind == "gcode":
+            _follow_gcode(parsed, profile, state)
+        elif parsed.kind == "dollar":
+            norm = parsed.text
+            assert parsed.dollar is not None
+            if (
+                parsed.dollar.kind == "homing"
+                and (norm in _DOLLAR_SIMPLE or norm in _DOLLAR_2021)
+                and (norm not in _DOLLAR_2021 or profile == "2021")
+            ):
+                state.cartesian, state.relative, state.motion = False, False, 0
+    state.chain = state.chain.after(parsed, before, profile)
+    return chain
+
+
+def _follow_gcode(parsed: ParsedLine, profile: str, state: ModalState) -> None:
+    """The modal words of a G-code line that :func:`_check_gcode` takes into ``state``: each
+    the firmware accepts, the first of its group."""
+    groups: set[str] = set()
+    new_cartesian: bool | None = None
+    new_relative: bool | None = None
+    for word in parsed.codes:
+        if _code_problem(word, profile) is not None:
+            continue
+        code = word.code
+        group = (_G_GROUPS if word.letter == "G" else _M_GROUPS)[code]
+        if group in groups:
+            continue
+        groups.add(group)
+        if word.letter == "G":
+            if group == "motion":
+                state.motion = code
+            elif group == "distance":
+                new_relative = code == 91
+        elif code in (20, 21):
+            new_cartesian = code == 20
+    if new_cartesian is not None:
+        state.cartesian = new_cartesian
+    if new_relative is not None:
+        state.relative = new_relative
+
+
 def _syntax_problems(parsed: ParsedLine, profile: str, state: ModalState) -> list[str]:
     text = parsed.source
     problems: list[str] = []
-    if "\n" in text or "\r" in text:
-        problems.append("contains a line break: the firmware would see several lines")
-    odd = sorted({char for char in text if ord(char) > 0x7E})
-    if odd:
-        problems.append(f"contains characters outside printable ASCII: {''.join(odd)!r}")
-    for char in sorted({char for char in text if char in REALTIME_BYTES}):
-        problems.append(
-            f"contains {char!r}, which the firmware takes at once as {_REALTIME[char]} "
-            "and removes from the line"
-        )
+    if _ODD_SOURCE.search(text) is not None:  # rare: then say which
+        if "\n" in text or "\r" in text:
+            problems.append("contains a line break: the firmware would see several lines")
+        odd = sorted({char for char in text if ord(char) > 0x7E})
+        if odd:
+            problems.append(f"contains characters outside printable ASCII: {''.join(odd)!r}")
+        for char in sorted({char for char in text if char in REALTIME_BYTES}):
+            problems.append(
+                f"contains {char!r}, which the firmware takes at once as {_REALTIME[char]} "
+                "and removes from the line"
+            )
     if parsed.open_comment:
         problems.append("a '(' comment is not closed: the rest of the line is ignored")
     if parsed.syntax_error == "Line overflow":
@@ -517,7 +570,7 @@ def first_restart(
         index = 0
         while (parsed := parsed_at(index)) is not None:
             index += 1
-            chain = _problems(parsed, profile, current)[1]
+            chain = _follow(parsed, profile, current)
             if chain is not None:
                 first = (index, parsed.source.strip() or parsed.text, chain)
                 break
