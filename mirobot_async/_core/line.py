@@ -20,6 +20,7 @@ import re
 import struct
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from functools import lru_cache
 from types import MappingProxyType
 from typing import Final, Literal
 
@@ -328,6 +329,7 @@ class ParsedLine:
     _units: int | None = field(init=False, repr=False, compare=False)
     _coordinate_mode: int | None = field(init=False, repr=False, compare=False)
     _odd_numbers: bool = field(init=False, repr=False, compare=False)
+    _axis_letters: frozenset[str] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         codes: list[CodeWord] = []
@@ -368,6 +370,7 @@ class ParsedLine:
         setter(self, "_repeated", tuple(twice))
         axes = {k: values[k] for k in AXIS_LETTERS if k in values}
         setter(self, "_axis_words", MappingProxyType(axes) if axes else _NO_AXES)
+        setter(self, "_axis_letters", frozenset(axes))
         setter(self, "_motion", motion)
         setter(self, "_distance", distance)
         setter(self, "_units", units)
@@ -409,6 +412,11 @@ class ParsedLine:
     def axis_words(self) -> Mapping[str, float]:
         """The axis words ``X Y Z A B C D`` present, as the firmware reads them."""
         return self._axis_words
+
+    @property
+    def axis_letters(self) -> frozenset[str]:
+        """The letters of :attr:`axis_words`."""
+        return self._axis_letters
 
     @property
     def motion(self) -> int | None:
@@ -517,23 +525,34 @@ _STILL_G: Final = frozenset({0, 1, 2, 3, 4, 5, 17, 20, 21, 40, 54, 61, 80, 90, 9
 """G codes that do not move by themselves (motion codes move only with axis words)."""
 
 
+@lru_cache(maxsize=4096)
+def _word(letter: str, written: str) -> Word:
+    """The word ``letter`` + ``written`` (a number :data:`_NUMBER` matched whole). Words are
+    immutable and a program repeats most of them (``G1``, ``F2000``): each is read once."""
+    number = read_number(written, 0, single=letter in "GM")
+    assert number is not None and number.end == len(written)
+    if letter in "GM":
+        return _code_word(letter, written, number)
+    return Word(letter, written, number.value, number.lossy)
+
+
 def _scan(text: str) -> tuple[tuple[Word, ...], str | None]:
     words: list[Word] = []
     pos = 0
-    while pos < len(text):
+    end = len(text)
+    match = _NUMBER.match
+    while pos < end:
         letter = text[pos]
         if not "A" <= letter <= "Z":
             return tuple(words), "Expected command letter"
-        command = letter in "GM"
-        number = read_number(text, pos + 1, single=command)
-        if number is None:
+        found = match(text, pos + 1)
+        assert found is not None  # every part is optional
+        after = found.end()
+        written = text[pos + 1 : after]
+        if not found.group(2) and not found.group(3):  # no digit
             return tuple(words), "Bad number format"
-        written = text[pos + 1 : number.end]
-        if command:
-            words.append(_code_word(letter, written, number))
-        else:
-            words.append(Word(letter, written, number.value, number.lossy))
-        pos = number.end
+        words.append(_word(letter, written))
+        pos = after
     return tuple(words), None
 
 
@@ -541,6 +560,13 @@ def parse_line(line: str | bytes | bytearray | memoryview) -> ParsedLine:
     """Parse one raw line (one line ending at most) into a :class:`ParsedLine`; never raises for
     the line's content (the result says what the firmware would refuse)."""
     raw = bytes(line).decode("latin-1") if not isinstance(line, str) else line
+    return _parse_text(raw)
+
+
+@lru_cache(maxsize=1024)
+def _parse_text(raw: str) -> ParsedLine:
+    """:func:`parse_line` of a text: a pure function of it, and the result immutable, so a line
+    repeated in a program (or judged again by another reader) is parsed once."""
     source = raw.rstrip("\r\n")
     text, open_comment = normalize_text(source)
     if not text:

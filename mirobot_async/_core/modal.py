@@ -207,7 +207,8 @@ class Chaining:
     def after_refusal(self, parsed: ParsedLine) -> Chaining:
         """``parsed`` was refused ("ok" but dropped): the joints it would have moved are where
         the parser, not the arm, went (any mode: the modes it ran in are not known here)."""
-        moved = _moves(parsed, modes_of(parsed, MotionModes.unknown()))
+        coordinate = parsed.coordinate_mode
+        moved = _moves(parsed, None if coordinate is None else coordinate == 20)
         if not moved:
             return self
         text = parsed.source.strip() or parsed.text
@@ -226,7 +227,7 @@ class Chaining:
         stale = self._stale_at(parsed)
         if not stale:
             return None
-        read = _reads(parsed, modes_of(parsed, modes), firmware) & stale
+        read = _reads(parsed, *_line_modes(parsed, modes), firmware) & stale
         if not read:
             return None
         joints = ", ".join(_joint_name(k) for k in JOINT_LETTERS if k in read)
@@ -261,7 +262,7 @@ class Chaining:
         on it, parsed at rest, would set the parser to where the arm is first."""
         if not self.stale:
             return False
-        return bool(_reads(parsed, modes_of(parsed, modes), firmware) & self.stale)
+        return bool(_reads(parsed, *_line_modes(parsed, modes), firmware) & self.stale)
 
     def _stale_at(self, parsed: ParsedLine) -> frozenset[str]:
         """The stale joints while ``parsed`` is executed (its own mode word restarts first)."""
@@ -283,18 +284,49 @@ class Chaining:
         stale, resync, refused = self.stale, self.resync, self.refused
         if parsed.coordinate_mode is not None:
             stale, resync, refused = self.moving, parsed.source.strip() or parsed.text, False
-        moving = frozenset() if 4 in parsed.g_codes else self.moving
-        if parsed.axis_words:
-            new = modes_of(parsed, modes)
+        moving = _NONE if 4 in parsed.g_codes else self.moving
+        if parsed.axis_letters:
+            cartesian, relative, motion = _line_modes(parsed, modes)
             # reported once: what the line read is set by it (as the firmware does, from there on)
             if stale:
-                stale = stale - _reads(parsed, new, firmware) - _writes(parsed, new)
-            moving |= _moves(parsed, new)
-        return Chaining(moving, stale, resync if stale else None, refused and bool(stale))
+                stale = (
+                    stale
+                    - _reads(parsed, cartesian, relative, motion, firmware)
+                    - _writes(parsed, cartesian, relative)
+                )
+            moving = moving | _moves(parsed, cartesian)
+        if not stale:
+            resync, refused = None, False
+        if (
+            moving == self.moving
+            and stale == self.stale
+            and resync == self.resync
+            and refused == self.refused
+        ):
+            return self  # the same value (most lines of a program change nothing here)
+        return Chaining(moving, stale, resync, refused)
 
 
 def _joint_name(letter: str) -> str:
     return "the rail" if letter == "D" else f"J{JOINT_LETTERS.index(letter) + 1}"
+
+
+_NONE: Final = frozenset[str]()
+_JOINTS: Final = frozenset(JOINT_LETTERS)
+_RAIL: Final = frozenset("D")
+
+
+def _line_modes(
+    parsed: ParsedLine, modes: MotionModes
+) -> tuple[bool | None, bool | None, int | None]:
+    """(Cartesian, relative, motion code) in effect for the line: :func:`modes_of`, without
+    building a :class:`MotionModes`."""
+    coordinate, distance, motion = parsed.coordinate_mode, parsed.distance, parsed.motion
+    return (
+        modes.cartesian if coordinate is None else coordinate == 20,
+        modes.relative if distance is None else distance == 91,
+        modes.motion if motion is None else motion,
+    )
 
 
 def _either(mode: bool | None) -> tuple[bool, ...]:
@@ -302,56 +334,63 @@ def _either(mode: bool | None) -> tuple[bool, ...]:
     return (True, False) if mode is None else (mode,)
 
 
-def _reads(parsed: ParsedLine, new: MotionModes, firmware: str | None) -> frozenset[str]:
+def _reads(
+    parsed: ParsedLine,
+    cartesian: bool | None,
+    relative: bool | None,
+    motion: int | None,
+    firmware: str | None,
+) -> frozenset[str]:
     """The joints whose parser value decides where ``parsed`` ends (see :class:`Chaining`);
-    ``new`` is :func:`modes_of` the line (the modes it runs in)."""
+    the modes are those it runs in (:func:`_line_modes`)."""
     if parsed.kind != "gcode" or parsed.syntax_error is not None:
-        return frozenset()
-    axes = frozenset(parsed.axis_words)
+        return _NONE
+    axes = parsed.axis_letters
     if not axes:
-        return frozenset()
-    motion = new.motion
+        return _NONE
+    if relative is True:  # the words add to the parser, the omitted axes stay there
+        return _JOINTS
+    if cartesian is False and relative is False:
+        return _JOINTS - axes
     read: set[str] = set()
-    for cartesian in _either(new.cartesian):
-        for relative in _either(new.relative):
-            if relative:  # the words add to the parser, the omitted axes stay there
-                read |= set(JOINT_LETTERS)
+    for frame in _either(cartesian):
+        for adds in _either(relative):
+            if adds:
+                read |= _JOINTS
                 continue
-            if not cartesian:
-                read |= set(JOINT_LETTERS) - axes
+            if not frame:
+                read |= _JOINTS - axes
                 continue
-            read |= {"D"} - axes
+            read |= _RAIL - axes
             path = firmware != "classic" and motion != 0
             if axes & _POSE_LETTERS != _POSE_LETTERS or path:
                 read |= _WRIST_AND_ARM
     return frozenset(read)
 
 
-def _writes(parsed: ParsedLine, new: MotionModes) -> frozenset[str]:
+def _writes(parsed: ParsedLine, cartesian: bool | None, relative: bool | None) -> frozenset[str]:
     """The joints an absolute line sets regardless of the parser (given axes; a full pose);
-    ``new`` as in :func:`_reads`."""
+    the modes as in :func:`_reads`."""
     if parsed.kind != "gcode" or parsed.syntax_error is not None:
-        return frozenset()
-    if new.relative is not False or new.cartesian is None:
-        return frozenset()
-    axes = frozenset(parsed.axis_words)
-    if not new.cartesian:
+        return _NONE
+    if relative is not False or cartesian is None:
+        return _NONE
+    axes = parsed.axis_letters
+    if not cartesian:
         return axes
-    written = {"D"} & axes
+    written = _RAIL & axes
     if axes >= _POSE_LETTERS:
         written |= _WRIST_AND_ARM
-    return frozenset(written)
+    return written
 
 
-def _moves(parsed: ParsedLine, new: MotionModes) -> frozenset[str]:
-    """The joints the line's motion may move (conservative); ``new`` as in :func:`_reads`."""
-    axes = frozenset(parsed.axis_words)
+def _moves(parsed: ParsedLine, cartesian: bool | None) -> frozenset[str]:
+    """The joints the line's motion may move (conservative); ``cartesian`` as in
+    :func:`_reads`."""
+    axes = parsed.axis_letters
     if not axes:
-        return frozenset()
-    moved: set[str] = set()
-    for cartesian in _either(new.cartesian):
-        if cartesian:
-            moved |= ({"D"} & axes) | (_WRIST_AND_ARM if axes & _POSE_LETTERS else set())
-        else:
-            moved |= axes
-    return frozenset(moved)
+        return _NONE
+    if cartesian is False:
+        return axes
+    moved = (_RAIL & axes) | (_WRIST_AND_ARM if axes & _POSE_LETTERS else _NONE)
+    return moved if cartesian else moved | axes

@@ -120,3 +120,60 @@ def test_the_facts_derived_at_parse_time_are_those_of_the_words(line: str) -> No
     assert parsed.has_odd_numbers == any(
         w.lossy or (isinstance(w, CodeWord) and not w.canonical) for w in parsed.words
     )
+
+
+# The joints a line reads, sets and moves, written plainly over every frame and distance mode
+# the line may run in (the module computes them with shortcuts for the known cases).
+_ALL = frozenset("XYZABCD")
+_ARM = frozenset("XYZABC")
+
+
+def _frames(mode: bool | None) -> tuple[bool, ...]:
+    return (True, False) if mode is None else (mode,)
+
+
+def _plain_reads(axes: frozenset[str], cartesian: bool | None, relative: bool | None,
+                 motion: int | None, firmware: str | None) -> frozenset[str]:  # fmt: skip
+    read: set[str] = set()
+    for frame in _frames(cartesian):
+        for adds in _frames(relative):
+            if adds:
+                read |= _ALL
+            elif not frame:
+                read |= _ALL - axes
+            else:
+                read |= {"D"} - axes
+                if axes & _ARM != _ARM or (firmware != "classic" and motion != 0):
+                    read |= _ARM
+    return frozenset(read) if axes else frozenset()
+
+
+@settings(max_examples=2000, deadline=None)
+@given(
+    line=lines,
+    cartesian=modes,
+    relative=modes,
+    motion=motions,
+    firmware=st.sampled_from((None, "classic", "2021")),
+)
+def test_the_joints_a_line_reads_and_moves_are_those_of_every_mode_it_may_run_in(
+    line: str, cartesian: bool | None, relative: bool | None, motion: int | None,
+    firmware: str | None,
+) -> None:  # fmt: skip
+    from mirobot_async._core import modal
+
+    parsed = parse_line(line)
+    if parsed.kind != "gcode" or parsed.syntax_error is not None:
+        return
+    axes = frozenset(parsed.axis_words)
+    assert modal._reads(parsed, cartesian, relative, motion, firmware) == _plain_reads(
+        axes, cartesian, relative, motion, firmware
+    )
+    moved: set[str] = set()
+    for frame in _frames(cartesian):
+        moved |= ({"D"} & axes) | (_ARM if axes & _ARM else set()) if frame else axes
+    assert modal._moves(parsed, cartesian) == (frozenset(moved) if axes else frozenset())
+    written: frozenset[str] = frozenset()
+    if relative is False and cartesian is not None:
+        written = axes if not cartesian else ({"D"} & axes) | (_ARM if axes >= _ARM else set())
+    assert modal._writes(parsed, cartesian, relative) == written
