@@ -294,6 +294,7 @@ _DISTANCE_G: Final = frozenset({90, 91})
 _UNITS_G: Final = frozenset({20, 21})
 _COORDINATE_M: Final = frozenset({20, 21})
 _NO_AXES: Final[Mapping[str, float]] = MappingProxyType({})
+_PROGRAM_END: Final = frozenset({2, 30})
 
 
 @dataclass(frozen=True, slots=True)
@@ -448,7 +449,7 @@ class ParsedLine:
     @property
     def program_end(self) -> bool:
         """``M2`` or ``M30``: waits for the queue, then resets some modes."""
-        return any(code in (2, 30) for code in self.m_codes)
+        return not _PROGRAM_END.isdisjoint(self._m_codes)
 
     @property
     def is_homing(self) -> bool:

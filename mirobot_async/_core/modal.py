@@ -83,18 +83,24 @@ def modes_after(parsed: ParsedLine, modes: MotionModes) -> MotionModes:
     return new
 
 
-_GROUPS: Final = (
-    frozenset({0, 1, 2, 3, 5, 80}),
-    frozenset({90, 91}),
-    frozenset({20, 21}),
-)
+_G_GROUP: Final = {
+    **dict.fromkeys((0, 1, 2, 3, 5, 80), "motion"),
+    **dict.fromkeys((90, 91), "distance"),
+    **dict.fromkeys((20, 21), "units"),
+}
 
 
 def _group_conflict(parsed: ParsedLine) -> bool:
     """Two words of one modal group (motion, distance, units, coordinate mode) in the line."""
     g_codes = parsed.g_codes
-    if len(g_codes) > 1 and any(sum(code in group for code in g_codes) > 1 for group in _GROUPS):
-        return True
+    if len(g_codes) > 1:
+        seen: set[str] = set()
+        for code in g_codes:
+            group = _G_GROUP.get(code)
+            if group is not None:
+                if group in seen:
+                    return True
+                seen.add(group)
     m_codes = parsed.m_codes
     return len(m_codes) > 1 and sum(code in (20, 21) for code in m_codes) > 1
 
