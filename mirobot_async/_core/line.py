@@ -126,6 +126,10 @@ _NUMBER: Final = re.compile(r"([+-]?)([0-9]*)(?:\.([0-9]*))?")
 """A number as ``read_float`` takes it: a sign, digits, at most one point (ASCII digits only)."""
 
 
+_WORD: Final = re.compile(r"([A-Z])([+-]?[0-9]*(?:\.[0-9]*)?)")
+"""A letter and the number after it, as :data:`_NUMBER` reads it."""
+
+
 def read_number(text: str, start: int, *, single: bool = True) -> FirmwareNumber | None:
     """Read a number at ``text[start:]`` as GRBL 0.9j does; None when no digit follows.
     ``single=False`` skips :attr:`FirmwareNumber.single` (left 0.0; only command words use it)."""
@@ -530,9 +534,14 @@ _STILL_G: Final = frozenset({0, 1, 2, 3, 4, 5, 17, 20, 21, 40, 54, 61, 80, 90, 9
 def _word(letter: str, written: str) -> Word:
     """The word ``letter`` + ``written`` (a number :data:`_NUMBER` matched whole). Words are
     immutable and a program repeats most of them (``G1``, ``F2000``): each is read once."""
-    number = read_number(written, 0, single=letter in "GM")
+    command = letter in "GM"
+    if not command:
+        digits = len(written) - (written[0] in "+-") - ("." in written)
+        if digits <= MAX_INT_DIGITS:  # every digit kept: the exact decimal value, as read_number
+            return Word(letter, written, float(written), False)
+    number = read_number(written, 0, single=command)
     assert number is not None and number.end == len(written)
-    if letter in "GM":
+    if command:
         return _code_word(letter, written, number)
     return Word(letter, written, number.value, number.lossy)
 
@@ -541,19 +550,16 @@ def _scan(text: str) -> tuple[tuple[Word, ...], str | None]:
     words: list[Word] = []
     pos = 0
     end = len(text)
-    match = _NUMBER.match
+    match = _WORD.match
     while pos < end:
-        letter = text[pos]
-        if not "A" <= letter <= "Z":
+        found = match(text, pos)
+        if found is None:  # the number is optional: no letter here
             return tuple(words), "Expected command letter"
-        found = match(text, pos + 1)
-        assert found is not None  # every part is optional
-        after = found.end()
-        written = text[pos + 1 : after]
-        if not found.group(2) and not found.group(3):  # no digit
+        letter, written = found.groups()
+        if not written.strip("+-."):  # no digit (at most a sign and a point)
             return tuple(words), "Bad number format"
         words.append(_word(letter, written))
-        pos = after
+        pos = found.end()
     return tuple(words), None
 
 

@@ -177,3 +177,23 @@ def test_the_joints_a_line_reads_and_moves_are_those_of_every_mode_it_may_run_in
     if relative is False and cartesian is not None:
         written = axes if not cartesian else ({"D"} & axes) | (_ARM if axes >= _ARM else set())
     assert modal._writes(parsed, cartesian, relative) == written
+
+
+numbers = st.from_regex(r"\A[+-]?[0-9]{0,11}(\.[0-9]{0,11})?\Z").filter(
+    lambda text: any(char.isdigit() for char in text)
+)
+
+
+@settings(max_examples=2000, deadline=None)
+@given(letter=st.sampled_from("XYZABCDFPSRGM"), number=numbers)
+def test_a_word_in_a_line_is_read_as_read_number_reads_it(letter: str, number: str) -> None:
+    from mirobot_async._core.line import read_number
+
+    (word,) = parse_line(f"{letter}{number}").words
+    expected = read_number(number, 0)
+    assert expected is not None
+    assert (word.letter, word.text, word.lossy) == (letter, number, expected.lossy)
+    assert word.value == expected.value or (
+        word.value != word.value and expected.value != expected.value
+    )
+    assert str(word.value) == str(expected.value)  # the sign of a zero too
