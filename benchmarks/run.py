@@ -2,8 +2,9 @@
 
 Prints one markdown table (machine in its header), then item 10's tables. See issue 6 for what
 items 1-9 measure and why, issue 12 for item 10 ("a real program", :mod:`real_program`).
-Sans-IO figures run in this process (:mod:`sansio`); everything else drives the emulator
-*process* over a real pseudo-terminal (:func:`mirobot_async.testing.start_emulator`).
+Sans-IO figures run in this process (:mod:`sansio`), as does item 11 (a user's test on the
+in-process virtual arm, :mod:`in_process`); everything else drives the emulator *process* over a
+real pseudo-terminal (:func:`mirobot_async.testing.start_emulator`).
 ``--item10`` runs item 10 alone (at real time it takes a few minutes).
 """
 
@@ -34,6 +35,7 @@ from figures import (
     percentile,
     rate,
 )
+from in_process import item_in_process
 from mirobot_emulator.motion import AxisLimits, joint_block
 from mirobot_emulator.settings import default_settings
 from real_program import Item10Config, measure_item10, render_item10
@@ -494,6 +496,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parts = []
     if not args.item10:
         table = asyncio.run(run_all(config))
+        item_in_process(config, table)  # its own event loops (the in-process virtual arm)
         parts.append(table.render(header))
     else:  # item 10 alone: its own tables say how it ran
         parts.append(header.split("\n\n")[0] + f"\n\nLoad average at the start {_loads()}.")

@@ -61,10 +61,12 @@ class within:
         self.what = what
         self._timeout = timeout
         self._command = command
-        self._inner = asyncio.timeout_at(deadline)
+        # No deadline: nothing to arm (asyncio.timeout_at(None) would never fire either).
+        self._inner = None if deadline is None else asyncio.timeout_at(deadline)
 
     async def __aenter__(self) -> within:
-        await self._inner.__aenter__()
+        if self._inner is not None:
+            await self._inner.__aenter__()
         return self
 
     async def __aexit__(
@@ -73,6 +75,8 @@ class within:
         exc: BaseException | None,
         tb: TracebackType | None,
     ) -> None:
+        if self._inner is None:
+            return
         try:
             await self._inner.__aexit__(exc_type, exc, tb)
         except TimeoutError as err:

@@ -31,7 +31,12 @@ from mirobot_async._core.protocol import (
     ResetDetected,
 )
 from mirobot_async._core.replies import StatusReport
-from mirobot_async._core.validation import InvalidLineError, line_problems, validate_line
+from mirobot_async._core.validation import (
+    InvalidLineError,
+    line_problems,
+    may_differ_by_profile,
+    validate_line,
+)
 from mirobot_async.errors import (
     MirobotAlarmError,
     MirobotCommandError,
@@ -58,7 +63,10 @@ class StreamStopped(Exception):
 
 
 def _disagree(parsed: ParsedLine, guard: EnvelopeGuard | NullGuard) -> bool:
-    """Only one of the two firmware profiles would refuse the line (then learn the profile)."""
+    """Only one of the two firmware profiles would refuse the line (then learn the profile).
+    Judged twice only for a line whose verdict may depend on the profile."""
+    if not may_differ_by_profile(parsed, guard.modal_state()):
+        return False
     verdicts = {
         bool(line_problems(parsed, firmware=profile, state=guard.modal_state()))
         for profile in _PROFILES

@@ -28,6 +28,7 @@ from mirobot_async._client.condition import RobotCondition
 from mirobot_async._client.deadline import deadline_after
 from mirobot_async._client.guard import EnvelopeGuard, NullGuard
 from mirobot_async._client.scheduler import LineScheduler, Slot, StreamStopped
+from mirobot_async._core.line import ParsedLine, parse_line
 from mirobot_async._core.protocol import LineRejected, encode_line
 from mirobot_async._core.validation import InvalidLineError, first_restart
 from mirobot_async.errors import (
@@ -127,6 +128,7 @@ class _StreamRun:
     reset_epoch: int = 0  # the robot's resets when the stream started: it stops at the next
     alarm_epoch: int = 0  # the robot's alarms when the stream started
     wait: bool = False  # end with the motion barrier (MOTION_BARRIER)
+    parsed: list[ParsedLine] | None = None  # the input's lines parsed before the stream began
     barrier: Slot | MirobotError | None = None  # its slot once written, or what kept it back
 
     def should_stop(self) -> bool:
@@ -177,6 +179,7 @@ class _StreamRun:
                 if not data:
                     continue  # a blank line
                 command = data.decode("ascii")
+                parsed = self._parsed(number, command)
                 try:
                     slot = await self.scheduler.submit(
                         data,
@@ -190,6 +193,7 @@ class _StreamRun:
                         warn_unchecked=False,
                         should_stop=self.should_stop,
                         watch=self.watch,
+                        parsed=parsed,
                     )
                 except StreamStopped:
                     break
@@ -212,6 +216,15 @@ class _StreamRun:
         finally:
             self.done = True
             self.wake.set()
+
+    def _parsed(self, number: int, command: str) -> ParsedLine | None:
+        """Input line ``number`` as parsed before the stream began, when it is ``command``
+        (parsing is a function of the text: the scheduler need not parse it again)."""
+        parsed = self.parsed
+        if parsed is None or number > len(parsed):
+            return None
+        line = parsed[number - 1]
+        return line if line.source == command else None
 
     async def _write_barrier(self) -> None:
         """Write :data:`MOTION_BARRIER` right after the last line (no round trip in between)."""
@@ -355,7 +368,7 @@ class Stream:
         condition.check_sendable(None, motion=False)
         if not self._check_envelope:
             guard.warn_stream_unchecked()
-        refused = self._restart_refusal()
+        refused, parsed = self._restart_refusal()
         if refused is not None:  # nothing is written
             self.result.errors.append(refused)
             self.result.stopped = True
@@ -373,6 +386,7 @@ class Stream:
             reset_epoch=condition.reset_epoch,
             alarm_epoch=condition.alarm_epoch,
             wait=self._wait,
+            parsed=parsed,
         )
         producer = loop.create_task(run.produce(self._lines), name="mirobot-stream-producer")
         results = run.consume(producer)
@@ -380,22 +394,24 @@ class Stream:
             async for line_result in results:
                 yield line_result
 
-    def _restart_refusal(self) -> LineResult | None:
+    def _restart_refusal(self) -> tuple[LineResult | None, list[ParsedLine] | None]:
         """A list or tuple of lines is judged whole before its first byte: a line that would
-        restart from where the moving arm is (its ``M20``/``M21``) refuses the stream."""
+        restart from where the moving arm is (its ``M20``/``M21``) refuses the stream. Also
+        the lines as parsed for that (the stream writes them without parsing them again)."""
         lines = self._lines
         if not self._validate or not isinstance(lines, list | tuple):
-            return None
+            return None, None
         texts = [_text(item) for item in lines if isinstance(item, str | bytes | bytearray)]
         if len(texts) != len(lines):
-            return None  # a bad item: reported in order as the stream reaches it
+            return None, None  # a bad item: reported in order as the stream reaches it
+        parsed = [parse_line(text) for text in texts]
         _scheduler, condition, guard = self._parts
-        found = first_restart(texts, firmware=condition.firmware, state=guard.modal_state())
+        found = first_restart(parsed, firmware=condition.firmware, state=guard.modal_state())
         if found is None:
-            return None
+            return None, parsed
         number, line, why = found
         error = MotionChainError(line, f"{why}; nothing of the stream was sent")
-        return LineResult(number, line, (), error)
+        return LineResult(number, line, (), error), None
 
     def __aiter__(self) -> AsyncIterator[LineResult]:
         return self._take()

@@ -20,6 +20,7 @@ import re
 import struct
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from functools import lru_cache
 from types import MappingProxyType
 from typing import Final, Literal
 
@@ -69,8 +70,20 @@ def normalize_line(line: str | bytes) -> str:
     return normalize_text(text)[0]
 
 
+_PLAIN: Final = {
+    **{code: None for code in range(0x21)},
+    ord("/"): None,
+    **{ord(char): None for char in REALTIME_BYTES},
+    **{code: code - 0x20 for code in range(ord("a"), ord("z") + 1)},
+}
+"""``str.translate`` table of a line without comments: what :func:`normalize_text` drops and
+upper-cases, character by character."""
+
+
 def normalize_text(text: str) -> tuple[str, bool]:
     """(normalized text, True if a ``(`` comment was left open)."""
+    if "(" not in text and ";" not in text:
+        return text.translate(_PLAIN), False  # no comment: each character alone decides
     out: list[str] = []
     in_comment = False
     for char in text:
@@ -109,54 +122,52 @@ class FirmwareNumber:
     """The value as the firmware computes it, in single precision (for command numbers)."""
 
 
-def read_number(text: str, start: int) -> FirmwareNumber | None:
-    """Read a number at ``text[start:]`` as GRBL 0.9j does; None when no digit follows."""
-    i = start
-    n = len(text)
-    negative = False
-    if i < n and text[i] in "+-":
-        negative = text[i] == "-"
-        i += 1
-    intval = 0
-    exp = 0
-    ndigit = 0
-    lossy = False
-    decimal = False
-    while i < n:
-        char = text[i]
-        if "0" <= char <= "9":
-            ndigit += 1
-            if ndigit <= MAX_INT_DIGITS:
-                if decimal:
-                    exp -= 1
-                intval = intval * 10 + (ord(char) - 48)
-            else:
-                lossy = lossy or char != "0"
-                if not decimal:
-                    exp += 1
-        elif char == "." and not decimal:
-            decimal = True
-        else:
-            break
-        i += 1
+_NUMBER: Final = re.compile(r"([+-]?)([0-9]*)(?:\.([0-9]*))?")
+"""A number as ``read_float`` takes it: a sign, digits, at most one point (ASCII digits only)."""
+
+
+_WORD: Final = re.compile(r"([A-Z])([+-]?[0-9]*(?:\.[0-9]*)?)")
+"""A letter and the number after it, as :data:`_NUMBER` reads it."""
+
+
+def read_number(text: str, start: int, *, single: bool = True) -> FirmwareNumber | None:
+    """Read a number at ``text[start:]`` as GRBL 0.9j does; None when no digit follows.
+    ``single=False`` skips :attr:`FirmwareNumber.single` (left 0.0; only command words use it)."""
+    match = _NUMBER.match(text, start)
+    assert match is not None  # every part is optional
+    sign, whole, fraction = match.groups()
+    fraction = fraction or ""
+    ndigit = len(whole) + len(fraction)
     if ndigit == 0:
         return None
+    if ndigit <= MAX_INT_DIGITS:
+        intval = int(whole + fraction)
+        exp = -len(fraction)
+        lossy = False
+    else:
+        digits = whole + fraction
+        intval = int(digits[:MAX_INT_DIGITS])
+        lossy = digits[MAX_INT_DIGITS:].strip("0") != ""
+        # dropped integer digits scale it up, kept fraction digits down: they add up to this
+        exp = len(whole) - MAX_INT_DIGITS
     # The firmware computes in single precision; the value here is the exact decimal number of
     # the kept digits (they differ by less than a micrometre in any reachable range).
     value = intval / 10 ** (-exp) if exp < 0 else float(intval * 10**exp)
-    single = _f32(float(intval))
-    if single != 0.0:
-        while exp <= -2:
-            single = _f32(single * _f32(0.01))
-            exp += 2
-        if exp < 0:
-            single = _f32(single * _f32(0.1))
-        while exp > 0:
-            single = _f32(single * 10.0)
-            exp -= 1
-    if negative:
-        value, single = -value, -single
-    return FirmwareNumber(value, i, ndigit, lossy, single)
+    result = 0.0
+    if single:
+        result = _f32(float(intval))
+        if result != 0.0:
+            while exp <= -2:
+                result = _f32(result * _f32(0.01))
+                exp += 2
+            if exp < 0:
+                result = _f32(result * _f32(0.1))
+            while exp > 0:
+                result = _f32(result * 10.0)
+                exp -= 1
+    if sign == "-":
+        value, result = -value, -result
+    return FirmwareNumber(value, match.end(), ndigit, lossy, result)
 
 
 def _c_round(x: float) -> int:
@@ -191,15 +202,21 @@ class CodeWord(Word):
     """The firmware's command number: the value truncated to a byte (``M16404`` is 20)."""
     fraction_error: bool = False
     """The firmware refuses it: hundredths not zero (``Invalid gcode ID:23``, e.g. ``M20.5``)."""
+    _canonical: bool = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(
+            self,
+            "_canonical",
+            not self.fraction_error
+            and _INTEGER_TEXT.fullmatch(self.text) is not None
+            and int(self.text.split(".")[0]) == self.code,
+        )
 
     @property
     def canonical(self) -> bool:
         """True when the word is written as the plain integer it means (``G01``, ``M3``)."""
-        return (
-            not self.fraction_error
-            and _INTEGER_TEXT.fullmatch(self.text) is not None
-            and int(self.text.split(".")[0]) == self.code
-        )
+        return self._canonical
 
 
 def _code_word(letter: str, text: str, number: FirmwareNumber) -> CodeWord:
@@ -276,6 +293,14 @@ def _dollar(text: str) -> DollarLine:
     return DollarLine("setting", parameter, value.value, canonical)
 
 
+_MOTION_G: Final = frozenset({0, 1, 2, 3, 5, 80})
+_DISTANCE_G: Final = frozenset({90, 91})
+_UNITS_G: Final = frozenset({20, 21})
+_COORDINATE_M: Final = frozenset({20, 21})
+_NO_AXES: Final[Mapping[str, float]] = MappingProxyType({})
+_PROGRAM_END: Final = frozenset({2, 30})
+
+
 @dataclass(frozen=True, slots=True)
 class ParsedLine:
     """A raw line parsed once: what the firmware will read from it (immutable).
@@ -296,18 +321,66 @@ class ParsedLine:
     """Every word in order (``G``/``M`` words are :class:`CodeWord`)."""
     dollar: DollarLine | None = None
     syntax_error: str | None = None
-    # Derived once from ``words`` (the line is read many times: validation, guard, chaining).
+    # Derived once from ``words`` (the line is read many times: validation, guard, chaining,
+    # the scheduler), so that every property below is a plain read.
     _codes: tuple[CodeWord, ...] = field(init=False, repr=False, compare=False)
     _values: Mapping[str, float] = field(init=False, repr=False, compare=False)
+    _g_codes: tuple[int, ...] = field(init=False, repr=False, compare=False)
+    _m_codes: tuple[int, ...] = field(init=False, repr=False, compare=False)
+    _repeated: tuple[str, ...] = field(init=False, repr=False, compare=False)
+    _axis_words: Mapping[str, float] = field(init=False, repr=False, compare=False)
+    _motion: int | None = field(init=False, repr=False, compare=False)
+    _distance: int | None = field(init=False, repr=False, compare=False)
+    _units: int | None = field(init=False, repr=False, compare=False)
+    _coordinate_mode: int | None = field(init=False, repr=False, compare=False)
+    _odd_numbers: bool = field(init=False, repr=False, compare=False)
+    _axis_letters: frozenset[str] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        codes = tuple(w for w in self.words if isinstance(w, CodeWord))
+        codes: list[CodeWord] = []
         values: dict[str, float] = {}
+        twice: list[str] = []
+        g_codes: list[int] = []
+        m_codes: list[int] = []
+        motion = distance = units = coordinate = None
+        odd = False
         for w in self.words:
-            if not isinstance(w, CodeWord):
-                values.setdefault(w.letter, w.value)
-        object.__setattr__(self, "_codes", codes)
-        object.__setattr__(self, "_values", MappingProxyType(values))
+            odd = odd or w.lossy
+            if isinstance(w, CodeWord):
+                odd = odd or not w.canonical
+                codes.append(w)
+                code = w.code
+                if w.letter == "G":
+                    g_codes.append(code)
+                    if motion is None and code in _MOTION_G:
+                        motion = code
+                    elif distance is None and code in _DISTANCE_G:
+                        distance = code
+                    elif units is None and code in _UNITS_G:
+                        units = code
+                else:
+                    m_codes.append(code)
+                    if coordinate is None and code in _COORDINATE_M:
+                        coordinate = code
+            elif w.letter in values:
+                if w.letter not in twice:
+                    twice.append(w.letter)
+            else:
+                values[w.letter] = w.value
+        setter = object.__setattr__
+        setter(self, "_codes", tuple(codes))
+        setter(self, "_values", MappingProxyType(values))
+        setter(self, "_g_codes", tuple(g_codes))
+        setter(self, "_m_codes", tuple(m_codes))
+        setter(self, "_repeated", tuple(twice))
+        axes = {k: values[k] for k in AXIS_LETTERS if k in values}
+        setter(self, "_axis_words", MappingProxyType(axes) if axes else _NO_AXES)
+        setter(self, "_axis_letters", frozenset(axes))
+        setter(self, "_motion", motion)
+        setter(self, "_distance", distance)
+        setter(self, "_units", units)
+        setter(self, "_coordinate_mode", coordinate)
+        setter(self, "_odd_numbers", odd)
 
     # ---- the words -------------------------------------------------------------------------
 
@@ -319,12 +392,12 @@ class ParsedLine:
     @property
     def g_codes(self) -> tuple[int, ...]:
         """The ``G`` numbers as the firmware reads them."""
-        return tuple(w.code for w in self._codes if w.letter == "G")
+        return self._g_codes
 
     @property
     def m_codes(self) -> tuple[int, ...]:
         """The ``M`` numbers as the firmware reads them."""
-        return tuple(w.code for w in self._codes if w.letter == "M")
+        return self._m_codes
 
     @property
     def values(self) -> Mapping[str, float]:
@@ -334,51 +407,41 @@ class ParsedLine:
     @property
     def repeated(self) -> tuple[str, ...]:
         """Value letters written more than once (the firmware: ``Invalid gcode ID:25``)."""
-        seen: set[str] = set()
-        twice: list[str] = []
-        for w in self.words:
-            if isinstance(w, CodeWord):
-                continue
-            if w.letter in seen and w.letter not in twice:
-                twice.append(w.letter)
-            seen.add(w.letter)
-        return tuple(twice)
+        return self._repeated
 
     def value(self, letter: str) -> float | None:
         """The value of word ``letter`` as the firmware reads it, or None."""
-        return self.values.get(letter)
+        return self._values.get(letter)
 
     @property
     def axis_words(self) -> Mapping[str, float]:
         """The axis words ``X Y Z A B C D`` present, as the firmware reads them."""
-        values = self.values
-        return MappingProxyType({k: values[k] for k in AXIS_LETTERS if k in values})
+        return self._axis_words
 
-    def _first(self, letter: str, choices: frozenset[int]) -> int | None:
-        for w in self._codes:
-            if w.letter == letter and w.code in choices:
-                return w.code
-        return None
+    @property
+    def axis_letters(self) -> frozenset[str]:
+        """The letters of :attr:`axis_words`."""
+        return self._axis_letters
 
     @property
     def motion(self) -> int | None:
         """The motion code stated in the line (G0 G1 G2 G3 G5 G80), or None."""
-        return self._first("G", frozenset({0, 1, 2, 3, 5, 80}))
+        return self._motion
 
     @property
     def distance(self) -> int | None:
         """90 (absolute) or 91 (relative) when stated."""
-        return self._first("G", frozenset({90, 91}))
+        return self._distance
 
     @property
     def units(self) -> int | None:
         """20 (inches) or 21 (mm) when stated."""
-        return self._first("G", frozenset({20, 21}))
+        return self._units
 
     @property
     def coordinate_mode(self) -> int | None:
         """20 (Cartesian, ``M20``) or 21 (joints, ``M21``) when stated."""
-        return self._first("M", frozenset({20, 21}))
+        return self._coordinate_mode
 
     @property
     def dwell_seconds(self) -> float | None:
@@ -390,7 +453,7 @@ class ParsedLine:
     @property
     def program_end(self) -> bool:
         """``M2`` or ``M30``: waits for the queue, then resets some modes."""
-        return any(code in (2, 30) for code in self.m_codes)
+        return not _PROGRAM_END.isdisjoint(self._m_codes)
 
     @property
     def is_homing(self) -> bool:
@@ -427,7 +490,7 @@ class ParsedLine:
     @property
     def has_odd_numbers(self) -> bool:
         """A word the firmware reads differently from its text (digits dropped, odd G/M form)."""
-        return any(w.lossy or (isinstance(w, CodeWord) and not w.canonical) for w in self.words)
+        return self._odd_numbers
 
     @property
     def coordinate_conflict(self) -> str | None:
@@ -467,22 +530,36 @@ _STILL_G: Final = frozenset({0, 1, 2, 3, 4, 5, 17, 20, 21, 40, 54, 61, 80, 90, 9
 """G codes that do not move by themselves (motion codes move only with axis words)."""
 
 
+@lru_cache(maxsize=4096)
+def _word(letter: str, written: str) -> Word:
+    """The word ``letter`` + ``written`` (a number :data:`_NUMBER` matched whole). Words are
+    immutable and a program repeats most of them (``G1``, ``F2000``): each is read once."""
+    command = letter in "GM"
+    if not command:
+        digits = len(written) - (written[0] in "+-") - ("." in written)
+        if digits <= MAX_INT_DIGITS:  # every digit kept: the exact decimal value, as read_number
+            return Word(letter, written, float(written), False)
+    number = read_number(written, 0, single=command)
+    assert number is not None and number.end == len(written)
+    if command:
+        return _code_word(letter, written, number)
+    return Word(letter, written, number.value, number.lossy)
+
+
 def _scan(text: str) -> tuple[tuple[Word, ...], str | None]:
     words: list[Word] = []
     pos = 0
-    while pos < len(text):
-        letter = text[pos]
-        if not "A" <= letter <= "Z":
+    end = len(text)
+    match = _WORD.match
+    while pos < end:
+        found = match(text, pos)
+        if found is None:  # the number is optional: no letter here
             return tuple(words), "Expected command letter"
-        number = read_number(text, pos + 1)
-        if number is None:
+        letter, written = found.groups()
+        if not written.strip("+-."):  # no digit (at most a sign and a point)
             return tuple(words), "Bad number format"
-        written = text[pos + 1 : number.end]
-        if letter in "GM":
-            words.append(_code_word(letter, written, number))
-        else:
-            words.append(Word(letter, written, number.value, number.lossy))
-        pos = number.end
+        words.append(_word(letter, written))
+        pos = found.end()
     return tuple(words), None
 
 
@@ -490,6 +567,13 @@ def parse_line(line: str | bytes | bytearray | memoryview) -> ParsedLine:
     """Parse one raw line (one line ending at most) into a :class:`ParsedLine`; never raises for
     the line's content (the result says what the firmware would refuse)."""
     raw = bytes(line).decode("latin-1") if not isinstance(line, str) else line
+    return _parse_text(raw)
+
+
+@lru_cache(maxsize=1024)
+def _parse_text(raw: str) -> ParsedLine:
+    """:func:`parse_line` of a text: a pure function of it, and the result immutable, so a line
+    repeated in a program (or judged again by another reader) is parsed once."""
     source = raw.rstrip("\r\n")
     text, open_comment = normalize_text(source)
     if not text:

@@ -83,17 +83,26 @@ def modes_after(parsed: ParsedLine, modes: MotionModes) -> MotionModes:
     return new
 
 
+_G_GROUP: Final = {
+    **dict.fromkeys((0, 1, 2, 3, 5, 80), "motion"),
+    **dict.fromkeys((90, 91), "distance"),
+    **dict.fromkeys((20, 21), "units"),
+}
+
+
 def _group_conflict(parsed: ParsedLine) -> bool:
     """Two words of one modal group (motion, distance, units, coordinate mode) in the line."""
-    groups = (
-        frozenset({0, 1, 2, 3, 5, 80}),
-        frozenset({90, 91}),
-        frozenset({20, 21}),
-    )
     g_codes = parsed.g_codes
-    if any(sum(code in group for code in g_codes) > 1 for group in groups):
-        return True
-    return sum(code in (20, 21) for code in parsed.m_codes) > 1
+    if len(g_codes) > 1:
+        seen: set[str] = set()
+        for code in g_codes:
+            group = _G_GROUP.get(code)
+            if group is not None:
+                if group in seen:
+                    return True
+                seen.add(group)
+    m_codes = parsed.m_codes
+    return len(m_codes) > 1 and sum(code in (20, 21) for code in m_codes) > 1
 
 
 def update_modes(line: str | bytes | ParsedLine, modes: MotionModes) -> MotionModes:
@@ -204,7 +213,8 @@ class Chaining:
     def after_refusal(self, parsed: ParsedLine) -> Chaining:
         """``parsed`` was refused ("ok" but dropped): the joints it would have moved are where
         the parser, not the arm, went (any mode: the modes it ran in are not known here)."""
-        moved = _moves(parsed, MotionModes.unknown())
+        coordinate = parsed.coordinate_mode
+        moved = _moves(parsed, None if coordinate is None else coordinate == 20)
         if not moved:
             return self
         text = parsed.source.strip() or parsed.text
@@ -221,7 +231,9 @@ class Chaining:
         streamed than when sent after the arm stopped (or than intended, after a refused line),
         with the fix; ``None`` when it would not."""
         stale = self._stale_at(parsed)
-        read = _reads(parsed, modes, firmware) & stale
+        if not stale:
+            return None
+        read = _reads(parsed, *_line_modes(parsed, modes), firmware) & stale
         if not read:
             return None
         joints = ", ".join(_joint_name(k) for k in JOINT_LETTERS if k in read)
@@ -254,7 +266,9 @@ class Chaining:
     ) -> bool:
         """``parsed`` (without a mode word) reads a joint the parser has elsewhere: a mode word
         on it, parsed at rest, would set the parser to where the arm is first."""
-        return bool(_reads(parsed, modes, firmware) & self.stale)
+        if not self.stale:
+            return False
+        return bool(_reads(parsed, *_line_modes(parsed, modes), firmware) & self.stale)
 
     def _stale_at(self, parsed: ParsedLine) -> frozenset[str]:
         """The stale joints while ``parsed`` is executed (its own mode word restarts first)."""
@@ -276,77 +290,113 @@ class Chaining:
         stale, resync, refused = self.stale, self.resync, self.refused
         if parsed.coordinate_mode is not None:
             stale, resync, refused = self.moving, parsed.source.strip() or parsed.text, False
-        # reported once: what the line read is set by it (as the firmware does, from there on)
-        stale = stale - _reads(parsed, modes, firmware) - _writes(parsed, modes)
-        moving = frozenset() if 4 in parsed.g_codes else self.moving
-        moving |= _moves(parsed, modes)
-        return Chaining(moving, stale, resync if stale else None, refused and bool(stale))
+        moving = _NONE if 4 in parsed.g_codes else self.moving
+        if parsed.axis_letters:
+            cartesian, relative, motion = _line_modes(parsed, modes)
+            # reported once: what the line read is set by it (as the firmware does, from there on)
+            if stale:
+                stale = (
+                    stale
+                    - _reads(parsed, cartesian, relative, motion, firmware)
+                    - _writes(parsed, cartesian, relative)
+                )
+            moving = moving | _moves(parsed, cartesian)
+        if not stale:
+            resync, refused = None, False
+        if (
+            moving == self.moving
+            and stale == self.stale
+            and resync == self.resync
+            and refused == self.refused
+        ):
+            return self  # the same value (most lines of a program change nothing here)
+        return Chaining(moving, stale, resync, refused)
 
 
 def _joint_name(letter: str) -> str:
     return "the rail" if letter == "D" else f"J{JOINT_LETTERS.index(letter) + 1}"
 
 
-def _frames(parsed: ParsedLine, modes: MotionModes) -> tuple[bool, ...]:
-    """The coordinate modes the line may run in: (True,) Cartesian, (False,) joints, or both."""
-    current = modes_of(parsed, modes).cartesian
-    return (True, False) if current is None else (current,)
+_NONE: Final = frozenset[str]()
+_JOINTS: Final = frozenset(JOINT_LETTERS)
+_RAIL: Final = frozenset("D")
 
 
-def _distances(parsed: ParsedLine, modes: MotionModes) -> tuple[bool, ...]:
-    current = modes_of(parsed, modes).relative
-    return (True, False) if current is None else (current,)
+def _line_modes(
+    parsed: ParsedLine, modes: MotionModes
+) -> tuple[bool | None, bool | None, int | None]:
+    """(Cartesian, relative, motion code) in effect for the line: :func:`modes_of`, without
+    building a :class:`MotionModes`."""
+    coordinate, distance, motion = parsed.coordinate_mode, parsed.distance, parsed.motion
+    return (
+        modes.cartesian if coordinate is None else coordinate == 20,
+        modes.relative if distance is None else distance == 91,
+        modes.motion if motion is None else motion,
+    )
 
 
-def _reads(parsed: ParsedLine, modes: MotionModes, firmware: str | None) -> frozenset[str]:
-    """The joints whose parser value decides where ``parsed`` ends (see :class:`Chaining`)."""
+def _either(mode: bool | None) -> tuple[bool, ...]:
+    """The values a mode may have: both when it is unknown."""
+    return (True, False) if mode is None else (mode,)
+
+
+def _reads(
+    parsed: ParsedLine,
+    cartesian: bool | None,
+    relative: bool | None,
+    motion: int | None,
+    firmware: str | None,
+) -> frozenset[str]:
+    """The joints whose parser value decides where ``parsed`` ends (see :class:`Chaining`);
+    the modes are those it runs in (:func:`_line_modes`)."""
     if parsed.kind != "gcode" or parsed.syntax_error is not None:
-        return frozenset()
-    axes = frozenset(parsed.axis_words)
+        return _NONE
+    axes = parsed.axis_letters
     if not axes:
-        return frozenset()
-    motion = modes_of(parsed, modes).motion
+        return _NONE
+    if relative is True:  # the words add to the parser, the omitted axes stay there
+        return _JOINTS
+    if cartesian is False and relative is False:
+        return _JOINTS - axes
     read: set[str] = set()
-    for cartesian in _frames(parsed, modes):
-        for relative in _distances(parsed, modes):
-            if relative:  # the words add to the parser, the omitted axes stay there
-                read |= set(JOINT_LETTERS)
+    for frame in _either(cartesian):
+        for adds in _either(relative):
+            if adds:
+                read |= _JOINTS
                 continue
-            if not cartesian:
-                read |= set(JOINT_LETTERS) - axes
+            if not frame:
+                read |= _JOINTS - axes
                 continue
-            read |= {"D"} - axes
+            read |= _RAIL - axes
             path = firmware != "classic" and motion != 0
             if axes & _POSE_LETTERS != _POSE_LETTERS or path:
                 read |= _WRIST_AND_ARM
     return frozenset(read)
 
 
-def _writes(parsed: ParsedLine, modes: MotionModes) -> frozenset[str]:
-    """The joints an absolute line sets regardless of the parser (given axes; a full pose)."""
+def _writes(parsed: ParsedLine, cartesian: bool | None, relative: bool | None) -> frozenset[str]:
+    """The joints an absolute line sets regardless of the parser (given axes; a full pose);
+    the modes as in :func:`_reads`."""
     if parsed.kind != "gcode" or parsed.syntax_error is not None:
-        return frozenset()
-    new = modes_of(parsed, modes)
-    if new.relative is not False or new.cartesian is None:
-        return frozenset()
-    axes = frozenset(parsed.axis_words)
-    if not new.cartesian:
+        return _NONE
+    if relative is not False or cartesian is None:
+        return _NONE
+    axes = parsed.axis_letters
+    if not cartesian:
         return axes
-    written = {"D"} & axes
+    written = _RAIL & axes
     if axes >= _POSE_LETTERS:
         written |= _WRIST_AND_ARM
-    return frozenset(written)
+    return written
 
 
-def _moves(parsed: ParsedLine, modes: MotionModes) -> frozenset[str]:
-    """The joints the line's motion may move (conservative)."""
-    axes = frozenset(parsed.axis_words)
+def _moves(parsed: ParsedLine, cartesian: bool | None) -> frozenset[str]:
+    """The joints the line's motion may move (conservative); ``cartesian`` as in
+    :func:`_reads`."""
+    axes = parsed.axis_letters
     if not axes:
-        return frozenset()
-    moved: set[str] = set()
-    for cartesian in _frames(parsed, modes):
-        if cartesian:
-            moved |= ({"D"} & axes) | (_WRIST_AND_ARM if axes & _POSE_LETTERS else set())
-        else:
-            moved |= axes
-    return frozenset(moved)
+        return _NONE
+    if cartesian is False:
+        return axes
+    moved = (_RAIL & axes) | (_WRIST_AND_ARM if axes & _POSE_LETTERS else _NONE)
+    return moved if cartesian else moved | axes

@@ -16,6 +16,7 @@ opt-out is explicit). Pure module: no I/O.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Final
@@ -52,6 +53,7 @@ __all__ = [
     "check_program",
     "first_restart",
     "line_problems",
+    "may_differ_by_profile",
     "parse_words",
     "validate_line",
 ]
@@ -91,6 +93,8 @@ _REALTIME: Final[dict[str, str]] = {
     "%": "a soft reset of the robot",
     "@": "the safety door (it stops reading lines until '~')",
 }
+_ODD_SOURCE: Final = re.compile("[\r\n" + re.escape(REALTIME_BYTES) + "]|[^\x00-\x7e]")
+"""A character :func:`_syntax_problems` reports: a line break, a realtime byte, not ASCII."""
 _DOLLAR_SIMPLE: Final = frozenset({"$", "$$", "$#", "$G", "$I", "$N", "$C", "$X", "$H", "$HH"})
 _DOLLAR_2021: Final = frozenset({*(f"$H{n}" for n in range(8)), "$HE", "$M"})
 
@@ -387,19 +391,69 @@ def _problems(parsed: ParsedLine, profile: str, state: ModalState) -> tuple[list
     return problems, chain
 
 
+def _follow(parsed: ParsedLine, profile: str, state: ModalState) -> str | None:
+    """What :func:`_problems` does to ``state`` (and its chaining problem), without judging
+    the rest of the line: for :func:`first_restart`, which reports only chaining. Keep in step
+    with :func:`_check_dollar` and :func:`_check_gcode` (a unit test compares them)."""
+    before = state.modes()
+    chain = state.chain.problem(parsed, before, profile)
+    if parsed.syntax_error is None:
+        if parsed.kind == "gcode":
+            _follow_gcode(parsed, profile, state)
+        elif parsed.kind == "dollar":
+            norm = parsed.text
+            assert parsed.dollar is not None
+            if (
+                parsed.dollar.kind == "homing"
+                and (norm in _DOLLAR_SIMPLE or norm in _DOLLAR_2021)
+                and (norm not in _DOLLAR_2021 or profile == "2021")
+            ):
+                state.cartesian, state.relative, state.motion = False, False, 0
+    state.chain = state.chain.after(parsed, before, profile)
+    return chain
+
+
+def _follow_gcode(parsed: ParsedLine, profile: str, state: ModalState) -> None:
+    """The modal words of a G-code line that :func:`_check_gcode` takes into ``state``: each
+    the firmware accepts, the first of its group."""
+    groups: set[str] = set()
+    new_cartesian: bool | None = None
+    new_relative: bool | None = None
+    for word in parsed.codes:
+        if _code_problem(word, profile) is not None:
+            continue
+        code = word.code
+        group = (_G_GROUPS if word.letter == "G" else _M_GROUPS)[code]
+        if group in groups:
+            continue
+        groups.add(group)
+        if word.letter == "G":
+            if group == "motion":
+                state.motion = code
+            elif group == "distance":
+                new_relative = code == 91
+        elif code in (20, 21):
+            new_cartesian = code == 20
+    if new_cartesian is not None:
+        state.cartesian = new_cartesian
+    if new_relative is not None:
+        state.relative = new_relative
+
+
 def _syntax_problems(parsed: ParsedLine, profile: str, state: ModalState) -> list[str]:
     text = parsed.source
     problems: list[str] = []
-    if "\n" in text or "\r" in text:
-        problems.append("contains a line break: the firmware would see several lines")
-    odd = sorted({char for char in text if ord(char) > 0x7E})
-    if odd:
-        problems.append(f"contains characters outside printable ASCII: {''.join(odd)!r}")
-    for char in sorted({char for char in text if char in REALTIME_BYTES}):
-        problems.append(
-            f"contains {char!r}, which the firmware takes at once as {_REALTIME[char]} "
-            "and removes from the line"
-        )
+    if _ODD_SOURCE.search(text) is not None:  # rare: then say which
+        if "\n" in text or "\r" in text:
+            problems.append("contains a line break: the firmware would see several lines")
+        odd = sorted({char for char in text if ord(char) > 0x7E})
+        if odd:
+            problems.append(f"contains characters outside printable ASCII: {''.join(odd)!r}")
+        for char in sorted({char for char in text if char in REALTIME_BYTES}):
+            problems.append(
+                f"contains {char!r}, which the firmware takes at once as {_REALTIME[char]} "
+                "and removes from the line"
+            )
     if parsed.open_comment:
         problems.append("a '(' comment is not closed: the rest of the line is ignored")
     if parsed.syntax_error == "Line overflow":
@@ -413,6 +467,29 @@ def _syntax_problems(parsed: ParsedLine, profile: str, state: ModalState) -> lis
     elif parsed.kind == "gcode":
         _check_gcode(parsed, profile, state, problems)
     return problems
+
+
+_PROFILE_G_CODES: Final = _G_CODES["2021"] - _G_CODES["classic"]
+"""G codes only the 2021 profile knows (the other G and M codes are judged alike)."""
+
+
+def may_differ_by_profile(parsed: ParsedLine, state: ModalState) -> bool:
+    """False when :func:`line_problems` certainly finds the same problems for ``parsed`` (from
+    ``state``) on both profiles, so a caller that does not know the profile need not judge it
+    twice. Conservative: True whenever a profile-dependent rule may apply (``$`` lines, the
+    2021-only G codes, the rail's range, and the 2021 path start of a Cartesian line, which
+    :class:`~mirobot_async._core.modal.Chaining` reads)."""
+    if parsed.kind == "dollar":
+        return True
+    if parsed.kind != "gcode" or parsed.syntax_error is not None:
+        return False
+    if "D" in parsed.values or any(code in _PROFILE_G_CODES for code in parsed.g_codes):
+        return True
+    if not parsed.axis_words:
+        return False
+    coordinate = parsed.coordinate_mode
+    cartesian = state.cartesian if coordinate is None else coordinate == 20
+    return cartesian is not False
 
 
 def check_line(
@@ -465,23 +542,39 @@ def validate_line(
 
 
 def first_restart(
-    lines: Iterable[str | bytes], *, firmware: str | None, state: ModalState
+    lines: Iterable[str | bytes | ParsedLine], *, firmware: str | None, state: ModalState
 ) -> tuple[int, str, str] | None:
     """The first of ``lines`` (1-based number, text, why and the fix) that, streamed from
     ``state``, would end elsewhere than sent one at a time after the arm stopped (its
     ``M20``/``M21`` restarts from where the moving arm is:
     :class:`~mirobot_async._core.modal.Chaining`), or ``None``. Other problems are not judged here.
-    ``firmware=None``: a line counts only if it does on both profiles. ``state`` is not changed."""
+    ``firmware=None``: a line counts only if it does on both profiles. ``state`` is not changed.
+    Lines already parsed (:class:`ParsedLine`) are not parsed again; each other line is parsed
+    once for both profiles."""
     profiles = (check_firmware(firmware),) if firmware is not None else ("classic", "2021")
-    found: list[tuple[int, str, str] | None] = []
+    items = iter(lines)
+    parsed_lines: list[ParsedLine] = []  # parsed so far (the next profile reads them again)
+
+    def parsed_at(index: int) -> ParsedLine | None:
+        while len(parsed_lines) <= index:
+            line = next(items, None)
+            if line is None:
+                return None
+            parsed_lines.append(line if isinstance(line, ParsedLine) else parse_line(line))
+        return parsed_lines[index]
+
+    found: tuple[int, str, str] | None = None
     for profile in profiles:
         current = ModalState(state.cartesian, state.relative, state.motion, state.chain)
         first = None
-        for number, line in enumerate(lines, start=1):
-            parsed = parse_line(line)
-            chain = _problems(parsed, profile, current)[1]
+        index = 0
+        while (parsed := parsed_at(index)) is not None:
+            index += 1
+            chain = _follow(parsed, profile, current)
             if chain is not None:
-                first = (number, parsed.source.strip() or parsed.text, chain)
+                first = (index, parsed.source.strip() or parsed.text, chain)
                 break
-        found.append(first)
-    return None if any(item is None for item in found) else found[0]
+        if first is None:
+            return None  # a line counts only if it does on every profile
+        found = first if found is None else found
+    return found
