@@ -115,7 +115,7 @@ class InProcessEmulator(EmulatorProcess):
     def returncode(self) -> int | None:
         return None
 
-    async def control(self, command: str, *, timeout: float = 5.0) -> str:
+    async def control(self, command: str, *, timeout: float = 5.0) -> str:  # noqa: ASYNC109
         raise self._no_process(f"send {command!r}")
 
     async def renew(self, *args: object, **kwargs: object) -> str:
@@ -124,7 +124,7 @@ class InProcessEmulator(EmulatorProcess):
     def kill(self) -> None:
         raise self._no_process("kill it")
 
-    async def stop(self, timeout: float = 5.0) -> int:
+    async def stop(self, timeout: float = 5.0) -> int:  # noqa: ASYNC109
         raise self._no_process("stop it")
 
 
