@@ -99,7 +99,7 @@ class InProcessEmulator(EmulatorProcess):
         # Not EmulatorProcess.__init__: there is no process.
         self.arm = arm
         self.url = arm.url
-        self.command = ["in-process", arm.firmware_name, str(arm.time_scale)]
+        self.command = ("in-process", arm.firmware_name, str(arm.time_scale))
 
     def _no_process(self, what: str) -> EmulatorError:
         return EmulatorError(

@@ -590,6 +590,7 @@ async def test_a_move_rejected_in_alarm_changes_no_mode(arm: Mirobot, wire_spy: 
     await arm.unlock()
     mark = wire_spy.mark()
     report = await arm.move_pose(200, 0, 200, 0, 0, 0)
+    assert report is not None
     assert [line for line in wire_spy.lines(mark) if line.startswith(b"M20")], wire_spy.lines(mark)
     assert report.motion_mode == 1
     assert report.pose[:3] == pytest.approx((200, 0, 200), abs=0.05)
