@@ -135,6 +135,8 @@ class Geometry:
         self.settings = settings
         self._limits: AxisLimits | None = None
         self._limits_key: tuple[float | None, ...] = ()
+        self._switch_steps: tuple[tuple[int, int], ...] | None = None
+        """:meth:`switch_steps` of ``_limits`` (cleared when the limits are rebuilt)."""
 
     def dh_values(self) -> tuple[float, float, float, float, float, float]:
         """D1, A1, A2, A3, D4, L (classic: fixed; 2021: ``$29..$34``)."""
@@ -191,11 +193,13 @@ class Geometry:
     def limits(self) -> AxisLimits:
         """The planner's axis limits from the current settings (rebuilt when they change)."""
         settings = self.settings
-        key = tuple(settings.get(n) for n in _LIMIT_SETTINGS)
-        if key != self._limits_key or self._limits is None:
-            self._limits = AxisLimits.from_settings(settings)
+        key = tuple(map(settings.get, _LIMIT_SETTINGS))
+        limits = self._limits
+        if limits is None or key != self._limits_key:
+            limits = self._limits = AxisLimits.from_settings(settings)
             self._limits_key = key
-        return self._limits
+            self._switch_steps = None
+        return limits
 
     def soft_violation(self, q: Sequence[float]) -> str | None:
         """The firmware letter of the first axis (order a..g) outside its ``$13x/$14x`` range."""
@@ -210,7 +214,18 @@ class Geometry:
     def switch_steps(self) -> list[tuple[int, int]]:
         """Per J1..J3, the motor steps (low, high) at and beyond which its switch is closed:
         the first whole steps past the switch positions (``SWITCH_OVERTRAVEL``)."""
-        steps = self.limits().steps
+        return list(self._switch_table(self.limits()))
+
+    def _switch_table(self, limits: AxisLimits) -> tuple[tuple[int, int], ...]:
+        """:meth:`switch_steps` of ``limits`` (the current ones), computed once per limits."""
+        table = self._switch_steps
+        if table is None:
+            table = self._switch_steps = self._switch_steps_of(limits)
+        return table
+
+    @staticmethod
+    def _switch_steps_of(limits: AxisLimits) -> tuple[tuple[int, int], ...]:
+        steps = limits.steps
         out = []
         for j, (lo, hi) in enumerate(HARD_LIMIT_SWITCHES):
             per = steps[j] if steps is not None else 1e6  # an ideal machine: a fine grid
@@ -220,7 +235,7 @@ class Geometry:
                     math.floor((hi + SWITCH_OVERTRAVEL) * per) + 1,
                 )
             )
-        return out
+        return tuple(out)
 
     def _to_steps(self, q: Sequence[float]) -> list[int]:
         limits = self.limits()
@@ -232,7 +247,7 @@ class Geometry:
         """The ``Lim`` bits of the J1..J3 switches closed at ``q``."""
         at = self._to_steps(q)
         pins = 0
-        for j, (lo, hi) in enumerate(self.switch_steps()):
+        for j, (lo, hi) in enumerate(self._switch_table(self.limits())):
             if at[j] <= lo or at[j] >= hi:
                 pins |= switch_pins(j + 1)
         return pins
@@ -246,25 +261,26 @@ class Geometry:
         if limits.steps is None:  # an ideal machine: the first switch position on the line
             return self._ideal_crossing(start, end)
         first, last = limits.to_steps(vec7(start)), limits.to_steps(vec7(end))
+        candidates: list[tuple[int, int]] = []  # (axis, steps to its switch edge)
+        for j, (lo, hi) in enumerate(self._switch_table(limits)):
+            a, b = first[j], last[j]
+            if not lo < a < hi:
+                continue  # closed already: no edge while it stays closed
+            if b >= hi:
+                candidates.append((j, hi - a))
+            elif b <= lo:
+                candidates.append((j, a - lo))
+        if not candidates:
+            return None
         delta = [b - a for a, b in zip(first, last, strict=True)]
         events = max(abs(d) for d in delta)
         half = events // 2
         best: int | None = None
-        for j, (lo, hi) in enumerate(self.switch_steps()):
-            a, d = first[j], delta[j]
-            if not lo < a < hi:
-                continue  # closed already: no edge while it stays closed
-            if a + d >= hi:
-                need = hi - a
-            elif a + d <= lo:
-                need = a - lo
-            else:
-                continue
+        for j, need in candidates:
             # axis j has made (k |d| + half) // events steps after step event k
-            k = -((half - need * events) // abs(d))
+            k = -((half - need * events) // abs(delta[j]))
             best = k if best is None else min(best, k)
-        if best is None:
-            return None
+        assert best is not None
         done = [(best * abs(d) + half) // events for d in delta]
         cut = [a + (n if d >= 0 else -n) for a, n, d in zip(first, done, delta, strict=True)]
         return limits.from_steps(cut)

@@ -199,7 +199,14 @@ class MoveBuilder:
             raise Refusal(c.TEXT_SOFT_LIMIT + letter)
         if check:
             return [], None, end
-        length = math.sqrt(math.fsum((b - a) ** 2 for a, b in zip(start, end, strict=True)))
+        if len(start) == len(end) == 7:  # fsum is exactly rounded: as over a generator
+            s, e = start, end
+            length = math.sqrt(math.fsum(((e[0] - s[0]) ** 2, (e[1] - s[1]) ** 2,
+                                          (e[2] - s[2]) ** 2, (e[3] - s[3]) ** 2,
+                                          (e[4] - s[4]) ** 2, (e[5] - s[5]) ** 2,
+                                          (e[6] - s[6]) ** 2)))  # fmt: skip
+        else:
+            length = math.sqrt(math.fsum((b - a) ** 2 for a, b in zip(start, end, strict=True)))
         if length == 0.0:
             return [], None, end
         limits = self.geometry.limits()

@@ -4,6 +4,7 @@ modal-group, repeat and sign checks; plus GRBL's number reading."""
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from typing import Final
 
@@ -28,11 +29,32 @@ NONMODAL_AXIS_COMMANDS: Final = frozenset({10, 28, 30, 92})
 """Non-modal commands that take the axis words (then no motion mode may)."""
 
 
+_FLOAT: Final = re.compile(r"[+-]?([0-9]*)(?:\.([0-9]*))?")
+"""What ``read_float`` takes: a sign, digits, one point and digits (ASCII digits only)."""
+
+
 def read_float(line: str, i: int) -> tuple[float, int] | None:
     """GRBL 0.9j ``read_float``: sign, digits, one point, at most 8 significant digits kept.
 
     Returns the value and the index after it, or None when no digit was read.
     """
+    found = _FLOAT.match(line, i)
+    assert found is not None  # the pattern matches the empty string
+    whole, fraction = found.groups()
+    ndigit = len(whole) + len(fraction) if fraction is not None else len(whole)
+    if ndigit == 0:
+        return None
+    if ndigit > 8:
+        return _read_float_digits(line, i)  # GRBL drops the digits after the 8th
+    # every digit kept: the same integer and power of ten as the loop below
+    intval = int(whole + fraction) if fraction else int(whole)
+    exp = -len(fraction) if fraction else 0
+    value = float(intval) * 10.0**exp if intval else 0.0
+    return (-value if line[i] == "-" else value), found.end()
+
+
+def _read_float_digits(line: str, i: int) -> tuple[float, int] | None:
+    """:func:`read_float` digit by digit, as GRBL reads (needed past 8 significant digits)."""
     n = len(line)
     negative = False
     if i < n and line[i] in "+-":
