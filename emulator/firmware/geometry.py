@@ -13,7 +13,7 @@ from typing import Final
 from mirobot_async import kinematics as kin
 
 from .. import motion
-from ..motion import AxisLimits, Vec7
+from ..motion import AxisLimits, Vec7, axes
 from . import codes as c
 
 Pose = tuple[float, float, float, float, float, float]
@@ -96,6 +96,8 @@ def lerp(a: Sequence[float], b: Sequence[float], u: float) -> tuple[float, ...]:
 
 def vec7(values: Sequence[float]) -> Vec7:
     """The first seven numbers of ``values`` as a joint vector."""
+    if type(values) is tuple and len(values) == motion.AXES:
+        return axes.vec7(values)  # seven floats: the same tuple (no copy)
     return (
         float(values[0]),
         float(values[1]),
