@@ -107,7 +107,14 @@ def check_line(
         offset = (0.0,) * 7
     if axis_letters and g.nonmodal != 53:
         system = work.systems[modal.coord_select if g.coord_select is None else g.coord_select]
-        offset = tuple(a + b + c_ for a, b, c_ in zip(offset, system, modal.g92, strict=True))
+        g92 = modal.g92
+        if len(offset) == len(system) == len(g92) == 7:  # as the generator below, unrolled
+            offset = (offset[0] + system[0] + g92[0], offset[1] + system[1] + g92[1],
+                      offset[2] + system[2] + g92[2], offset[3] + system[3] + g92[3],
+                      offset[4] + system[4] + g92[4], offset[5] + system[5] + g92[5],
+                      offset[6] + system[6] + g92[6])  # fmt: skip
+        else:
+            offset = tuple(a + b + c_ for a, b, c_ in zip(offset, system, g92, strict=True))
     target_list = list(base)
     for k, letter in enumerate(AXIS_WORDS):
         if letter in words:

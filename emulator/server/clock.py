@@ -8,12 +8,15 @@ simulated time stays continuous).
 
 from __future__ import annotations
 
+import itertools
 import math
 import re
 import time
 from collections import deque
+from typing import TYPE_CHECKING
 
-from .options import FirmwareLike
+if TYPE_CHECKING:
+    from .options import FirmwareLike
 
 __all__ = ["MOTION_END_HISTORY", "Simulation"]
 
@@ -135,7 +138,7 @@ class Simulation:
         self._motion_ends_seen = total
         if new <= 0:
             return
-        for sim in list(ends)[len(ends) - new :]:
+        for sim in itertools.islice(ends, len(ends) - new, None):
             if self._scale > 0:
                 self.motion_end_walls.append(
                     self._wall_anchor + (float(sim) - self._sim_anchor) / self._scale
