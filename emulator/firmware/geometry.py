@@ -7,6 +7,7 @@ IK failures arrive as the kinematics module's typed exceptions and leave here as
 from __future__ import annotations
 
 import math
+import operator
 from collections.abc import Mapping, Sequence
 from typing import Final
 
@@ -56,6 +57,9 @@ def shoulder_mirrored_pose(
 _LIMIT_SETTINGS: Final = (11, *range(100, 107), *range(110, 117), *range(120, 127))
 """The settings :meth:`Geometry.limits` is built from (junction deviation, steps, rates,
 accelerations)."""
+
+_limit_settings_of: Final = operator.itemgetter(*_LIMIT_SETTINGS)
+"""The values of ``_LIMIT_SETTINGS`` as a tuple (``KeyError`` when one is missing)."""
 
 FW_LETTERS: Final = "ABCDXYZ"  # soft-limit letters in the firmware's axis order a..g
 
@@ -195,7 +199,10 @@ class Geometry:
     def limits(self) -> AxisLimits:
         """The planner's axis limits from the current settings (rebuilt when they change)."""
         settings = self.settings
-        key = tuple(map(settings.get, _LIMIT_SETTINGS))
+        try:
+            key = _limit_settings_of(settings)
+        except KeyError:  # a setting missing: read as None, as ``settings.get`` reads it
+            key = tuple(map(settings.get, _LIMIT_SETTINGS))
         limits = self._limits
         if limits is None or key != self._limits_key:
             limits = self._limits = AxisLimits.from_settings(settings)

@@ -45,6 +45,7 @@ class CheckedLine:
 
 _VALUE_WORDS: Final = frozenset("NFSTE")
 _AXIS_WORD_SET: Final = frozenset(AXIS_WORDS)
+_AXIS_INDEX: Final = {letter: k for k, letter in enumerate(AXIS_WORDS)}
 
 
 def check_line(
@@ -116,13 +117,13 @@ def check_line(
         else:
             offset = tuple(a + b + c_ for a, b, c_ in zip(offset, system, g92, strict=True))
     target_list = list(base)
-    for k, letter in enumerate(AXIS_WORDS):
-        if letter in words:
-            value = words[letter] * scale
-            if distance == 90:
-                target_list[k] = value + offset[k]
-            else:
-                target_list[k] = value + base[k]
+    for letter in axis_letters:  # the axis words present, in AXIS_WORDS order
+        k = _AXIS_INDEX[letter]
+        value = words[letter] * scale
+        if distance == 90:
+            target_list[k] = value + offset[k]
+        else:
+            target_list[k] = value + base[k]
     target = vec7(target_list)
     # [19] G53
     if g.nonmodal == 53 and motion_mode not in (0, 1):
