@@ -64,6 +64,12 @@ _limit_settings_of: Final = operator.itemgetter(*_LIMIT_SETTINGS)
 FW_LETTERS: Final = "ABCDXYZ"  # soft-limit letters in the firmware's axis order a..g
 
 
+_SOFT_LIMIT_AXES: Final = tuple(
+    (letter, motion.LETTER_TO_JOINT[k], 130 + k, 140 + k) for k, letter in enumerate(FW_LETTERS)
+)
+"""Per firmware axis a..g: its letter, its joint index and its ``$13x``/``$14x`` settings."""
+
+
 class Refusal(Exception):
     """A motion refused with one of the "ok but dropped" texts (``then``: a second text the
     firmware prints after it, see :meth:`MoveBuilder.plan`)."""
@@ -212,11 +218,12 @@ class Geometry:
 
     def soft_violation(self, q: Sequence[float]) -> str | None:
         """The firmware letter of the first axis (order a..g) outside its ``$13x/$14x`` range."""
-        if self.settings[20] == 0:
+        settings = self.settings
+        if settings[20] == 0:
             return None
-        for k, letter in enumerate(FW_LETTERS):
-            value = q[motion.LETTER_TO_JOINT[k]]
-            if value > self.settings[130 + k] or value < -self.settings[140 + k]:
+        for letter, joint, high, low in _SOFT_LIMIT_AXES:
+            value = q[joint]
+            if value > settings[high] or value < -settings[low]:
                 return letter
         return None
 
