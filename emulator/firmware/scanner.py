@@ -3,6 +3,7 @@ modal-group, repeat and sign checks; plus GRBL's number reading."""
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 from dataclasses import dataclass, field
@@ -129,7 +130,25 @@ _WORDS: Final = re.compile(r"(?:[A-Z][+-]?[0-9]*(?:\.[0-9]*)?)*")
 
 def scan(line: str, profile: str) -> tuple[GBlock, int]:
     """The words of ``line`` and 0, or the words before the first scanning error and its GRBL
-    status (the classic firmware acts on the ``M20``/``M21``/``M50`` scanned before it)."""
+    status (the classic firmware acts on the ``M20``/``M21``/``M50`` scanned before it).
+
+    A line seen lately is not read again: its words are copied from the last reading (a fresh
+    :class:`GBlock` each call, so a caller may change its own)."""
+    scanned, status = _scan_memo(line, profile)
+    copy = object.__new__(GBlock)
+    copy.__dict__.update(scanned.__dict__)
+    copy.words = dict(scanned.words)
+    return copy, status
+
+
+@functools.lru_cache(maxsize=512)
+def _scan_memo(line: str, profile: str) -> tuple[GBlock, int]:
+    """:func:`_scan` of the lines seen lately (the result is never handed out: copies are)."""
+    return _scan(line, profile)
+
+
+def _scan(line: str, profile: str) -> tuple[GBlock, int]:
+    """The words of ``line`` (see :func:`scan`), read now."""
     g = GBlock()
     groups = _Groups()
     if _WORDS.fullmatch(line) is None:

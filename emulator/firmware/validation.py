@@ -59,7 +59,7 @@ def check_line(
     distance = modal.distance if g.distance is None else g.distance
     units = modal.units if g.units is None else g.units
     feed_mode = modal.feed_mode if g.feed_mode is None else g.feed_mode
-    axis_letters = [letter for letter in AXIS_WORDS if letter in words]
+    axis_letters = list(filter(words.__contains__, AXIS_WORDS))  # in AXIS_WORDS order
     nonmodal_axes = g.nonmodal in NONMODAL_AXIS_COMMANDS  # the axis words are G10/28/30/92's
     axis_command = not nonmodal_axes and (g.axis_command or bool(axis_letters))
     used = set(_VALUE_WORDS | _AXIS_WORD_SET) if nonmodal_axes else set(_VALUE_WORDS)
@@ -124,7 +124,7 @@ def check_line(
             target_list[k] = value + offset[k]
         else:
             target_list[k] = value + base[k]
-    target = vec7(target_list)
+    target = vec7(tuple(target_list))
     # [19] G53
     if g.nonmodal == 53 and motion_mode not in (0, 1):
         return c.G53_INVALID_MOTION_MODE
@@ -154,7 +154,7 @@ def check_line(
                 used |= arc_words
     if axis_command:
         used |= _AXIS_WORD_SET
-    if words.keys() - used:
+    if not used.issuperset(words):  # a word no command used
         return c.UNUSED_WORDS
     return CheckedLine(
         g, q0, cart, motion_mode, distance, units, feed_mode, feed, pump, valve,

@@ -144,7 +144,7 @@ class Simulation:
         self._motion_ends_seen = total
         if new <= 0:
             return
-        for sim in itertools.islice(ends, len(ends) - new, None):
+        for sim in (ends[-1],) if new == 1 else itertools.islice(ends, len(ends) - new, None):
             if self._scale > 0:
                 self.motion_end_walls.append(
                     self._wall_anchor + (float(sim) - self._sim_anchor) / self._scale

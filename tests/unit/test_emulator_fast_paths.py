@@ -7,7 +7,7 @@ import itertools
 import math
 
 from mirobot_emulator.firmware.geometry import Geometry
-from mirobot_emulator.firmware.scanner import _read_float_digits, read_float
+from mirobot_emulator.firmware.scanner import _read_float_digits, _scan, read_float, scan
 from mirobot_emulator.motion import AxisLimits, joint_block
 from mirobot_emulator.motion.axes import round_half_away, vec7
 from mirobot_emulator.settings import default_settings
@@ -63,3 +63,15 @@ def test_switch_steps_is_a_fresh_list_each_time() -> None:
     first = geometry.switch_steps()
     first.clear()
     assert len(geometry.switch_steps()) == 3
+
+
+def test_a_line_scanned_again_gives_the_same_words_in_a_block_of_its_own() -> None:
+    first, status = scan("M21G90G01X5.5F2000", "classic")
+    assert status == 0
+    assert first == _scan("M21G90G01X5.5F2000", "classic")[0]
+    first.words["X"] = 99.0  # a caller's change stays in its own block
+    again, _ = scan("M21G90G01X5.5F2000", "classic")
+    assert again is not first
+    assert again.words == {"X": 5.5, "F": 2000.0}
+    assert again.coord_mode == 21 and again.motion == 1 and again.distance == 90
+    assert scan("G1X", "2021")[1] == _scan("G1X", "2021")[1] != 0
