@@ -268,12 +268,16 @@ class Geometry:
                 pins |= switch_pins(j + 1)
         return pins
 
-    def switch_crossing(self, start: Sequence[float], end: Sequence[float]) -> Vec7 | None:
+    def switch_crossing(
+        self, start: Sequence[float], end: Sequence[float], limits: AxisLimits | None = None
+    ) -> Vec7 | None:
         """Where a joint move from ``start`` to ``end`` stops on a J1..J3 switch (``$21=1``):
-        the step event of GRBL's Bresenham line at which the first switch closes, or None."""
+        the step event of GRBL's Bresenham line at which the first switch closes, or None.
+        ``limits``: :meth:`limits` when the caller has just read them."""
         if not self.settings[21]:
             return None
-        limits = self.limits()
+        if limits is None:
+            limits = self.limits()
         if limits.steps is None:  # an ideal machine: the first switch position on the line
             return self._ideal_crossing(start, end)
         first, last = limits.to_steps(vec7(start)), limits.to_steps(vec7(end))
