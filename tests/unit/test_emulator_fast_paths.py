@@ -75,3 +75,16 @@ def test_a_line_scanned_again_gives_the_same_words_in_a_block_of_its_own() -> No
     assert again.words == {"X": 5.5, "F": 2000.0}
     assert again.coord_mode == 21 and again.motion == 1 and again.distance == 90
     assert scan("G1X", "2021")[1] == _scan("G1X", "2021")[1] != 0
+
+
+def test_equal_blocks_share_their_nominal_profile_which_is_the_trapezoid() -> None:
+    from mirobot_emulator.motion.profile import trapezoid
+
+    limits = AxisLimits.from_settings(default_settings("classic"))
+    end = (10.0, 5.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    first = joint_block((0.0,) * 7, end, 2000.0, limits)
+    second = joint_block((0.0,) * 7, end, 2000.0, limits)
+    assert second.profile is first.profile
+    fresh = trapezoid(0.0, first.length, 0.0, 0.0, first.speed, first.accel)
+    assert first.profile.phases() == fresh.phases()
+    assert (first.profile.s_end, first.profile.v_end) == (fresh.s_end, fresh.v_end)
