@@ -164,25 +164,27 @@ class Firmware:
         """
         if not dt >= 0.0:
             raise ValueError(f"dt must be >= 0, got {dt}")
-        planner = self._m.planner
+        m, uart, wire = self._m, self.uart, self._wire
+        planner = m.planner
         end = self.now + dt
         self._service()
         zero_steps = 0
-        m, uart = self._m, self.uart
+        next_change, next_arrival = planner.time_to_next_change, wire.next_event
         while True:
-            uart.sync(m.printed, self.now)  # what the last events printed, printed then
-            ttc = planner.time_to_next_change()
-            step = ttc
-            for at in (self._parse_until, self._wire.next_event(), self._boot_until):
+            now = self.now
+            uart.sync(m.printed, now)  # what the last events printed, printed then
+            step = next_change()
+            for at in (self._parse_until, next_arrival(), self._boot_until):
                 if at is not None:
-                    wait = max(at - self.now, 0.0)
-                    step = wait if step is None else min(step, wait)
+                    wait = max(at - now, 0.0)
+                    if step is None or wait < step:  # min(step, wait)
+                        step = wait
             if step is None:
                 if not math.isinf(end):
-                    planner.advance(end - self.now)  # its clock times the starvations
+                    planner.advance(end - now)  # its clock times the starvations
                     self.now = end
                 break
-            left = end - self.now
+            left = end - now
             free, busy = planner.free, planner.busy
             if step > left:
                 # within SNAP_SECONDS of a block end the planner finishes the block here
@@ -190,11 +192,11 @@ class Firmware:
                 self.now = end
                 if planner.free != free:
                     self._block_done(busy)
-                if len(self._wire) and (due := self._wire.take_due(self.now)):
+                if len(wire) and (due := wire.take_due(self.now)):
                     self._deliver(due)  # the bytes arrived by ``end``
                 break
             planner.advance(step)
-            self.now += step
+            self.now = now = now + step
             zero_steps = zero_steps + 1 if step == 0.0 else 0
             if planner.free != free:
                 self._block_done(busy)
@@ -202,7 +204,7 @@ class Firmware:
                 self._finish_boot()
             if self._parse_until is not None and self._parse_until <= self.now:
                 self._finish_parse()
-            if len(self._wire) and (due := self._wire.take_due(self.now)):
+            if len(wire) and (due := wire.take_due(self.now)):
                 self._deliver(due)
             if zero_steps > 100_000:  # pragma: no cover - a planner bug, never loop forever
                 break

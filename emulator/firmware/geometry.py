@@ -7,13 +7,14 @@ IK failures arrive as the kinematics module's typed exceptions and leave here as
 from __future__ import annotations
 
 import math
+import operator
 from collections.abc import Mapping, Sequence
 from typing import Final
 
 from mirobot_async import kinematics as kin
 
 from .. import motion
-from ..motion import AxisLimits, Vec7
+from ..motion import AxisLimits, Vec7, axes
 from . import codes as c
 
 Pose = tuple[float, float, float, float, float, float]
@@ -57,7 +58,16 @@ _LIMIT_SETTINGS: Final = (11, *range(100, 107), *range(110, 117), *range(120, 12
 """The settings :meth:`Geometry.limits` is built from (junction deviation, steps, rates,
 accelerations)."""
 
+_limit_settings_of: Final = operator.itemgetter(*_LIMIT_SETTINGS)
+"""The values of ``_LIMIT_SETTINGS`` as a tuple (``KeyError`` when one is missing)."""
+
 FW_LETTERS: Final = "ABCDXYZ"  # soft-limit letters in the firmware's axis order a..g
+
+
+_SOFT_LIMIT_AXES: Final = tuple(
+    (letter, motion.LETTER_TO_JOINT[k], 130 + k, 140 + k) for k, letter in enumerate(FW_LETTERS)
+)
+"""Per firmware axis a..g: its letter, its joint index and its ``$13x``/``$14x`` settings."""
 
 
 class Refusal(Exception):
@@ -96,6 +106,8 @@ def lerp(a: Sequence[float], b: Sequence[float], u: float) -> tuple[float, ...]:
 
 def vec7(values: Sequence[float]) -> Vec7:
     """The first seven numbers of ``values`` as a joint vector."""
+    if type(values) is tuple and len(values) == motion.AXES:
+        return axes.vec7(values)  # seven floats: the same tuple (no copy)
     return (
         float(values[0]),
         float(values[1]),
@@ -135,6 +147,8 @@ class Geometry:
         self.settings = settings
         self._limits: AxisLimits | None = None
         self._limits_key: tuple[float | None, ...] = ()
+        self._switch_steps: tuple[tuple[int, int], ...] | None = None
+        """:meth:`switch_steps` of ``_limits`` (cleared when the limits are rebuilt)."""
 
     def dh_values(self) -> tuple[float, float, float, float, float, float]:
         """D1, A1, A2, A3, D4, L (classic: fixed; 2021: ``$29..$34``)."""
@@ -191,26 +205,43 @@ class Geometry:
     def limits(self) -> AxisLimits:
         """The planner's axis limits from the current settings (rebuilt when they change)."""
         settings = self.settings
-        key = tuple(settings.get(n) for n in _LIMIT_SETTINGS)
-        if key != self._limits_key or self._limits is None:
-            self._limits = AxisLimits.from_settings(settings)
+        try:
+            key = _limit_settings_of(settings)
+        except KeyError:  # a setting missing: read as None, as ``settings.get`` reads it
+            key = tuple(map(settings.get, _LIMIT_SETTINGS))
+        limits = self._limits
+        if limits is None or key != self._limits_key:
+            limits = self._limits = AxisLimits.from_settings(settings)
             self._limits_key = key
-        return self._limits
+            self._switch_steps = None
+        return limits
 
     def soft_violation(self, q: Sequence[float]) -> str | None:
         """The firmware letter of the first axis (order a..g) outside its ``$13x/$14x`` range."""
-        if self.settings[20] == 0:
+        settings = self.settings
+        if settings[20] == 0:
             return None
-        for k, letter in enumerate(FW_LETTERS):
-            value = q[motion.LETTER_TO_JOINT[k]]
-            if value > self.settings[130 + k] or value < -self.settings[140 + k]:
+        for letter, joint, high, low in _SOFT_LIMIT_AXES:
+            value = q[joint]
+            if value > settings[high] or value < -settings[low]:
                 return letter
         return None
 
     def switch_steps(self) -> list[tuple[int, int]]:
         """Per J1..J3, the motor steps (low, high) at and beyond which its switch is closed:
         the first whole steps past the switch positions (``SWITCH_OVERTRAVEL``)."""
-        steps = self.limits().steps
+        return list(self._switch_table(self.limits()))
+
+    def _switch_table(self, limits: AxisLimits) -> tuple[tuple[int, int], ...]:
+        """:meth:`switch_steps` of ``limits`` (the current ones), computed once per limits."""
+        table = self._switch_steps
+        if table is None:
+            table = self._switch_steps = self._switch_steps_of(limits)
+        return table
+
+    @staticmethod
+    def _switch_steps_of(limits: AxisLimits) -> tuple[tuple[int, int], ...]:
+        steps = limits.steps
         out = []
         for j, (lo, hi) in enumerate(HARD_LIMIT_SWITCHES):
             per = steps[j] if steps is not None else 1e6  # an ideal machine: a fine grid
@@ -220,7 +251,7 @@ class Geometry:
                     math.floor((hi + SWITCH_OVERTRAVEL) * per) + 1,
                 )
             )
-        return out
+        return tuple(out)
 
     def _to_steps(self, q: Sequence[float]) -> list[int]:
         limits = self.limits()
@@ -232,39 +263,44 @@ class Geometry:
         """The ``Lim`` bits of the J1..J3 switches closed at ``q``."""
         at = self._to_steps(q)
         pins = 0
-        for j, (lo, hi) in enumerate(self.switch_steps()):
+        for j, (lo, hi) in enumerate(self._switch_table(self.limits())):
             if at[j] <= lo or at[j] >= hi:
                 pins |= switch_pins(j + 1)
         return pins
 
-    def switch_crossing(self, start: Sequence[float], end: Sequence[float]) -> Vec7 | None:
+    def switch_crossing(
+        self, start: Sequence[float], end: Sequence[float], limits: AxisLimits | None = None
+    ) -> Vec7 | None:
         """Where a joint move from ``start`` to ``end`` stops on a J1..J3 switch (``$21=1``):
-        the step event of GRBL's Bresenham line at which the first switch closes, or None."""
+        the step event of GRBL's Bresenham line at which the first switch closes, or None.
+        ``limits``: :meth:`limits` when the caller has just read them."""
         if not self.settings[21]:
             return None
-        limits = self.limits()
+        if limits is None:
+            limits = self.limits()
         if limits.steps is None:  # an ideal machine: the first switch position on the line
             return self._ideal_crossing(start, end)
         first, last = limits.to_steps(vec7(start)), limits.to_steps(vec7(end))
+        candidates: list[tuple[int, int]] = []  # (axis, steps to its switch edge)
+        for j, (lo, hi) in enumerate(self._switch_table(limits)):
+            a, b = first[j], last[j]
+            if not lo < a < hi:
+                continue  # closed already: no edge while it stays closed
+            if b >= hi:
+                candidates.append((j, hi - a))
+            elif b <= lo:
+                candidates.append((j, a - lo))
+        if not candidates:
+            return None
         delta = [b - a for a, b in zip(first, last, strict=True)]
         events = max(abs(d) for d in delta)
         half = events // 2
         best: int | None = None
-        for j, (lo, hi) in enumerate(self.switch_steps()):
-            a, d = first[j], delta[j]
-            if not lo < a < hi:
-                continue  # closed already: no edge while it stays closed
-            if a + d >= hi:
-                need = hi - a
-            elif a + d <= lo:
-                need = a - lo
-            else:
-                continue
+        for j, need in candidates:
             # axis j has made (k |d| + half) // events steps after step event k
-            k = -((half - need * events) // abs(d))
+            k = -((half - need * events) // abs(delta[j]))
             best = k if best is None else min(best, k)
-        if best is None:
-            return None
+        assert best is not None
         done = [(best * abs(d) + half) // events for d in delta]
         cut = [a + (n if d >= 0 else -n) for a, n, d in zip(first, done, delta, strict=True)]
         return limits.from_steps(cut)

@@ -96,6 +96,8 @@ class LineBuffer:
         line gets ``Line overflow`` and then the reply of its tail).
         """
         ring = self._ring
+        if not ring:
+            return None  # nothing received: the partial line (and its comment state) waits
         if not self._comment:
             line = self._take_plain_line()
             if line is not None:

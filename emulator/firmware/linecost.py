@@ -31,6 +31,7 @@ the line's reply (GRBL reports between lines); the other realtime bytes act at o
 
 from __future__ import annotations
 
+import functools
 import re
 from typing import Final
 
@@ -55,6 +56,7 @@ _AXIS: Final = re.compile(r"[XYZABC]")
 _NON_MOTION: Final = re.compile(r"G0*(?:4|10|28|30|53|92)(?![0-9])")
 
 
+@functools.lru_cache(maxsize=1024)
 def line_seconds(text: str, cartesian_mode: bool) -> float:
     """Parse time of the filtered line ``text`` with the parser in Cartesian mode (``M20``) or
     not. A cheap textual estimate, not a second parser: a refused line costs what its words

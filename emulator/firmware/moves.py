@@ -148,10 +148,11 @@ class MoveBuilder:
         if not cart:
             if locked:
                 raise Refusal(c.TEXT_LOCKED)
-            if self.geometry.soft_violation(target) is None:
+            letter = self.geometry.soft_violation(target)
+            if letter is None:
                 self.last_target = target
             rate = None if motion_mode == 0 else feed
-            return self.joint_move(start, target, rate, feed_mode, check=check)
+            return self._joint_move(start, target, rate, feed_mode, letter, check=check)
         if motion_mode == 0 or (motion_mode == 1 and not self.linear_lines()):
             try:
                 q = self.geometry.ik(target[:6])
@@ -195,11 +196,31 @@ class MoveBuilder:
         the speed of the whole move, as GRBL's single block does) and the alarm stops it when
         the first is done."""
         letter = self.geometry.soft_violation(end)
+        return self._joint_move(start, end, feed, feed_mode, letter, check=check)
+
+    def _joint_move(
+        self,
+        start: Vec7,
+        end: Vec7,
+        feed: float | None,
+        feed_mode: int,
+        letter: str | None,
+        *,
+        check: bool,
+    ) -> Planned:
+        """:meth:`joint_move` with the soft-limit letter of ``end`` known (None: within)."""
         if letter is not None:
             raise Refusal(c.TEXT_SOFT_LIMIT + letter)
         if check:
             return [], None, end
-        length = math.sqrt(math.fsum((b - a) ** 2 for a, b in zip(start, end, strict=True)))
+        if len(start) == len(end) == 7:  # fsum is exactly rounded: as over a generator
+            s, e = start, end
+            length = math.sqrt(math.fsum(((e[0] - s[0]) ** 2, (e[1] - s[1]) ** 2,
+                                          (e[2] - s[2]) ** 2, (e[3] - s[3]) ** 2,
+                                          (e[4] - s[4]) ** 2, (e[5] - s[5]) ** 2,
+                                          (e[6] - s[6]) ** 2)))  # fmt: skip
+        else:
+            length = math.sqrt(math.fsum((b - a) ** 2 for a, b in zip(start, end, strict=True)))
         if length == 0.0:
             return [], None, end
         limits = self.geometry.limits()
@@ -213,7 +234,7 @@ class MoveBuilder:
             feed = None  # the max rates limit the motion
         elif feed is not None and feed <= 0.0:
             feed = MIN_FEED
-        cut = self.geometry.switch_crossing(start, end)
+        cut = self.geometry.switch_crossing(start, end, limits)
         try:
             if cut is None:
                 return [motion.joint_block(start, end, feed, limits)], None, end

@@ -3,7 +3,9 @@ modal-group, repeat and sign checks; plus GRBL's number reading."""
 
 from __future__ import annotations
 
+import functools
 import math
+import re
 from dataclasses import dataclass, field
 from typing import Final
 
@@ -28,11 +30,36 @@ NONMODAL_AXIS_COMMANDS: Final = frozenset({10, 28, 30, 92})
 """Non-modal commands that take the axis words (then no motion mode may)."""
 
 
+_FLOAT: Final = re.compile(r"[+-]?([0-9]*)(?:\.([0-9]*))?")
+"""What ``read_float`` takes: a sign, digits, one point and digits (ASCII digits only)."""
+
+
 def read_float(line: str, i: int) -> tuple[float, int] | None:
     """GRBL 0.9j ``read_float``: sign, digits, one point, at most 8 significant digits kept.
 
     Returns the value and the index after it, or None when no digit was read.
     """
+    found = _FLOAT.match(line, i)
+    assert found is not None  # the pattern matches the empty string
+    whole, fraction = found.groups()
+    ndigit = len(whole) + len(fraction) if fraction is not None else len(whole)
+    if ndigit == 0:
+        return None
+    if ndigit > 8:
+        return _read_float_digits(line, i)  # GRBL drops the digits after the 8th
+    return _kept_digits(whole, fraction, line[i] == "-"), found.end()
+
+
+def _kept_digits(whole: str, fraction: str | None, negative: bool) -> float:
+    """The value of at most 8 digits: the same integer and power of ten as the digit loop."""
+    intval = int(whole + fraction) if fraction else int(whole)
+    exp = -len(fraction) if fraction else 0
+    value = float(intval) * 10.0**exp if intval else 0.0
+    return -value if negative else value
+
+
+def _read_float_digits(line: str, i: int) -> tuple[float, int] | None:
+    """:func:`read_float` digit by digit, as GRBL reads (needed past 8 significant digits)."""
     n = len(line)
     negative = False
     if i < n and line[i] in "+-":
@@ -94,11 +121,57 @@ class GBlock:
     words: dict[str, float] = field(default_factory=dict)
 
 
+_WORD: Final = re.compile(r"([A-Z])([+-]?)([0-9]*)(?:\.([0-9]*))?")
+"""A word as :func:`scan` reads it: its letter, then what ``read_float`` takes."""
+
+_WORDS: Final = re.compile(r"(?:[A-Z][+-]?[0-9]*(?:\.[0-9]*)?)*")
+"""A line made of such words only (then they are read in one pass)."""
+
+
 def scan(line: str, profile: str) -> tuple[GBlock, int]:
     """The words of ``line`` and 0, or the words before the first scanning error and its GRBL
-    status (the classic firmware acts on the ``M20``/``M21``/``M50`` scanned before it)."""
+    status (the classic firmware acts on the ``M20``/``M21``/``M50`` scanned before it).
+
+    A line seen lately is not read again: its words are copied from the last reading (a fresh
+    :class:`GBlock` each call, so a caller may change its own)."""
+    scanned, status = _scan_memo(line, profile)
+    copy = object.__new__(GBlock)
+    copy.__dict__.update(scanned.__dict__)
+    copy.words = dict(scanned.words)
+    return copy, status
+
+
+@functools.lru_cache(maxsize=512)
+def _scan_memo(line: str, profile: str) -> tuple[GBlock, int]:
+    """:func:`_scan` of the lines seen lately (the result is never handed out: copies are)."""
+    return _scan(line, profile)
+
+
+def _scan(line: str, profile: str) -> tuple[GBlock, int]:
+    """The words of ``line`` (see :func:`scan`), read now."""
     g = GBlock()
     groups = _Groups()
+    if _WORDS.fullmatch(line) is None:
+        return _scan_by_position(line, profile, g, groups)  # an error somewhere: read in order
+    for word in _WORD.finditer(line):  # the same words the position loop would read
+        letter, sign, whole, fraction = word.groups()
+        ndigit = len(whole) + len(fraction) if fraction is not None else len(whole)
+        if ndigit == 0:
+            return g, c.BAD_NUMBER_FORMAT
+        if ndigit > 8:
+            parsed = _read_float_digits(line, word.start(2))
+            assert parsed is not None  # it has digits
+            value = parsed[0]
+        else:
+            value = _kept_digits(whole, fraction, sign == "-")
+        status = _word(g, letter, value, groups, profile)
+        if status:
+            return g, status
+    return g, 0
+
+
+def _scan_by_position(line: str, profile: str, g: GBlock, groups: _Groups) -> tuple[GBlock, int]:
+    """:func:`scan` word by word from the start, stopping at the first error."""
     i = 0
     n = len(line)
     while i < n:
@@ -109,18 +182,21 @@ def scan(line: str, profile: str) -> tuple[GBlock, int]:
         if parsed is None:
             return g, c.BAD_NUMBER_FORMAT
         value, i = parsed
-        if letter == "G" or letter == "M":
-            int_value = uint8(value)
-            mantissa = c_round(100.0 * (value - int_value)) % 65536
-            if letter == "G":
-                status = _g_word(g, int_value, mantissa, groups, profile)
-            else:
-                status = _m_word(g, int_value, mantissa, groups)
-        else:
-            status = _value_word(g, letter, value, groups)
+        status = _word(g, letter, value, groups, profile)
         if status:
             return g, status
     return g, 0
+
+
+def _word(g: GBlock, letter: str, value: float, groups: _Groups, profile: str) -> int:
+    """One word into ``g``: 0, or its GRBL status."""
+    if letter == "G" or letter == "M":
+        int_value = uint8(value)
+        mantissa = c_round(100.0 * (value - int_value)) % 65536
+        if letter == "G":
+            return _g_word(g, int_value, mantissa, groups, profile)
+        return _m_word(g, int_value, mantissa, groups)
+    return _value_word(g, letter, value, groups)
 
 
 class _Groups:

@@ -45,6 +45,7 @@ class CheckedLine:
 
 _VALUE_WORDS: Final = frozenset("NFSTE")
 _AXIS_WORD_SET: Final = frozenset(AXIS_WORDS)
+_AXIS_INDEX: Final = {letter: k for k, letter in enumerate(AXIS_WORDS)}
 
 
 def check_line(
@@ -58,7 +59,7 @@ def check_line(
     distance = modal.distance if g.distance is None else g.distance
     units = modal.units if g.units is None else g.units
     feed_mode = modal.feed_mode if g.feed_mode is None else g.feed_mode
-    axis_letters = [letter for letter in AXIS_WORDS if letter in words]
+    axis_letters = list(filter(words.__contains__, AXIS_WORDS))  # in AXIS_WORDS order
     nonmodal_axes = g.nonmodal in NONMODAL_AXIS_COMMANDS  # the axis words are G10/28/30/92's
     axis_command = not nonmodal_axes and (g.axis_command or bool(axis_letters))
     used = set(_VALUE_WORDS | _AXIS_WORD_SET) if nonmodal_axes else set(_VALUE_WORDS)
@@ -107,16 +108,23 @@ def check_line(
         offset = (0.0,) * 7
     if axis_letters and g.nonmodal != 53:
         system = work.systems[modal.coord_select if g.coord_select is None else g.coord_select]
-        offset = tuple(a + b + c_ for a, b, c_ in zip(offset, system, modal.g92, strict=True))
+        g92 = modal.g92
+        if len(offset) == len(system) == len(g92) == 7:  # as the generator below, unrolled
+            offset = (offset[0] + system[0] + g92[0], offset[1] + system[1] + g92[1],
+                      offset[2] + system[2] + g92[2], offset[3] + system[3] + g92[3],
+                      offset[4] + system[4] + g92[4], offset[5] + system[5] + g92[5],
+                      offset[6] + system[6] + g92[6])  # fmt: skip
+        else:
+            offset = tuple(a + b + c_ for a, b, c_ in zip(offset, system, g92, strict=True))
     target_list = list(base)
-    for k, letter in enumerate(AXIS_WORDS):
-        if letter in words:
-            value = words[letter] * scale
-            if distance == 90:
-                target_list[k] = value + offset[k]
-            else:
-                target_list[k] = value + base[k]
-    target = vec7(target_list)
+    for letter in axis_letters:  # the axis words present, in AXIS_WORDS order
+        k = _AXIS_INDEX[letter]
+        value = words[letter] * scale
+        if distance == 90:
+            target_list[k] = value + offset[k]
+        else:
+            target_list[k] = value + base[k]
+    target = vec7(tuple(target_list))
     # [19] G53
     if g.nonmodal == 53 and motion_mode not in (0, 1):
         return c.G53_INVALID_MOTION_MODE
@@ -146,7 +154,7 @@ def check_line(
                 used |= arc_words
     if axis_command:
         used |= _AXIS_WORD_SET
-    if words.keys() - used:
+    if not used.issuperset(words):  # a word no command used
         return c.UNUSED_WORDS
     return CheckedLine(
         g, q0, cart, motion_mode, distance, units, feed_mode, feed, pump, valve,

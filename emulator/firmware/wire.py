@@ -29,6 +29,7 @@ class Wire:
         self._data = bytearray()
         self._head_at = 0.0  # arrival of the first byte in transit
         self._last_at = -math.inf  # arrival of the last byte delivered
+        self._event_index: int | None = None  # next_event's index into _data (None: unknown)
 
     def __len__(self) -> int:
         return len(self._data)
@@ -40,13 +41,16 @@ class Wire:
         if not self._data:
             self._head_at = max(now, self._last_at) + self.byte_seconds
         self._data += data
+        self._event_index = None
 
     def next_event(self) -> float | None:
         """When the next line end or realtime byte arrives (else the last byte), None if empty."""
         if not self._data:
             return None
-        found = _EVENT_BYTES.search(self._data)
-        index = found.start() if found is not None else len(self._data) - 1
+        index = self._event_index
+        if index is None:  # the bytes changed since the last search
+            found = _EVENT_BYTES.search(self._data)
+            index = self._event_index = found.start() if found is not None else len(self._data) - 1
         return self._head_at + index * self.byte_seconds
 
     def take_due(self, now: float) -> bytes:
@@ -60,6 +64,7 @@ class Wire:
         count = min(count, len(self._data))
         due = bytes(self._data[:count])
         del self._data[:count]
+        self._event_index = None
         self._last_at = self._head_at + (count - 1) * self.byte_seconds
         self._head_at += count * self.byte_seconds
         return due

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Final
 
 AXES: Final = 7
@@ -19,6 +19,8 @@ Vec7 = tuple[float, float, float, float, float, float, float]
 Steps7 = tuple[int, int, int, int, int, int, int]
 
 ZERO: Final[Vec7] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+_NO_STEPS: Final[Steps7] = (0, 0, 0, 0, 0, 0, 0)
+_UNSEEN: Final = object()  # the key of an empty slot of AxisLimits' memo (no argument is it)
 
 LETTER_TO_JOINT: Final[tuple[int, ...]] = (3, 4, 5, 6, 0, 1, 2)
 """Firmware axis letter a..g (settings ``$110 + k``, status angles) -> joint index."""
@@ -40,6 +42,12 @@ ACCEL_SETTING: Final = 120
 
 def vec7(values: Iterable[float]) -> Vec7:
     """Seven floats as a :data:`Vec7` (``ValueError`` for any other count)."""
+    if type(values) is tuple and len(values) == AXES:  # the common case, without a generator
+        a, b, c, d, e, f, g = values
+        if (type(a) is float and type(b) is float and type(c) is float and type(d) is float
+                and type(e) is float and type(f) is float and type(g) is float):  # fmt: skip
+            return values  # already seven floats (a tuple is immutable: the same value)
+        return (float(a), float(b), float(c), float(d), float(e), float(f), float(g))
     v = tuple(float(x) for x in values)
     if len(v) != AXES:
         raise ValueError(f"expected {AXES} values (J1..J6, rail), got {len(v)}")
@@ -49,7 +57,9 @@ def vec7(values: Iterable[float]) -> Vec7:
 def finite_vec7(values: Iterable[float], what: str) -> Vec7:
     """:func:`vec7` that also refuses NaN and infinities, naming ``what`` in the error."""
     v = vec7(values)
-    if not all(math.isfinite(x) for x in v):
+    isfinite = math.isfinite
+    if not (isfinite(v[0]) and isfinite(v[1]) and isfinite(v[2]) and isfinite(v[3])
+            and isfinite(v[4]) and isfinite(v[5]) and isfinite(v[6])):  # fmt: skip
         raise ValueError(f"{what} must be finite, got {v}")
     return v
 
@@ -68,6 +78,9 @@ def lerp(a: Vec7, d: Vec7, u: float) -> Vec7:
 
 def norm(d: Sequence[float]) -> float:
     """Euclidean length (degrees and rail millimetres mixed, as GRBL mixes its axes)."""
+    if len(d) == AXES:  # fsum is exactly rounded: the same sum as over a generator
+        return math.sqrt(math.fsum((d[0] * d[0], d[1] * d[1], d[2] * d[2], d[3] * d[3],
+                                    d[4] * d[4], d[5] * d[5], d[6] * d[6])))  # fmt: skip
     return math.sqrt(math.fsum(x * x for x in d))
 
 
@@ -106,6 +119,14 @@ class AxisLimits:
     accel: Vec7
     steps: Vec7 | None = None
     junction_deviation: float = 0.0
+    _steps_memo: list[tuple[object, Steps7]] = field(
+        default_factory=lambda: [(_UNSEEN, _NO_STEPS), (_UNSEEN, _NO_STEPS)],
+        init=False,
+        repr=False,
+        compare=False,
+    )
+    """The last two tuples given to :meth:`to_steps` and their results (a joint line rounds
+    its start and its end several times: the no-step check, the switch crossing, the block)."""
 
     def __post_init__(self) -> None:
         for name, values in (("max_rate", self.max_rate), ("accel", self.accel)):
@@ -147,11 +168,30 @@ class AxisLimits:
         """Whole motor steps nearest to the joint vector ``q`` (``ValueError`` without steps)."""
         if self.steps is None:
             raise ValueError("these limits have no steps per degree")
-        s = self.steps
-        return (round_half_away(q[0] * s[0]), round_half_away(q[1] * s[1]),
-                round_half_away(q[2] * s[2]), round_half_away(q[3] * s[3]),
-                round_half_away(q[4] * s[4]), round_half_away(q[5] * s[5]),
-                round_half_away(q[6] * s[6]))  # fmt: skip
+        memo = self._steps_memo
+        last, before = memo
+        if last[0] is q:  # the same tuple object: the same value (a tuple is immutable)
+            return last[1]
+        if before[0] is q:
+            return before[1]
+        steps = self._round_steps(q, self.steps)
+        if type(q) is tuple:
+            memo[:] = ((q, steps), last)  # one assignment: no torn pair for another thread
+        return steps
+
+    @staticmethod
+    def _round_steps(q: Sequence[float], s: Vec7) -> Steps7:
+        # round_half_away inlined (the hottest call of a joint line)
+        floor = math.floor
+        x0, x1, x2, x3, x4, x5, x6 = (q[0] * s[0], q[1] * s[1], q[2] * s[2], q[3] * s[3],
+                                      q[4] * s[4], q[5] * s[5], q[6] * s[6])  # fmt: skip
+        return (floor(x0 + 0.5) if x0 >= 0.0 else -floor(-x0 + 0.5),
+                floor(x1 + 0.5) if x1 >= 0.0 else -floor(-x1 + 0.5),
+                floor(x2 + 0.5) if x2 >= 0.0 else -floor(-x2 + 0.5),
+                floor(x3 + 0.5) if x3 >= 0.0 else -floor(-x3 + 0.5),
+                floor(x4 + 0.5) if x4 >= 0.0 else -floor(-x4 + 0.5),
+                floor(x5 + 0.5) if x5 >= 0.0 else -floor(-x5 + 0.5),
+                floor(x6 + 0.5) if x6 >= 0.0 else -floor(-x6 + 0.5))  # fmt: skip
 
     def from_steps(self, n: Sequence[int]) -> Vec7:
         """Degrees (rail mm) of the step counts ``n``."""

@@ -11,8 +11,10 @@
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Sequence
+from math import copysign
 
 from .axes import AXES, AxisLimits, Steps7, Vec7, lerp, sub, vec7
 from .profile import Profile, braking, constant_rate, trapezoid
@@ -69,7 +71,10 @@ class Block:
         self.direction_in: Vec7 | None = None
         self.direction_out: Vec7 | None = None
         self.junction_deviation = 0.0
-        self.profile = self.profile_from(0.0)
+        if timed:
+            self.profile = self._profile_from(0.0, 0.0, 0.0)
+        else:  # = self._profile_from(0.0, 0.0, 0.0): s = 0.0, v = min(0.0, speed) = 0.0
+            self.profile = _from_rest(length, speed, accel)
 
     @property
     def duration(self) -> float:
@@ -90,6 +95,16 @@ class Block:
 
     def profile_from(self, s: float, v: float = 0.0, v_out: float = 0.0) -> Profile:
         """A profile covering ``[s, length]`` that starts at speed ``v`` and ends at ``v_out``."""
+        if (
+            s == 0.0
+            and v == 0.0
+            and v_out == 0.0
+            and copysign(1.0, s) + copysign(1.0, v) + copysign(1.0, v_out) == 3.0
+        ):
+            return self.profile  # from rest to rest: the nominal profile (profiles are immutable)
+        return self._profile_from(s, v, v_out)
+
+    def _profile_from(self, s: float, v: float, v_out: float) -> Profile:
         s = min(max(s, 0.0), self.length)
         if self.timed:
             return constant_rate(s, self.length)
@@ -129,8 +144,10 @@ class JointBlock(Block):
         accel: float,
         *,
         steps: tuple[Steps7, Steps7, Vec7] | None = None,
+        delta: Vec7 | None = None,
     ) -> None:
-        self._delta = sub(end, start)
+        """``delta``: ``end - start`` when the caller has it (the builders do)."""
+        self._delta = sub(end, start) if delta is None else delta
         self.start_steps: Steps7 | None = None
         self.delta_steps: Steps7 | None = None
         self._events = 0
@@ -139,11 +156,14 @@ class JointBlock(Block):
             first, delta, per_degree = steps
             self.start_steps = first
             self.delta_steps = delta
-            self._events = max(abs(n) for n in delta)
-            self._per_step = vec7(1.0 / x for x in per_degree)
+            self._events = max(map(abs, delta))
+            self._per_step = _per_step(per_degree)
         super().__init__(kind, start, end, length, speed, accel)
         if length > 0.0:
-            unit = vec7(d / length for d in self._delta)
+            d = self._delta
+            unit = (float(d[0] / length), float(d[1] / length), float(d[2] / length),
+                    float(d[3] / length), float(d[4] / length), float(d[5] / length),
+                    float(d[6] / length))  # fmt: skip
             self.direction_in = unit
             self.direction_out = unit
 
@@ -239,6 +259,35 @@ class HomeSearchBlock(DwellBlock):
     def __init__(self, at: Vec7, seconds: float, axes: Sequence[int]) -> None:
         self.axes: tuple[int, ...] = tuple(axes)
         super().__init__("home_search", at, seconds)
+
+
+@functools.lru_cache(maxsize=1024)
+def _from_rest(length: float, speed: float, accel: float) -> Profile:
+    """The nominal (rest to rest) trapezoid of an untimed block: a pure function of its
+    arguments (a signed zero length gives the same profile), so equal blocks share one."""
+    return trapezoid(0.0, length, 0.0, 0.0, speed, accel)
+
+
+_PER_STEP: dict[Vec7, Vec7] = {}
+"""Degrees per motor step of the steps-per-degree tables seen (a handful: one per setting)."""
+_PER_STEP_LAST: list[tuple[object, Vec7]] = [(object(), (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0))]
+"""The last table and its result (the first key is no table)."""
+
+
+def _per_step(per_degree: Vec7) -> Vec7:
+    """``1 / per_degree`` per axis, computed once per table."""
+    last_key, last = _PER_STEP_LAST[0]
+    if last_key is per_degree:  # the same table as the last block's (a tuple is immutable)
+        return last
+    if type(per_degree) is not tuple:
+        return vec7(1.0 / x for x in per_degree)
+    per = _PER_STEP.get(per_degree)
+    if per is None:
+        if len(_PER_STEP) > 64:
+            _PER_STEP.clear()
+        per = _PER_STEP[per_degree] = vec7(1.0 / x for x in per_degree)
+    _PER_STEP_LAST[0] = (per_degree, per)
+    return per
 
 
 def limits_quantiser(limits: AxisLimits) -> Callable[[Vec7], Vec7] | None:

@@ -50,17 +50,23 @@ def _joint(start: Vec7, end: Vec7, feed: float | None, limits: AxisLimits, kind:
     delta = sub(end, start)
     length = norm(delta)
     if length == 0.0:
-        block = JointBlock(kind, start, end, 0.0, 1.0, 1.0, steps=steps)
+        block = JointBlock(kind, start, end, 0.0, 1.0, 1.0, steps=steps, delta=delta)
         block.junction_deviation = limits.junction_deviation
         return block
     speed = math.inf if feed is None else feed / 60.0
     accel = math.inf
+    max_rate, axis_accel = limits.max_rate, limits.accel
     for i, di in enumerate(delta):
         share = abs(di) / length
         if share > 0.0:
-            speed = min(speed, limits.max_rate[i] / 60.0 / share)
-            accel = min(accel, limits.accel[i] / share)
-    block = JointBlock(kind, start, end, length, speed, accel, steps=steps)
+            # ``min(speed, x)`` keeps ``speed`` unless ``x < speed``: the same comparison
+            x = max_rate[i] / 60.0 / share
+            if x < speed:
+                speed = x
+            x = axis_accel[i] / share
+            if x < accel:
+                accel = x
+    block = JointBlock(kind, start, end, length, speed, accel, steps=steps, delta=delta)
     block.junction_deviation = limits.junction_deviation
     return block
 

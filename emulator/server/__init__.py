@@ -79,8 +79,36 @@ and :mod:`.tcp_port`, :mod:`.clock` (simulated time), :mod:`.pacing` (baud, USB 
 
 from __future__ import annotations
 
-from .background import VirtualMirobot
-from .loop import EmulatorServer
-from .options import FirmwareLike, ServerOptions, parse_listen
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from .background import VirtualMirobot
+    from .loop import EmulatorServer
+    from .options import FirmwareLike, ServerOptions, parse_listen
 
 __all__ = ["EmulatorServer", "FirmwareLike", "ServerOptions", "VirtualMirobot", "parse_listen"]
+
+_LAZY = {
+    "VirtualMirobot": ".background",
+    "EmulatorServer": ".loop",
+    "FirmwareLike": ".options",
+    "ServerOptions": ".options",
+    "parse_listen": ".options",
+}
+"""Imported on first use, so that the in-process arm, which needs only :mod:`.clock`, does not
+import the ports, the event loop and the faults (tens of milliseconds)."""
+
+
+def __getattr__(name: str) -> Any:
+    module_name = _LAZY.get(name)
+    if module_name is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    import importlib
+
+    value = getattr(importlib.import_module(module_name, __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *__all__])

@@ -8,18 +8,22 @@ simulated time stays continuous).
 
 from __future__ import annotations
 
+import itertools
 import math
 import re
 import time
 from collections import deque
+from typing import TYPE_CHECKING
 
-from .options import FirmwareLike
+if TYPE_CHECKING:
+    from .options import FirmwareLike
 
 __all__ = ["MOTION_END_HISTORY", "Simulation"]
 
 MOTION_END_HISTORY = 64  # ends of motion answered to the ``motion-ends`` control command
 UART_BIT_TIMES_PER_BYTE = 10.77  # the oracle's UART: 93.5 us a byte at 115200 baud
 _LINE_PIECES = re.compile(rb"[^\r\n]*[\r\n]|[^\r\n]+")  # input cut after each line end
+_LINE_END_BYTES = b"\r\n"
 
 
 class Simulation:
@@ -103,7 +107,10 @@ class Simulation:
         if not data:
             return
         if self._scale == 0:
-            for piece in _LINE_PIECES.findall(data):
+            ends = data.count(b"\n") + data.count(b"\r")
+            # one line (or none) ending the data: the one piece the pattern would find
+            single = ends == 0 or (ends == 1 and data[-1] in _LINE_END_BYTES)
+            for piece in (data,) if single else _LINE_PIECES.findall(data):
                 self.firmware.receive(piece)
                 self.run_to_idle()
         else:
@@ -125,8 +132,10 @@ class Simulation:
         force during the run is the one used.
         """
         fw = self.firmware
-        ends = getattr(fw, "motion_end_times", None)  # optional: not part of FirmwareLike
         total = getattr(fw, "motion_ends", None)
+        if type(total) is int and total == self._motion_ends_seen:
+            return  # no new end (what the general path below finds, sooner)
+        ends = getattr(fw, "motion_end_times", None)  # optional: not part of FirmwareLike
         if ends is None or not isinstance(total, int):
             return
         if total < self._motion_ends_seen:  # a new firmware object
@@ -135,7 +144,7 @@ class Simulation:
         self._motion_ends_seen = total
         if new <= 0:
             return
-        for sim in list(ends)[len(ends) - new :]:
+        for sim in (ends[-1],) if new == 1 else itertools.islice(ends, len(ends) - new, None):
             if self._scale > 0:
                 self.motion_end_walls.append(
                     self._wall_anchor + (float(sim) - self._sim_anchor) / self._scale
