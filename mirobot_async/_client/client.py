@@ -334,6 +334,9 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
             timeout=CONNECT_TIMEOUT if timeout is None else timeout,
         )
         self._condition.connected = True
+        gap = getattr(self._wire.transport, "status_min_gap", None)
+        if isinstance(gap, int | float):  # a link that is no serial line (an in-process arm)
+            self._poller.min_gap = float(gap)
         try:
             if probe:
                 await self._probe(timeout)

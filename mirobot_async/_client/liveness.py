@@ -36,7 +36,7 @@ from mirobot_async._client.guard import EnvelopeGuard, NullGuard, Tracked
 from mirobot_async._client.poller import StatusPoller
 from mirobot_async._client.wire import Wire
 from mirobot_async._core.protocol import Event, LineAcknowledged, LineRejected, PendingLine
-from mirobot_async._core.replies import State
+from mirobot_async._core.replies import State, StatusReport
 from mirobot_async.errors import MirobotTimeoutError
 
 if TYPE_CHECKING:
@@ -161,6 +161,12 @@ class ReplyWatch:
         self._homing_line = None
         self._condition.homing = None
         self._poller.on_homing_end()
+
+    def on_status(self, report: StatusReport) -> None:
+        """A report arrived: printed after the homing ``ok``, a quiet one ends the return move
+        (whoever asked for it: ``home()``'s own wait, a monitor)."""
+        if self.homing_return and report.state in QUIET and not self._wire.conn.in_banner:
+            self.homing_return = False
 
     async def await_homing_return(self, deadline: float | None, status_timeout: float) -> None:
         """One status (received after the homing line's ``ok``); the return move has ended if

@@ -96,6 +96,7 @@ class EventRouter:
         stats = self._wire.stats
         if isinstance(event, StatusReceived):
             self._poller.on_status(event.report)
+            self._lines.watch.on_status(event.report)
             if event.report.state in _AT_REST and not self._wire.conn.pending_count:
                 # printed after the last line's reply: nothing is queued (GRBL starts queued
                 # motion before it answers a ?), so a mode word now restarts from the end

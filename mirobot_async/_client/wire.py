@@ -52,7 +52,9 @@ class Transport(Protocol):
 
     ``write`` queues bytes and never blocks; ``abort`` drops the link at once (synchronous);
     ``close`` does the same and waits (boundedly) until it is released. The opener's
-    ``on_lost`` callback must be called once when the link ends by itself.
+    ``on_lost`` callback must be called once when the link ends by itself. A link that is no
+    serial line may say how far apart two ``?`` must be (an optional ``status_min_gap``
+    attribute, seconds: 0 for an in-process arm, whose reports are printed at once).
     """
 
     def write(self, data: bytes) -> None: ...

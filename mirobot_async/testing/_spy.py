@@ -28,6 +28,9 @@ class _SpiedTransport:
     def __init__(self, inner: Transport, spy: WireSpy) -> None:
         self._inner = inner
         self._spy = spy
+        gap = getattr(inner, "status_min_gap", None)  # (the link's own, if it says one)
+        if gap is not None:
+            self.status_min_gap = gap
 
     def write(self, data: bytes) -> None:
         chunk = bytes(data)

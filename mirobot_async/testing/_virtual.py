@@ -191,6 +191,10 @@ class _InProcessLink:
     """The client's end of an :class:`InProcessArm`: a
     :class:`~mirobot_async._client.wire.Transport`."""
 
+    status_min_gap = 0.0
+    """No serial line: a report is printed the instant its ``?`` arrives, so the client needs
+    no gap between two ``?`` (a serial arm's 2 ms)."""
+
     def __init__(
         self,
         arm: InProcessArm,

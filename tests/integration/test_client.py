@@ -594,3 +594,14 @@ async def test_a_move_rejected_in_alarm_changes_no_mode(arm: Mirobot, wire_spy: 
     assert [line for line in wire_spy.lines(mark) if line.startswith(b"M20")], wire_spy.lines(mark)
     assert report.motion_mode == 1
     assert report.pose[:3] == pytest.approx((200, 0, 200), abs=0.05)
+
+
+async def test_homes_own_status_ends_the_return_move_for_the_next_line(
+    arm: Mirobot, wire_spy: WireSpy
+) -> None:
+    """``home()`` returns on a status at rest after the homing ``ok``: that status also ends the
+    wait for the return move, so the next move is written at once, with no ``?`` before it."""
+    await arm.home()
+    mark = wire_spy.mark()
+    await arm.move_joints(j1=5, wait=False)
+    assert wire_spy.since(mark)[0] == b"G90 G0 X5 G21\n", wire_spy.since(mark)

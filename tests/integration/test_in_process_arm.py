@@ -117,3 +117,16 @@ async def test_the_plugin_fixture_lends_an_in_process_arm(mirobot_virtual_arm: s
         lines = ["M21 G90 G21 G0 X0 F2000"] + [f"G0 X{i % 20}" for i in range(1, 100)]
         assert (await arm.stream(lines, wait=True)).ok
         assert (await arm.status()).joints[0] == pytest.approx(19, abs=0.02)
+
+
+async def test_the_client_asks_for_reports_back_to_back_in_process() -> None:
+    """No serial line: the in-process link tells the client that two ``?`` need no gap (a
+    report is printed the instant its ``?`` arrives), so a status costs no 2 ms wait; a
+    process's pty keeps the serial arm's gap."""
+    async with InProcessArm("classic") as virtual, Mirobot.connect(virtual.url) as arm:
+        assert arm.status_min_gap == 0
+        reports = [await arm.status() for _ in range(20)]
+        assert all(report.state is State.IDLE for report in reports)
+        assert arm.stats.status_retries == 0
+    async with start_emulator(firmware="classic") as url, Mirobot.connect(url) as arm:
+        assert arm.status_min_gap == 0.002
