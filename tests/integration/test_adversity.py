@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from waiting import wait_until
 
 from mirobot_async import (
     Mirobot,
@@ -55,15 +56,6 @@ FAST_SCALE = "time-scale 50"
 
 
 # ---- helpers ------------------------------------------------------------------------------------
-
-
-async def wait_until(predicate: Callable[[], bool], timeout: float = 10.0) -> None:
-    """Yield to the loop until ``predicate()`` holds (AssertionError after ``timeout``)."""
-    deadline = time.monotonic() + timeout
-    while not predicate():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"condition not met within {timeout} s")
-        await asyncio.sleep(0.005)
 
 
 async def emulator_stats(emu: EmulatorProcess) -> dict[str, int]:
@@ -241,10 +233,14 @@ async def test_corrupted_status_is_dropped_counted_and_monitoring_continues(
     reports: list[StatusReport] = []
     task = spawn(monitor(arm, reports))
     try:
-        await wait_until(lambda: len(reports) >= 5)
+        await wait_until(lambda: len(reports) >= 5, 10, "5 status reports")
         await emu.control("corrupt-status 4")
         seen = len(reports)
-        await wait_until(lambda: arm.corrupted_status_count == 7 and len(reports) >= seen + 5)
+        await wait_until(
+            lambda: arm.corrupted_status_count == 7 and len(reports) >= seen + 5,
+            10,
+            "7 corrupt reports and 5 more good ones",
+        )
         assert not task.done()
     finally:
         await stop(task)
@@ -263,7 +259,7 @@ async def test_status_corrupted_at_random_while_streaming(
     task = spawn(monitor(arm, reports, interval=0.0))
     try:
         result = await arm.stream([f"M3 S{i % 1000}" for i in range(1000)])
-        await wait_until(lambda: len(reports) >= 50)
+        await wait_until(lambda: len(reports) >= 50, 10, "50 status reports")
     finally:
         await stop(task)
     assert result.ok and result.acknowledged == 1000
@@ -321,9 +317,13 @@ async def test_spontaneous_reset_mid_stream_fails_pending_lines_and_resends_noth
     lines_before = arm.stats.lines_sent
     # a wait=True move, then a stream queued behind it: the move waits for the arm to be Idle
     move = spawn(arm.move_joints(j1=40, speed=3000))
-    await wait_until(lambda: arm.stats.lines_sent == lines_before + 1)
+    await wait_until(lambda: arm.stats.lines_sent == lines_before + 1, 10, "the move to be sent")
     stream_task = spawn(arm.stream(SLOW_MOVES))
-    await wait_until(lambda: arm.pending_count >= 4 and arm.stats.lines_sent >= 20)
+    await wait_until(
+        lambda: arm.pending_count >= 4 and arm.stats.lines_sent >= 20,
+        10,
+        "20 lines sent and 4 pending",
+    )
     # The robot's planner is full: a line is written only when a block ends (~1 s apart). Reset
     # only once every written line has wholly reached the robot (a "?" written after it was
     # answered): a line cut in two by the reset would run its tail as a line of its own (an
@@ -356,7 +356,11 @@ async def test_spontaneous_reset_mid_stream_fails_pending_lines_and_resends_noth
     error = await finishes_within(2.0, move)
     assert isinstance(error, MirobotResetError | MirobotAlarmError), error
     assert isinstance(await finishes_within(2.0, status), StatusReport | MirobotResetError)
-    await wait_until(lambda: arm.stats.resets >= 1 and arm.pending_count == 0)
+    await wait_until(
+        lambda: arm.stats.resets >= 1 and arm.pending_count == 0,
+        10,
+        "the reset to end every pending call",
+    )
 
     # nothing resent: the robot received the move's line and the stream's written lines, once
     # each, and nothing else
@@ -405,7 +409,7 @@ async def cut_the_link(emu: EmulatorProcess, arm: Mirobot, how: str, spawn: Spaw
     """The link-cut scenario on a connected, unlocked ``arm`` (see the test above)."""
     reports: list[StatusReport] = []
     stream = spawn(arm.stream(SLOW_MOVES))
-    await wait_until(lambda: arm.pending_count >= 4)
+    await wait_until(lambda: arm.pending_count >= 4, 10, "4 calls pending")
     await emu.control("ignore-status 1000")  # so that status() is surely pending at the cut
     asked = arm.stats.status_requests
     calls = {
@@ -415,7 +419,7 @@ async def cut_the_link(emu: EmulatorProcess, arm: Mirobot, how: str, spawn: Spaw
         "wait_idle": spawn(arm.wait_idle(timeout=30)),
         "monitor": spawn(monitor(arm, reports)),
     }
-    await wait_until(lambda: arm.stats.status_requests > asked)
+    await wait_until(lambda: arm.stats.status_requests > asked, 10, "a status request")
     assert not any(task.done() for task in calls.values())
     start = time.monotonic()
     if how == "kill":
@@ -479,7 +483,11 @@ async def test_hard_limit_fails_everything_and_nothing_is_sent_until_reset(
     move = spawn(arm.move_joints(j1=30, speed=600))
     stream = spawn(arm.stream(SLOW_MOVES))
     watch = spawn(monitor(arm, reports, interval=0.2))  # status polls amid the stream
-    await wait_until(lambda: arm.pending_count > 3 and len(reports) >= 2)
+    await wait_until(
+        lambda: arm.pending_count > 3 and len(reports) >= 2,
+        10,
+        "4 calls pending and 2 status reports",
+    )
     await emu.control("hard-limit")
 
     error = await finishes_within(2.0, move)
@@ -488,7 +496,7 @@ async def test_hard_limit_fails_everything_and_nothing_is_sent_until_reset(
     assert result.stopped
     assert isinstance(result.errors[0].error, MirobotAlarmError)
     assert isinstance(await finishes_within(3.0, watch), MirobotAlarmError)
-    await wait_until(lambda: arm.needs_reset)
+    await wait_until(lambda: arm.needs_reset, 10, "the client to need a reset")
     assert arm.alarm == "Hard limit"
 
     # Nothing more goes out, not even "?": every call fails at once.
@@ -576,7 +584,7 @@ async def mixed_session(arm: Mirobot, spawn: Spawn, poll_interval: float = 0.2) 
         result = await arm.stream(
             session_lines(), continue_on_error=True, timeout=40, validate=False
         )
-        await wait_until(lambda: len(reports) >= 2)
+        await wait_until(lambda: len(reports) >= 2, 10, "2 status reports")
     finally:
         await stop(watch)
     transcript = [

@@ -12,11 +12,12 @@ import subprocess
 import sys
 import textwrap
 import time
-from collections.abc import AsyncIterator, Callable, Iterator
+from collections.abc import AsyncIterator, Iterator
 from pathlib import Path
 
 import pytest
 import serial
+from waiting import wait_until
 
 from mirobot_async import (
     MirobotCommandError,
@@ -89,15 +90,6 @@ class BusEmulator:
                 self.process.wait(5)
         if self.process.stdout is not None:
             self.process.stdout.close()
-
-
-async def wait_until(predicate: Callable[[], bool], limit: float = 5.0) -> None:
-    """Yield to the loop until ``predicate()`` holds (AssertionError after ``limit`` s)."""
-    deadline = time.monotonic() + limit
-    while not predicate():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"condition not met within {limit} s")
-        await asyncio.sleep(0.002)
 
 
 PACED = 4.0
@@ -278,7 +270,7 @@ async def test_cancelling_a_waiting_call_shifts_no_reply(paced_bus: ControllerBu
     arm = await bus.connect_arm(3)
     await arm.send("$X")
     task = asyncio.create_task(arm.send("G4 P0.4"))
-    await wait_until(lambda: arm.pending_count > 0)
+    await wait_until(lambda: arm.pending_count > 0, 5, "a call pending")
     task.cancel()
     with pytest.raises(asyncio.CancelledError):
         await task
@@ -316,7 +308,7 @@ async def test_a_lost_link_fails_every_pending_call_of_every_arm(own_bus: BusEmu
         calls: list[asyncio.Task[object]] = [asyncio.create_task(arms[0].send("G4 P5"))]
         calls += [asyncio.create_task(arm.status()) for arm in arms[1:]]
         calls.append(asyncio.create_task(bus.controller(4).arm_state()))
-        await wait_until(lambda: arms[0].pending_count > 0)
+        await wait_until(lambda: arms[0].pending_count > 0, 5, "a call pending on the first arm")
         own_bus.stop()
         started = time.monotonic()
         results = await asyncio.gather(*calls, return_exceptions=True)
