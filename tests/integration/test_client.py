@@ -14,6 +14,7 @@ import sys
 import time
 
 import pytest
+from waiting import wait_until
 
 from mirobot_async import (
     Mirobot,
@@ -177,9 +178,7 @@ async def test_loop_url_transport_echoes() -> None:
     lost: list[BaseException | None] = []
     link = await SerialLink.open("loop://", on_data=received.extend, on_lost=lost.append)
     link.write(b"hello\n")
-    async with asyncio.timeout(2):
-        while bytes(received) != b"hello\n":  # noqa: ASYNC110 - bounded by the timeout
-            await asyncio.sleep(0.002)
+    await wait_until(lambda: bytes(received) == b"hello\n", 5, "the echo")
     await link.close()
     await link.close()
     assert lost == [None]

@@ -292,7 +292,7 @@ async def test_link_lost_mid_stream_fails_every_pending_call_within_a_second(
         asyncio.ensure_future(arm.move_joints(j1=1)),
         asyncio.create_task(monitor()),
     ]
-    await asyncio.sleep(0)
+    await asyncio.sleep(0)  # one loop turn: every call above has started
     start = time.monotonic()
     if how == "kill":
         emu.kill()
@@ -365,7 +365,7 @@ async def test_a_lost_link_reaches_no_exception_handler_and_is_reported_once(
         if others:
             await asyncio.wait(others, timeout=2)
         gc.collect()
-        await asyncio.sleep(0)
+        await asyncio.sleep(0)  # one loop turn: the exception handler's callbacks run
     finally:
         loop.set_exception_handler(previous)
     assert reported == []

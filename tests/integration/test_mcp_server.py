@@ -21,6 +21,7 @@ import psutil
 import pytest
 from mcp import ClientSession, StdioServerParameters, stdio_client
 from mcp.types import CallToolResult, TextContent
+from waiting import wait_until
 
 from mirobot_async._cli.arguments import build_parser
 from mirobot_async._cli.commands import cmd_mcp
@@ -110,10 +111,7 @@ async def mcp_server(
 
         call.session = session  # type: ignore[attr-defined]
         yield call
-    deadline = asyncio.get_running_loop().time() + 10
-    while children() - before:
-        assert asyncio.get_running_loop().time() < deadline, f"left running: {children() - before}"
-        await asyncio.sleep(0.05)
+    await wait_until(lambda: not children() - before, 10, "the server's children to exit")
 
 
 async def lines_received(emulator: EmulatorProcess) -> int:
