@@ -101,7 +101,7 @@ class InProcessEmulator(EmulatorProcess):
         # Not EmulatorProcess.__init__: there is no process.
         self.arm = arm
         self.url = arm.url
-        self.command = ["in-process", arm.firmware_name, str(arm.time_scale)]
+        self.command = ("in-process", arm.firmware_name, str(arm.time_scale))
 
     def _no_process(self, what: str) -> EmulatorError:
         return EmulatorError(
@@ -117,7 +117,7 @@ class InProcessEmulator(EmulatorProcess):
     def returncode(self) -> int | None:
         return None
 
-    async def control(self, command: str, *, timeout: float = 5.0) -> str:
+    async def control(self, command: str, *, timeout: float = 5.0) -> str:  # noqa: ASYNC109
         raise self._no_process(f"send {command!r}")
 
     async def renew(self, *args: object, **kwargs: object) -> str:
@@ -126,7 +126,7 @@ class InProcessEmulator(EmulatorProcess):
     def kill(self) -> None:
         raise self._no_process("kill it")
 
-    async def stop(self, timeout: float = 5.0) -> int:
+    async def stop(self, timeout: float = 5.0) -> int:  # noqa: ASYNC109
         raise self._no_process("stop it")
 
 

@@ -140,7 +140,9 @@ async def stop(task: asyncio.Task[Any]) -> None:
 
 
 async def finishes_within(seconds: float, call: Awaitable[Any]) -> Any:
-    """Await ``call``; return its result or its exception; fail if it takes over ``seconds``."""
+    """Await ``call``; return its result or its exception; fail if it takes over ``seconds``
+    (a bound with room for a loaded machine: what it rules out is a call left waiting for a
+    reply that never comes, or for moves of a minute; the caller checks the outcome's kind)."""
     start = time.monotonic()
     try:
         result: Any = await asyncio.wait_for(call, seconds)
@@ -296,7 +298,7 @@ async def test_ignored_status_request_is_retried_within_the_timeout(
     start = time.monotonic()
     with pytest.raises(MirobotTimeoutError, match="status"):
         await arm.status(timeout=0.3)
-    assert 0.29 <= time.monotonic() - start < 1.0
+    assert 0.29 <= time.monotonic() - start < 1.5  # kept (room for a loaded machine)
     report = await arm.status(timeout=5.0)  # at most 4 ignored "?" in all
     assert report.state in (State.IDLE, State.ALARM)
 
@@ -336,7 +338,7 @@ async def test_spontaneous_reset_mid_stream_fails_pending_lines_and_resends_noth
     before = await emulator_stats(emu)
     await emu.control("reset")
 
-    result = await finishes_within(2.0, stream_task)
+    result = await finishes_within(5.0, stream_task)
     # at least what the wait above saw written (the planner's 17 blocks bound the rest)
     assert result.stopped and 20 - lines_before - 1 <= result.sent < len(SLOW_MOVES)
     # not run (lost with the robot's buffer), or what the robot did with a line that reached it
@@ -353,9 +355,9 @@ async def test_spontaneous_reset_mid_stream_fails_pending_lines_and_resends_noth
     assert result.acknowledged + len(result.errors) >= result.sent
     # the move waiting for the arm to stop fails with the reset, or with the alarm the reset
     # printed ("Abort during cycle": the arm was moving)
-    error = await finishes_within(2.0, move)
+    error = await finishes_within(5.0, move)
     assert isinstance(error, MirobotResetError | MirobotAlarmError), error
-    assert isinstance(await finishes_within(2.0, status), StatusReport | MirobotResetError)
+    assert isinstance(await finishes_within(5.0, status), StatusReport | MirobotResetError)
     await wait_until(
         lambda: arm.stats.resets >= 1 and arm.pending_count == 0,
         10,
@@ -426,7 +428,7 @@ async def cut_the_link(emu: EmulatorProcess, arm: Mirobot, how: str, spawn: Spaw
         emu.kill()
     else:
         await emu.control("close")
-    _, pending = await asyncio.wait(calls.values(), timeout=1.0)
+    _, pending = await asyncio.wait(calls.values(), timeout=3.0)  # each allows itself 30 s
     elapsed = time.monotonic() - start
     for task in pending:
         task.cancel()
@@ -439,14 +441,15 @@ async def cut_the_link(emu: EmulatorProcess, arm: Mirobot, how: str, spawn: Spaw
         assert isinstance(error, MirobotConnectionError), (name, error)
     assert arm.closed
     for call in (arm.send("M3 S1"), arm.status(), arm.move_joints(j1=1)):
-        assert isinstance(await finishes_within(0.5, call), MirobotConnectionError)
+        # at once: not after a status timeout (2 s) or never
+        assert isinstance(await finishes_within(1.5, call), MirobotConnectionError)
     # the port is gone with the emulator: connecting again fails at once, and clearly
     await emu.stop()
     start = time.monotonic()
     with pytest.raises(MirobotConnectionError, match="could not open"):
         async with Mirobot.connect(emu.url):
             pass
-    assert time.monotonic() - start < 0.5
+    assert time.monotonic() - start < 2.0  # not after the connect timeout (5 s)
 
 
 @pytest.mark.parametrize("kind", ["missing", "missing-dir", "dangling-link", "directory", "file"])
@@ -466,7 +469,7 @@ async def test_connect_to_a_path_that_is_no_port_fails_at_once(tmp_path: Path, k
     with pytest.raises(MirobotConnectionError) as info:
         async with Mirobot.connect(str(path)):
             pass
-    assert time.monotonic() - start < 0.5
+    assert time.monotonic() - start < 2.0  # not after the connect timeout (5 s)
     assert str(path) in str(info.value)
     assert "could not open" in str(info.value)
 
@@ -490,9 +493,9 @@ async def test_hard_limit_fails_everything_and_nothing_is_sent_until_reset(
     )
     await emu.control("hard-limit")
 
-    error = await finishes_within(2.0, move)
+    error = await finishes_within(5.0, move)
     assert isinstance(error, MirobotAlarmError) and "Hard limit" in str(error)
-    result = await finishes_within(2.0, stream)
+    result = await finishes_within(5.0, stream)
     assert result.stopped
     assert isinstance(result.errors[0].error, MirobotAlarmError)
     assert isinstance(await finishes_within(3.0, watch), MirobotAlarmError)
@@ -519,7 +522,7 @@ async def test_hard_limit_fails_everything_and_nothing_is_sent_until_reset(
         "wait_idle": lambda: arm.wait_idle(),
     }
     for name, call in calls.items():
-        outcome = await finishes_within(0.5, call())
+        outcome = await finishes_within(1.5, call())  # at once: not after a 2 s status timeout
         assert isinstance(outcome, MirobotAlarmError), (name, outcome)
         assert "Hard limit" in str(outcome), (name, outcome)
     assert arm.stats.bytes_sent == sent
@@ -672,7 +675,7 @@ async def test_delayed_replies_change_nothing_and_timeouts_hold(
     start = time.monotonic()
     with pytest.raises(MirobotTimeoutError):
         await arm.status(timeout=0.005)
-    assert time.monotonic() - start < 0.5
+    assert time.monotonic() - start < 1.5  # no hang (the exception shows the timeout kept)
     assert (await arm.status(timeout=1.0)).joints == report.joints
 
     transcript = await mixed_session(arm, spawn)
@@ -683,7 +686,7 @@ async def test_delayed_replies_change_nothing_and_timeouts_hold(
     start = time.monotonic()
     with pytest.raises(MirobotTimeoutError) as info:
         await arm.send("M3 S21", timeout=0.1)
-    assert 0.09 <= time.monotonic() - start < 0.5
+    assert 0.09 <= time.monotonic() - start < 1.5  # the exception shows the timeout kept
     assert info.value.command == "M3 S21"
     with pytest.raises(MirobotTimeoutError):
         await arm.status(timeout=0.1)
