@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from waiting import wait_until
+from waiting import poll_until, wait_until
 
 from mirobot_async import (
     Mirobot,
@@ -68,15 +68,16 @@ async def emulator_stats(emu: EmulatorProcess) -> dict[str, int]:
 
 async def wire_settled(emu: EmulatorProcess, arm: Mirobot, timeout: float = 5.0) -> dict[str, int]:
     """Wait until the emulator has received every byte the client says it wrote; its stats."""
-    deadline = time.monotonic() + timeout
-    while True:
-        stats = await emulator_stats(emu)
-        if stats["bytes_in"] == arm.stats.bytes_sent:
-            return stats
-        assert stats["bytes_in"] < arm.stats.bytes_sent, (stats, arm.stats)
-        if time.monotonic() > deadline:
-            raise AssertionError(f"the emulator got {stats}, the client sent {arm.stats}")
-        await asyncio.sleep(0.005)
+    seen: dict[str, int] = {}
+
+    async def settled() -> dict[str, int] | None:
+        seen.update(stats := await emulator_stats(emu))
+        assert stats["bytes_in"] <= arm.stats.bytes_sent, (stats, arm.stats)
+        return stats if stats["bytes_in"] == arm.stats.bytes_sent else None
+
+    return await poll_until(
+        settled, timeout, lambda: f"settled wire: the emulator got {seen}, the client {arm.stats}"
+    )
 
 
 async def output_mark(emu: EmulatorProcess, arm: Mirobot) -> tuple[int, int]:
@@ -89,15 +90,17 @@ async def wire_quiet(
 ) -> dict[str, int]:
     """:func:`wire_settled`, and every byte the emulator wrote since ``mark`` has reached the
     client (a report to a "?" still in flight may follow the last reply); its stats."""
-    deadline = time.monotonic() + timeout
-    while True:
-        stats = await wire_settled(emu, arm)
+    seen: dict[str, int] = {}
+
+    async def quiet() -> dict[str, int] | None:
+        seen.update(stats := await wire_settled(emu, arm))
         written = stats["bytes_out"] - mark[0]
-        if stats["output_held"] == 0 and arm.stats.bytes_received - mark[1] >= written:
-            return stats
-        if time.monotonic() > deadline:
-            raise AssertionError(f"the emulator wrote {written} bytes, the client got {arm.stats}")
-        await asyncio.sleep(0.005)
+        received = arm.stats.bytes_received - mark[1]
+        return stats if stats["output_held"] == 0 and received >= written else None
+
+    return await poll_until(
+        quiet, timeout, lambda: f"quiet wire: the emulator {seen}, the client {arm.stats}"
+    )
 
 
 Spawn = Callable[[Awaitable[Any]], "asyncio.Task[Any]"]

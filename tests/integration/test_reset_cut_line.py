@@ -10,12 +10,11 @@ run (:class:`MirobotResetError`) and the lines after it with their own replies; 
 from __future__ import annotations
 
 import asyncio
-import time
 
 import pytest
 
 # 9600 baud: a 9-byte line spends ~9 ms on the wire, so a dozen lines are in transit at once
-from waiting import wait_until
+from waiting import poll_until, wait_until
 
 from mirobot_async import (
     Mirobot,
@@ -67,11 +66,12 @@ async def test_the_first_line_answered_after_a_reset_has_an_unknown_outcome(
     # every line accounted for once: acknowledged before the reset, or one of the errors
     assert result.acknowledged + len(result.errors) >= result.sent
     await wait_until(lambda: arm.pending_count == 0, 10, "no call pending")
-    deadline = time.monotonic() + 10
-    while True:  # nothing resent: the robot received each written line once
+
+    async def all_received() -> dict[str, str] | None:
         words = (await emu.control("stats")).split()
         stats = dict(word.split("=") for word in words[2:])
-        if int(stats["bytes_in"]) == arm.stats.bytes_sent or time.monotonic() > deadline:
-            break
-        await asyncio.sleep(0.01)
+        return stats if int(stats["bytes_in"]) == arm.stats.bytes_sent else None
+
+    # nothing resent: the robot received each written line once
+    stats = await poll_until(all_received, 10, "every byte written received", every=0.01)
     assert int(stats["lines_in"]) == arm.stats.lines_sent
