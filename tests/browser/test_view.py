@@ -11,7 +11,8 @@ from typing import Any, TypeVar
 
 import numpy as np
 import pytest
-from viewpage import Page, ViewProcess, foreground_pixels, mirobot, wait_for
+from viewpage import Page, ViewProcess, foreground_pixels, mirobot
+from waiting import wait_for
 
 from mirobot_async import Mirobot
 from mirobot_async._core import validation
@@ -82,13 +83,10 @@ def test_the_arm_s_pixels_move_while_it_moves_and_hold_resume_stop(
     page.wait_for_scene()
     page.click("Run program")
     page.expect_text("State: Run")
-    frames = [page.canvas()]
-    page.page.wait_for_timeout(500)
-    frames.append(page.canvas())
+    first = page.canvas()
+    wait_for(lambda: _changed_pixels(first, page.canvas()) > 300, 30, "the arm to move on screen")
     page.shot("running")
     assert "State: Run" in page.page.locator("body").inner_text(), "the program ended early"
-    moved = _changed_pixels(frames[0], frames[1])
-    assert moved > 300, f"only {moved} pixels changed while the arm ran"
     page.click("Hold")
     page.expect_text("State: Hold")
     page.click("Resume")
@@ -139,9 +137,7 @@ def test_jog_moves_the_embedded_arm(start_view: Any, open_page: Any) -> None:
     page.expect_text("Pump/gripper: pump sucking")
     page.click("Gripper close")
     page.expect_text("Pump/gripper: gripper closed")
-    page.page.wait_for_timeout(300)
-    after = page.canvas()
-    assert _changed_pixels(before, after) > 100
+    wait_for(lambda: _changed_pixels(before, page.canvas()) > 100, 30, "the jogged arm drawn")
     _close(page, view)
 
 

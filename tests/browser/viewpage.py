@@ -9,14 +9,13 @@ import signal
 import subprocess
 import sys
 import threading
-import time
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 from urllib.parse import urlparse
 
 import numpy as np
+from waiting import wait_for
 
 ARTIFACTS = Path(__file__).parent / "artifacts"
 LOCAL_HOSTS = {"127.0.0.1", "localhost", "::1"}
@@ -98,12 +97,13 @@ class Page:
 
     def wait_for_scene(self) -> np.ndarray:
         """The scene once it is drawn (the arm in front of the background)."""
-        deadline = time.monotonic() + UI_TIMEOUT / 1000
-        while True:
+
+        def drawn() -> tuple[np.ndarray] | None:
             canvas = self.canvas()
-            if foreground_pixels(canvas) > 2000 or time.monotonic() > deadline:
-                return canvas
-            time.sleep(0.2)
+            return (canvas,) if foreground_pixels(canvas) > 2000 else None
+
+        (canvas,) = wait_for(drawn, UI_TIMEOUT / 1000, "the scene to be drawn", every=0.2)
+        return canvas
 
     def click(self, name: str) -> None:
         """Click the button ``name`` (a DOM click event: Playwright's pointer click waits for
@@ -120,15 +120,6 @@ class Page:
             if parsed.hostname not in LOCAL_HOSTS:
                 out.append(url)
         return out
-
-
-def wait_for(condition: Callable[[], bool], timeout: float, what: str) -> None:
-    """Poll ``condition`` until true; fail naming ``what`` after ``timeout`` seconds."""
-    deadline = time.monotonic() + timeout
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out waiting for {what}")
-        time.sleep(0.05)
 
 
 def mirobot(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:

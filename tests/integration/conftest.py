@@ -36,11 +36,13 @@ import io
 import signal
 import subprocess
 import sys
+import time
 from collections.abc import AsyncIterator, Awaitable, Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
+from waiting import WaitTimeout
 
 from mirobot_async import Mirobot, State
 from mirobot_async._cli import main
@@ -216,17 +218,24 @@ StateWait = Callable[..., Awaitable[None]]
 
 
 async def _first_status(arm: Mirobot, state: State, limit: float = 5.0) -> None:
-    async with asyncio.timeout(limit):
-        async with contextlib.aclosing(arm.statuses(interval=0.0)) as reports:
-            async for report in reports:
-                if report.state is state:
-                    return
+    started = time.monotonic()
+    try:
+        async with asyncio.timeout(limit):
+            async with contextlib.aclosing(arm.statuses(interval=0.0)) as reports:
+                async for report in reports:
+                    if report.state is state:
+                        return
+    except TimeoutError:
+        waited = time.monotonic() - started
+        raise WaitTimeout(
+            f"no status {state.value} within {limit} s (waited {waited:.2f} s)"
+        ) from None
 
 
 @pytest.fixture
 def first_status() -> StateWait:
     """``await first_status(arm, state, limit=5.0)``: returns once a status of ``arm`` (polled
-    back to back) shows ``state``; ``TimeoutError`` after ``limit`` seconds."""
+    back to back) shows ``state``; ``WaitTimeout`` (a ``TimeoutError``) after ``limit`` s."""
     return _first_status
 
 

@@ -12,11 +12,12 @@ import subprocess
 import sys
 import textwrap
 import time
-from collections.abc import AsyncIterator, Callable, Iterator
+from collections.abc import AsyncIterator, Iterator
 from pathlib import Path
 
 import pytest
 import serial
+from waiting import wait_until
 
 from mirobot_async import (
     MirobotCommandError,
@@ -89,15 +90,6 @@ class BusEmulator:
                 self.process.wait(5)
         if self.process.stdout is not None:
             self.process.stdout.close()
-
-
-async def wait_until(predicate: Callable[[], bool], limit: float = 5.0) -> None:
-    """Yield to the loop until ``predicate()`` holds (AssertionError after ``limit`` s)."""
-    deadline = time.monotonic() + limit
-    while not predicate():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"condition not met within {limit} s")
-        await asyncio.sleep(0.002)
 
 
 PACED = 4.0
@@ -278,7 +270,7 @@ async def test_cancelling_a_waiting_call_shifts_no_reply(paced_bus: ControllerBu
     arm = await bus.connect_arm(3)
     await arm.send("$X")
     task = asyncio.create_task(arm.send("G4 P0.4"))
-    await wait_until(lambda: arm.pending_count > 0)
+    await wait_until(lambda: arm.pending_count > 0, 5, "a call pending")
     task.cancel()
     with pytest.raises(asyncio.CancelledError):
         await task
@@ -313,14 +305,17 @@ async def test_a_lost_link_fails_every_pending_call_of_every_arm(own_bus: BusEmu
     async with ControllerBus.open(own_bus.path) as bus:
         arms = [await bus.connect_arm(n) for n in (1, 2, 3)]
         await arms[0].send("$X")
-        calls: list[asyncio.Task[object]] = [asyncio.create_task(arms[0].send("G4 P5"))]
-        calls += [asyncio.create_task(arm.status()) for arm in arms[1:]]
-        calls.append(asyncio.create_task(bus.controller(4).arm_state()))
-        await wait_until(lambda: arms[0].pending_count > 0)
+        # the dwell lasts 15 s at this time scale and the others wait behind it (30 s allowed):
+        # ending within 5 s is the lost bus's doing
+        dwell = arms[0].send("G4 P60", timeout=60)
+        calls: list[asyncio.Task[object]] = [asyncio.create_task(dwell)]
+        calls += [asyncio.create_task(arm.status(timeout=30)) for arm in arms[1:]]
+        calls.append(asyncio.create_task(bus.controller(4).arm_state(timeout=30)))
+        await wait_until(lambda: arms[0].pending_count > 0, 5, "a call pending on the first arm")
         own_bus.stop()
         started = time.monotonic()
         results = await asyncio.gather(*calls, return_exceptions=True)
-        assert time.monotonic() - started < 1.5
+        assert time.monotonic() - started < 5.0
         assert all(isinstance(r, MirobotLinkLostError) for r in results), results
         with pytest.raises(MirobotLinkLostError):
             await arms[1].status()

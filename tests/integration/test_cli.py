@@ -35,6 +35,7 @@ from pathlib import Path
 import psutil
 import pytest
 import serial
+from waiting import wait_for
 
 from mirobot_async._cli.plotting import read_trace
 from mirobot_async.testing import EmulatorPool, SyncEmulatorProcess
@@ -107,14 +108,6 @@ def kill_group(proc: subprocess.Popen[str]) -> None:
                     child.kill()
         os.killpg(proc.pid, signal.SIGKILL)
         proc.communicate()
-
-
-def wait_for(condition: Callable[[], bool], timeout: float, what: str) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
-        time.sleep(0.02)
 
 
 def assert_clean(proc: subprocess.CompletedProcess[str]) -> None:

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import pytest
 import serial
+from waiting import wait_for
 
 from mirobot_async._core.replies import State, StatusReport, parse_status
 from mirobot_async.testing import EmulatorPool, SyncEmulatorProcess
@@ -29,8 +30,10 @@ pytestmark = pytest.mark.timeout(60)
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = ROOT / "examples"
 FAST = ("--time-scale", "0")
-STOP_WITHIN = 0.5
-"""Seconds from the signal to the stopping byte reaching the emulator (issue 15)."""
+STOP_WITHIN = 1.5
+"""Seconds from the signal to the stopping byte reaching the emulator (issue 15), seen through
+polls of its counters; a stop that waited for the moves queued in the arm (the dance: ~20 s at
+time scale 1, several of them buffered) would come seconds later."""
 
 
 def mirobot(*args: str, stdin: str | None = None) -> subprocess.CompletedProcess[str]:
@@ -73,16 +76,6 @@ def kill_group(proc: subprocess.Popen[str]) -> None:
     if proc.poll() is None:
         os.killpg(proc.pid, signal.SIGKILL)
         proc.communicate()
-
-
-def wait_for(condition: Callable[[], bool], timeout: float, what: str) -> float:
-    """Poll ``condition``; returns the seconds it took."""
-    started = time.monotonic()
-    while not condition():
-        if time.monotonic() - started > timeout:
-            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
-        time.sleep(0.005)
-    return time.monotonic() - started
 
 
 def stats(emulator: SyncEmulatorProcess) -> dict[str, int]:
@@ -142,12 +135,14 @@ def test_a_signal_stops_the_moving_arm_at_once(
         try:
             wait_for(lambda: moving_rows(trace) >= 3, 30, "the arm to be moving")
             before = stats(emulator)
+            signalled = time.monotonic()
             proc.send_signal(sig)
-            took = wait_for(
+            wait_for(
                 lambda: realtime_bytes(before, stats(emulator), mode) >= 1,
                 5,
                 f"the {mode} byte to reach the emulator",
             )
+            took = time.monotonic() - signalled
             _, err = proc.communicate(timeout=20)
         finally:
             kill_group(proc)
@@ -180,8 +175,10 @@ def test_ctrl_c_while_homing_stops_it_with_a_soft_reset(
         try:
             wait_for(lambda: stats(emulator)["lines_in"] > before["lines_in"], 20, "$H")
             sent = stats(emulator)
+            signalled = time.monotonic()
             proc.send_signal(signal.SIGINT)
-            took = wait_for(lambda: realtime_bytes(sent, stats(emulator), "reset") >= 1, 5, "the %")
+            wait_for(lambda: realtime_bytes(sent, stats(emulator), "reset") >= 1, 5, "the %")
+            took = time.monotonic() - signalled
             _, err = proc.communicate(timeout=20)
         finally:
             kill_group(proc)

@@ -14,6 +14,7 @@ import sys
 import time
 
 import pytest
+from waiting import wait_until
 
 from mirobot_async import (
     Mirobot,
@@ -47,7 +48,7 @@ async def test_connect_to_a_missing_path_fails_at_once(tmp_path: os.PathLike[str
     start = time.monotonic()
     with pytest.raises(MirobotConnectionError) as info:
         await Mirobot.connect(missing)
-    assert time.monotonic() - start < 1.0
+    assert time.monotonic() - start < 2.5  # not after the connect timeout (5 s)
     # One sentence quoting the OS's words once (pyserial's own text repeats them).
     assert str(info.value) == f"could not open {missing!r}: No such file or directory (ENOENT)"
     assert not isinstance(info.value, MirobotLinkLostError)
@@ -59,7 +60,7 @@ async def test_a_second_client_on_a_busy_port_fails_at_once(emu: EmulatorProcess
         start = time.monotonic()
         with pytest.raises(MirobotConnectionError, match="lock") as info:
             await Mirobot.connect(emu.url)
-        assert time.monotonic() - start < 1.0
+        assert time.monotonic() - start < 2.5  # not after the connect timeout (5 s)
         assert str(info.value).startswith(
             f"could not open {emu.url!r}: it is in use by another program (could not lock it: "
         )
@@ -73,7 +74,7 @@ async def test_connect_to_a_refused_socket_fails_at_once() -> None:
     start = time.monotonic()
     with pytest.raises(MirobotConnectionError, match="Connection refused") as info:
         await Mirobot.connect("socket://127.0.0.1:9")
-    assert time.monotonic() - start < 2.0
+    assert time.monotonic() - start < 2.5  # not after the connect timeout (5 s)
     assert str(info.value) == (
         "could not open 'socket://127.0.0.1:9': Connection refused (ECONNREFUSED)"
     )
@@ -177,9 +178,7 @@ async def test_loop_url_transport_echoes() -> None:
     lost: list[BaseException | None] = []
     link = await SerialLink.open("loop://", on_data=received.extend, on_lost=lost.append)
     link.write(b"hello\n")
-    async with asyncio.timeout(2):
-        while bytes(received) != b"hello\n":  # noqa: ASYNC110 - bounded by the timeout
-            await asyncio.sleep(0.002)
+    await wait_until(lambda: bytes(received) == b"hello\n", 5, "the echo")
     await link.close()
     await link.close()
     assert lost == [None]
@@ -443,11 +442,13 @@ async def test_wait_true_detects_completion_promptly(
     # detected within a few milliseconds of the end of the motion (margin for a loaded box),
     # by polling back-to-back, not on a 100 ms grid
     assert elapsed >= 0.8, elapsed
+    # the end is seen within a few polls, at the pace this machine's load allows them
+    polled = arm.stats.status_requests - polls
     if not on_the_oracle:  # (its simulated clock slips behind the wall clock under load)
-        assert elapsed < 0.8 + 0.08, elapsed
+        assert elapsed < 0.8 + max(0.08, 3 * elapsed / polled), (elapsed, polled)
     # more than 25 in 0.8 s: on the arm a report takes about 15 ms to print at 115200 baud
     # (the firmware oracle answers 36 back-to-back requests in this move; a 100 ms grid: 8)
-    assert arm.stats.status_requests - polls > 25
+    assert polled > 25
     # the next status is the same: the move had really finished
     assert_joints(await arm.status(), (8, 0, 0, 0, 0, 0))
 
@@ -592,7 +593,7 @@ async def test_a_move_rejected_in_alarm_changes_no_mode(arm: Mirobot, wire_spy: 
     report = await arm.move_pose(200, 0, 200, 0, 0, 0)
     assert report is not None
     assert [line for line in wire_spy.lines(mark) if line.startswith(b"M20")], wire_spy.lines(mark)
-    assert report.motion_mode == 1
+    assert report is not None and report.motion_mode == 1
     assert report.pose[:3] == pytest.approx((200, 0, 200), abs=0.05)
 
 

@@ -45,7 +45,7 @@ pytestmark = [
 CHAOS_SECONDS = 2.0
 CALL_TIMEOUT = 1.5
 STREAM_TIMEOUT = 4.5
-MARGIN = 0.5  # scheduling slack on a loaded machine
+MARGIN = 1.0  # scheduling slack on a loaded machine (a timeout ignored would be far more)
 FAULTS = [
     "corrupt-status",
     "ignore-status 2",
@@ -140,14 +140,14 @@ class Campaign:
     async def canceller(self) -> None:
         while self.running():
             task = asyncio.create_task(self.arm.send("M3 S1", timeout=CALL_TIMEOUT))
-            await asyncio.sleep(self.rng.uniform(0, 0.02))
+            await asyncio.sleep(self.rng.uniform(0, 0.02))  # a random moment to cancel at
             task.cancel()
             with contextlib.suppress(asyncio.CancelledError, MirobotError):
                 await task
 
     async def faults(self) -> None:
         while self.running():
-            await asyncio.sleep(self.rng.uniform(0.05, 0.3))
+            await asyncio.sleep(self.rng.uniform(0.05, 0.3))  # a random gap between faults
             await self.emu.control(self.rng.choice(self.fault_kinds))
 
     async def run(self, *, pipelined: bool) -> None:

@@ -23,6 +23,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
+from waiting import wait_until
 
 from mirobot_async import (
     Envelope,
@@ -615,9 +616,9 @@ async def attempt(call: Callable[[Mirobot], Awaitable[object]]) -> tuple[bool, b
         except MirobotUsageError as err:
             assert str(err).startswith("refused by the safety envelope")
             refused = True
-        async with asyncio.timeout(5):  # the fake robot has read every byte written
-            while arm.stats.bytes_sent != len(robot.received):  # noqa: ASYNC110
-                await asyncio.sleep(0.001)
+        await wait_until(
+            lambda: arm.stats.bytes_sent == len(robot.received), 5, "every byte written read"
+        )
         written = bytes(robot.received[before:])
         return refused, written, arm.stats.envelope_refusals
 

@@ -13,6 +13,7 @@ import time
 from collections.abc import AsyncIterator, Awaitable, Callable
 
 import pytest
+from waiting import wait_until
 
 from mirobot_async import (
     LineResult,
@@ -24,13 +25,6 @@ from mirobot_async import (
 from mirobot_async.testing import EmulatorProcess, WireSpy
 
 pytestmark = [pytest.mark.timeout(60), pytest.mark.usefixtures("no_leftover_tasks")]
-
-
-async def wait_until(condition: Callable[[], bool], limit: float = 5.0) -> None:
-    """Poll ``condition`` (a few ms apart) until it holds; fail after ``limit`` seconds."""
-    async with asyncio.timeout(limit):
-        while not condition():  # noqa: ASYNC110 - a condition of the client, not an event
-            await asyncio.sleep(0.002)
 
 
 # ---- status accounting (13.7, 13.8, 17.2) ------------------------------------------------------
@@ -61,7 +55,9 @@ async def test_a_stalled_link_keeps_every_reply_with_its_own_call(
     try:
         await emu.control("stall 1.5")
         first = asyncio.create_task(arm.send("G4 P1", timeout=10))
-        await wait_until(lambda: arm.status_requests_outstanding > 8)
+        await wait_until(
+            lambda: arm.status_requests_outstanding > 8, 5, "9 status requests outstanding"
+        )
         assert await first == ()
         assert await arm.send("M3 S8", timeout=10) == ()
     finally:
@@ -100,7 +96,8 @@ async def test_fifty_ignored_status_requests_cost_nothing_later(
     arm.status_retry_interval = retry
     assert "ignored_status=50" in await emu.control("stats")
     later = await _wait_idle_seconds(arm)
-    assert later < max(4 * at_start, 0.05), (at_start, later)
+    # the bug made each ~0.5 s (a retry interval); a median of 7 bounded at half of that
+    assert later < max(4 * at_start, 0.25), (at_start, later)
     report = await arm.move_joints(j1=3, timeout=5)  # completion needs fresh reports too
     assert report is not None and abs(report.joints[0] - 3) < 0.05
     await arm.send("M3 S1")
@@ -150,12 +147,14 @@ async def test_lines_run_after_a_spontaneous_reset_are_reported_as_run(
     progress: list[LineResult] = []
     stream = asyncio.create_task(arm.stream(program(), on_progress=progress.append).run())
     try:
-        await wait_until(lambda: len(progress) == 3)
+        await wait_until(lambda: len(progress) == 3, 5, "3 line results")
         await emu.control("stall 0.5")  # the banner will be held up...
         await emu.control("reset")  # ...by the robot resetting now
         mark = wire_spy.mark()
         release.set()
-        await wait_until(lambda: len(wire_spy.lines(mark)) >= 5)  # written after the reset
+        await wait_until(
+            lambda: len(wire_spy.lines(mark)) >= 5, 5, "5 lines written after the reset"
+        )
         result = await asyncio.wait_for(stream, 10)
     finally:
         release.set()
@@ -249,10 +248,12 @@ async def test_hold_on_exit_holds_the_arm_when_the_block_fails(
     assert b"!" not in wire_spy.since(mark)  # a normal end sends nothing
     await arm.move_joints(j1=30, speed=600, wait=False)
     await first_status(arm, State.RUN)
+    mark = wire_spy.mark()
     with pytest.raises(RuntimeError, match="boom"):
         async with arm.hold_on_exit():
             raise RuntimeError("boom")
-    await first_status(arm, State.HOLD, limit=0.5)
+    assert b"!" in wire_spy.since(mark)  # written before the exception left the block
+    await first_status(arm, State.HOLD)  # a move of ~3 s, held: never Idle, never Hold unheld
     await arm.resume()
     await first_status(arm, State.RUN)
 
@@ -261,9 +262,11 @@ async def test_hold_on_exit_holds_the_arm_when_the_block_fails(
             await arm.wait_idle(timeout=30)
 
     task = asyncio.create_task(supervised())
-    await wait_until(lambda: arm.status_waiter_count > 0)
+    await wait_until(lambda: arm.status_waiter_count > 0, 5, "a status waiter")
+    mark = wire_spy.mark()
     task.cancel()
     with pytest.raises(asyncio.CancelledError):
         await task
-    await first_status(arm, State.HOLD, limit=0.5)
+    assert b"!" in wire_spy.since(mark)  # written as the cancellation left the block
+    await first_status(arm, State.HOLD)
     await arm.reset()

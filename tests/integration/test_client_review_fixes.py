@@ -8,6 +8,7 @@ import time
 from typing import Any
 
 import pytest
+from waiting import wait_until
 
 from mirobot_async import (
     Mirobot,
@@ -105,12 +106,12 @@ async def test_a_late_status_reply_is_not_credited_to_a_newer_request(
     try:
         asked = arm.stats.status_requests
         first = asyncio.create_task(arm.status())
-        async with asyncio.timeout(5):  # the "?" of 0, 0.1 and 0.2 s are out, none answered yet
-            while arm.stats.status_requests < asked + 3:  # noqa: ASYNC110 - bounded above
-                await asyncio.sleep(0.005)
+        # the "?" of 0, 0.1 and 0.2 s are out, none answered yet
+        await wait_until(lambda: arm.stats.status_requests >= asked + 3, 5, "3 status requests")
         assert not first.done()
+        sent = arm.stats.lines_sent
         pump = asyncio.create_task(arm.set_pump(500))
-        await asyncio.sleep(0)  # the line is written
+        await wait_until(lambda: arm.stats.lines_sent > sent, 5, "the pump line written")
         report = await arm.status(fresh=True, timeout=5.0)
         assert report.pump_pwm == 500, report
         await first
@@ -182,9 +183,11 @@ class _PortSpy:
         import serial
 
         self.ports: list[Any] = []
+        self.opening = False
         original = serial.serial_for_url
 
         def opener(*args: Any, **kwargs: Any) -> Any:
+            self.opening = True
             if delay:
                 time.sleep(delay)  # (in the executor thread) an open that hangs a while
             port = original(*args, **kwargs)
@@ -216,15 +219,12 @@ async def test_a_port_opened_after_the_open_timed_out_is_closed(
 ) -> None:
     from mirobot_async._client import transport
 
-    spy = _PortSpy(monkeypatch, delay=0.3)
+    spy = _PortSpy(monkeypatch, delay=1.0)  # far past the open's timeout of 0.05 s
     with pytest.raises(MirobotConnectionError, match="within"):
         await transport.SerialLink.open(
             "loop://", on_data=lambda _: None, on_lost=lambda _: None, timeout=0.05
         )
-    for _ in range(100):
-        await asyncio.sleep(0.02)
-        if spy.ports and not spy.ports[0].is_open:
-            break
+    await wait_until(lambda: spy.ports and not spy.ports[0].is_open, 10, "the late port closed")
     assert len(spy.ports) == 1
     assert not spy.ports[0].is_open
 
@@ -234,18 +234,15 @@ async def test_a_port_opened_after_the_open_was_cancelled_is_closed(
 ) -> None:
     from mirobot_async._client import transport
 
-    spy = _PortSpy(monkeypatch, delay=0.3)
+    spy = _PortSpy(monkeypatch, delay=1.0)
     opening = asyncio.create_task(
         transport.SerialLink.open("loop://", on_data=lambda _: None, on_lost=lambda _: None)
     )
-    await asyncio.sleep(0.05)
-    opening.cancel()
+    await wait_until(lambda: spy.opening, 5, "the open under way (in its thread)")
+    opening.cancel()  # the open hangs for 1 s yet
     with pytest.raises(asyncio.CancelledError):
         await opening
-    for _ in range(100):
-        await asyncio.sleep(0.02)
-        if spy.ports and not spy.ports[0].is_open:
-            break
+    await wait_until(lambda: spy.ports and not spy.ports[0].is_open, 10, "the late port closed")
     assert len(spy.ports) == 1
     assert not spy.ports[0].is_open
 

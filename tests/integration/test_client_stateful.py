@@ -26,6 +26,7 @@ from hypothesis.stateful import (
     precondition,
     rule,
 )
+from waiting import wait_until
 
 from mirobot_async import (
     Mirobot,
@@ -405,12 +406,7 @@ class ClientMachine(RuleBasedStateMachine):
         assert self.emu is not None
         self.emu.control("hard-limit")
 
-        async def wait_for_alarm() -> None:
-            async with asyncio.timeout(5):
-                while not self.client.needs_reset:  # noqa: ASYNC110 - bounded by the timeout
-                    await asyncio.sleep(0.002)
-
-        self.run(wait_for_alarm())
+        self.run(wait_until(lambda: self.client.needs_reset, 5, "the alarm"))
         self.model.needs_reset = True
         self.model.alarm = True
 

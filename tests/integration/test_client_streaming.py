@@ -8,6 +8,7 @@ import logging
 from collections.abc import AsyncIterator
 
 import pytest
+from waiting import wait_until
 
 from mirobot_async import (
     LineResult,
@@ -110,12 +111,12 @@ async def test_stream_accepts_async_iterables_and_async_callbacks(ready_arm: Mir
             yield f"M4 E{i}\n"
             if i % 10 == 0:
                 yield "   "  # blank lines are skipped
-                await asyncio.sleep(0)
+                await asyncio.sleep(0)  # an iterable that suspends (the behaviour under test)
 
     progress: list[LineResult] = []
 
     async def on_progress(result: LineResult) -> None:
-        await asyncio.sleep(0)
+        await asyncio.sleep(0)  # a callback that suspends (the behaviour under test)
         progress.append(result)
 
     result = await arm.stream(lines(), on_progress=on_progress)
@@ -189,9 +190,9 @@ async def test_cancelling_a_stream_stops_sending_and_keeps_the_link_in_step(
     arm = ready_arm
     acknowledged: list[LineResult] = []
     stream = asyncio.ensure_future(arm.stream(["G4 P0.02"] * 200, on_progress=acknowledged.append))
-    async with asyncio.timeout(10):
-        while len(acknowledged) < 5 or arm.pending_count < 5:  # noqa: ASYNC110 - bounded
-            await asyncio.sleep(0.002)
+    await wait_until(
+        lambda: len(acknowledged) >= 5 and arm.pending_count >= 5, 10, "5 results and 5 pending"
+    )
     stream.cancel()
     with pytest.raises(asyncio.CancelledError):
         await stream

@@ -8,14 +8,10 @@ import os
 import signal
 import subprocess
 import sys
-import time
-from collections.abc import Callable
 from pathlib import Path
-from typing import TypeVar
 
 import pytest
-
-_T = TypeVar("_T")
+from waiting import wait_for
 
 
 def _children(pid: int) -> list[int]:
@@ -44,15 +40,6 @@ def _gone(pid: int) -> bool:
     return state in ("Z", "X")
 
 
-def _wait_for(condition: Callable[[], _T], limit: float, what: str) -> _T:
-    deadline = time.monotonic() + limit
-    while not (found := condition()):
-        if time.monotonic() > deadline:
-            raise AssertionError(f"no {what} within {limit} s")
-        time.sleep(0.02)
-    return found
-
-
 pytestmark = pytest.mark.skipif(
     not Path("/proc/self/task").exists(), reason="needs /proc (Linux) to find the child"
 )
@@ -75,10 +62,10 @@ def test_a_killed_monitor_leaves_no_emulator(sig: signal.Signals) -> None:
                     return child
             return 0
 
-        emulator = _wait_for(emulator_child, 60, "embedded emulator")
+        emulator = wait_for(emulator_child, 60, "embedded emulator")
         os.kill(cli.pid, sig)
         cli.wait(30)
-        _wait_for(lambda: _gone(emulator), 30, "exit of the orphaned emulator")
+        wait_for(lambda: _gone(emulator), 30, "exit of the orphaned emulator")
     finally:
         if cli.poll() is None:
             cli.kill()

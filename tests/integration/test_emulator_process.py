@@ -521,7 +521,9 @@ def test_baud_paces_output(renewed: Callable[..., Emulator], transport: str) -> 
         rate, data = _received_rate(port, 800, timeout=6)
     assert data == b"ok\r\n" * 200
     print(f"output rate at 9600 baud: {rate:.0f} B/s")
-    assert rate == pytest.approx(960, rel=0.15)
+    # paced: never faster than the baud allows (unpaced, the 800 bytes come at once); a loaded
+    # machine can only make it slower, so the lower bound has room for that
+    assert 960 * 0.5 < rate < 960 * 1.15
 
 
 @pytest.mark.parametrize("transport", TRANSPORTS)
@@ -539,7 +541,8 @@ def test_baud_paces_input(renewed: Callable[..., Emulator], transport: str) -> N
         elapsed = time.monotonic() - started
     assert oks.count("ok") == 10, oks
     print(f"640 bytes in at 9600 baud: {elapsed:.3f} s")
-    assert elapsed == pytest.approx(640 / 960, rel=0.15)
+    # paced: never quicker than the baud allows; a loaded machine can only make it slower
+    assert 640 / 960 * 0.85 < elapsed < 640 / 960 * 2
 
 
 @pytest.mark.parametrize("transport", TRANSPORTS)
@@ -619,7 +622,7 @@ def test_fault_stall(renewed: Callable[..., Emulator]) -> None:
         read_until(port, lambda text: text == "ok", timeout=5)
         arrived = time.monotonic()
     assert arrived - emu.spawned >= 0.8
-    assert arrived - emu.path_seen < 2.0
+    assert arrived - emu.path_seen < 3.0  # the stall ends (room for a loaded machine)
 
 
 def test_fault_hard_limit(renewed: Callable[..., Emulator]) -> None:
@@ -690,10 +693,10 @@ def test_control_stall(renewed: Callable[..., Emulator], transport: str) -> None
         assert emu.command("stall 0.5") == "ack stall 0.5"
         started = time.monotonic()
         port.write(b"\n?")
-        lines = read_until(port, is_status, timeout=3)
+        lines = read_until(port, is_status, timeout=5)
         elapsed = time.monotonic() - started
         assert lines[0] == "ok", lines
-    assert 0.45 <= elapsed < 1.5
+    assert 0.45 <= elapsed < 2.5  # held for the stall, and released (room for a loaded machine)
 
 
 @pytest.mark.parametrize(("profile", "transport"), [("classic", "pty"), ("2021", "tcp")])

@@ -16,10 +16,10 @@ import subprocess
 import sys
 import textwrap
 import time
-from collections.abc import Callable
 
 import pytest
 import serial
+from waiting import wait_for
 
 from mirobot_async import Mirobot
 from mirobot_async.testing import EmulatorError, EmulatorPool, SyncEmulatorProcess
@@ -33,13 +33,6 @@ OPTIONS = ("--reset-on-open", "--fault", "drop-ok:1", "--seed", "3")  # banner a
 def stats(emulator: SyncEmulatorProcess) -> dict[str, int]:
     answer = emulator.control("stats")
     return {name: int(value) for name, value in (w.split("=") for w in answer.split()[2:])}
-
-
-def wait_for(condition: Callable[[], bool], timeout: float = 10.0, what: str = "") -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        assert time.monotonic() < deadline, f"timed out waiting for {what or condition}"
-        time.sleep(0.005)
 
 
 def process_gone(pid: int) -> bool:
@@ -76,11 +69,11 @@ def mess_up(emulator: SyncEmulatorProcess) -> serial.SerialBase:
     and busy, output unread in the port; return the client, still connected."""
     port = serial.serial_for_url(emulator.url, 115200, timeout=0.05)
     port.write(b"M50\n$X\nM21 G90 G1 X10 Y20 Z30 A0 B0 C0 F2000\n")
-    wait_for(lambda: stats(emulator)["lines_in"] >= 3, what="the lines")
+    wait_for(lambda: stats(emulator)["lines_in"] >= 3, 10, "the lines")
     for command in ("drop-ok 3", "stall 30", "split-bytes on", "delay 40", "time-scale 0.01"):
         emulator.control(command)
     port.write(b"M21 G91 G1 X-5 F100\n" + b"?" * 50)  # a slow move; the replies left unread
-    wait_for(lambda: stats(emulator)["status_requests_in"] >= 50, what="the status requests")
+    wait_for(lambda: stats(emulator)["status_requests_in"] >= 50, 10, "the status requests")
     return port
 
 
@@ -113,7 +106,7 @@ def test_renew_drops_the_connected_client(link: str) -> None:
         port = serial.serial_for_url(emulator.url, 115200, timeout=0.05)
         try:
             port.write(b"?\n")
-            wait_for(lambda: stats(emulator)["status_requests_in"] == 1)
+            wait_for(lambda: stats(emulator)["status_requests_in"] == 1, 10, "the status request")
             emulator.renew("2021", 0.0)
 
             def cut() -> bool:
@@ -122,7 +115,7 @@ def test_renew_drops_the_connected_client(link: str) -> None:
                 except (serial.SerialException, OSError):
                     return True  # the link ended under the client
 
-            wait_for(cut, what="the old client's link to end")
+            wait_for(cut, 10, "the old client's link to end")
         finally:
             port.close()
 
@@ -169,7 +162,7 @@ def test_renew_refuses_what_only_a_new_process_or_nothing_can_be() -> None:
         port = serial.serial_for_url(before_url, 115200, timeout=0.05)  # unchanged, serving
         try:
             port.write(b"$X\n")
-            wait_for(lambda: stats(emulator)["dropped_oks"] == 1, what="the armed drop")
+            wait_for(lambda: stats(emulator)["dropped_oks"] == 1, 10, "the armed drop")
         finally:
             port.close()
 
@@ -228,7 +221,9 @@ def test_the_pool_does_not_reuse_a_killed_stopped_or_closed_process(how: str) ->
         with pool.lend() as second:
             assert second.pid != first.pid
         assert pool.renewed == 0
-    wait_for(lambda: process_gone(first.pid) and process_gone(second.pid))
+    wait_for(
+        lambda: process_gone(first.pid) and process_gone(second.pid), 10, "both emulators to exit"
+    )
 
 
 def test_fresh_fixed_ports_and_a_size_of_zero_are_not_pooled() -> None:
@@ -257,7 +252,7 @@ def test_a_spare_started_meanwhile_replaces_a_killed_process() -> None:
             assert pool.renewed == 1
             assert stats(second)["bytes_in"] == 0
         pids = [first.pid, second.pid]
-    wait_for(lambda: all(process_gone(pid) for pid in pids))
+    wait_for(lambda: all(process_gone(pid) for pid in pids), 10, "every emulator to exit")
 
 
 def test_the_pool_serves_asyncio_tests_on_their_own_event_loops() -> None:
@@ -309,4 +304,4 @@ def test_no_emulator_outlives_a_sigkilled_owner(tmp_path: os.PathLike[str]) -> N
             assert owner.stdin is not None and owner.stdout is not None
             owner.stdin.close()
             owner.stdout.close()
-    wait_for(lambda: all(process_gone(pid) for pid in pids), what="the orphans to exit")
+    wait_for(lambda: all(process_gone(pid) for pid in pids), 10, "the orphans to exit")

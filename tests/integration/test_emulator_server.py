@@ -25,6 +25,7 @@ from mirobot_emulator.firmware import Firmware
 from mirobot_emulator.server import ServerOptions, VirtualMirobot
 from mirobot_emulator.server.link import INPUT_HOLD_LIMIT, OUTPUT_HOLD_LIMIT
 from mirobot_emulator.server.port import READ_CHUNK
+from waiting import wait_for
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -233,9 +234,7 @@ def test_tcp_split_bytes_writes_one_byte_at_a_time() -> None:
                 timeout=20,
             )
         # one byte per write (the server's thread counts a write after it; wait for the last)
-        deadline = time.monotonic() + 5
-        while robot.server.split_writes < len(data) and time.monotonic() < deadline:
-            time.sleep(0.001)
+        wait_for(lambda: robot.server.split_writes >= len(data), 5, "the last write counted")
         assert robot.server.split_writes == len(data)
         # TCP cannot tell what the client read: reads coalesce bytes that arrive while the
         # reader is busy (here it shares the GIL with the server), but stay short on average

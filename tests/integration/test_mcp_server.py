@@ -21,6 +21,7 @@ import psutil
 import pytest
 from mcp import ClientSession, StdioServerParameters, stdio_client
 from mcp.types import CallToolResult, TextContent
+from waiting import poll_until, wait_until
 
 from mirobot_async._cli.arguments import build_parser
 from mirobot_async._cli.commands import cmd_mcp
@@ -110,10 +111,7 @@ async def mcp_server(
 
         call.session = session  # type: ignore[attr-defined]
         yield call
-    deadline = asyncio.get_running_loop().time() + 10
-    while children() - before:
-        assert asyncio.get_running_loop().time() < deadline, f"left running: {children() - before}"
-        await asyncio.sleep(0.05)
+    await wait_until(lambda: not children() - before, 10, "the server's children to exit")
 
 
 async def lines_received(emulator: EmulatorProcess) -> int:
@@ -133,13 +131,13 @@ async def wait_status(
     what: str,
     limit: float = 20.0,
 ) -> dict[str, Any]:
-    deadline = asyncio.get_running_loop().time() + limit
-    while True:
-        status = data_of(await call("status"))
-        if condition(status):
-            return status
-        assert asyncio.get_running_loop().time() < deadline, f"no {what}: {status}"
-        await asyncio.sleep(0.02)
+    seen: dict[str, Any] = {}
+
+    async def matching() -> dict[str, Any] | None:
+        seen.update(status := data_of(await call("status")))
+        return status if condition(status) else None
+
+    return await poll_until(matching, limit, lambda: f"{what} (last status {seen})", every=0.02)
 
 
 async def test_the_tools_and_resources_a_client_sees(errlog: TextIO) -> None:

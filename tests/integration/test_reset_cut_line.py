@@ -10,10 +10,11 @@ run (:class:`MirobotResetError`) and the lines after it with their own replies; 
 from __future__ import annotations
 
 import asyncio
-import time
-from collections.abc import Callable
 
 import pytest
+
+# 9600 baud: a 9-byte line spends ~9 ms on the wire, so a dozen lines are in transit at once
+from waiting import poll_until, wait_until
 
 from mirobot_async import (
     Mirobot,
@@ -23,18 +24,8 @@ from mirobot_async import (
 )
 from mirobot_async.testing import EmulatorProcess
 
-# 9600 baud: a 9-byte line spends ~9 ms on the wire, so a dozen lines are in transit at once
 SLOW_WIRE = ("--baud", "9600")
 LINES = [f"M3 S{100 + i}" for i in range(60)]
-
-
-async def wait_until(predicate: Callable[[], bool], within: float = 10.0) -> None:
-    """Yield to the loop until ``predicate()`` holds (AssertionError after ``within`` s)."""
-    deadline = time.monotonic() + within
-    while not predicate():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"condition not met within {within} s")
-        await asyncio.sleep(0.002)
 
 
 @pytest.mark.mirobot_emulator(time_scale=0, extra_args=SLOW_WIRE)
@@ -45,7 +36,11 @@ async def test_the_first_line_answered_after_a_reset_has_an_unknown_outcome(
     arm.liveness_interval = 0.1  # settle the lines the reset wiped soon after the banner
     stream = asyncio.ensure_future(arm.stream(LINES))
     try:
-        await wait_until(lambda: arm.stats.lines_acknowledged >= 5 and arm.pending_count >= 6)
+        await wait_until(
+            lambda: arm.stats.lines_acknowledged >= 5 and arm.pending_count >= 6,
+            10,
+            "5 lines acknowledged and 6 pending",
+        )
         await emu.control("reset")
         result = await asyncio.wait_for(stream, 15)
     finally:
@@ -70,12 +65,13 @@ async def test_the_first_line_answered_after_a_reset_has_an_unknown_outcome(
         assert all(isinstance(e, MirobotAlarmError) for e in answered), result.errors
     # every line accounted for once: acknowledged before the reset, or one of the errors
     assert result.acknowledged + len(result.errors) >= result.sent
-    await wait_until(lambda: arm.pending_count == 0)
-    deadline = time.monotonic() + 10
-    while True:  # nothing resent: the robot received each written line once
+    await wait_until(lambda: arm.pending_count == 0, 10, "no call pending")
+
+    async def all_received() -> dict[str, str] | None:
         words = (await emu.control("stats")).split()
         stats = dict(word.split("=") for word in words[2:])
-        if int(stats["bytes_in"]) == arm.stats.bytes_sent or time.monotonic() > deadline:
-            break
-        await asyncio.sleep(0.01)
+        return stats if int(stats["bytes_in"]) == arm.stats.bytes_sent else None
+
+    # nothing resent: the robot received each written line once
+    stats = await poll_until(all_received, 10, "every byte written received", every=0.01)
     assert int(stats["lines_in"]) == arm.stats.lines_sent

@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from waiting import wait_until
 
 from mirobot_async import Mirobot, MirobotConnectionError, MirobotError
 from mirobot_async._client.transport import SerialLink
@@ -247,9 +248,7 @@ async def check_link_cut(url: str, cut: Callable[[], None]) -> None:
         await arm.unlock()
         dwell = asyncio.create_task(arm.send("G4 P20", timeout=30))
         queued = asyncio.create_task(arm.send("M3 S500", timeout=30))
-        async with asyncio.timeout(5):
-            while arm.pending_count < 2:  # noqa: ASYNC110 - both lines written, bounded
-                await asyncio.sleep(0.001)
+        await wait_until(lambda: arm.pending_count >= 2, 5, "both lines written", every=0.001)
         loop = asyncio.get_running_loop()
         cut_at = loop.time()
         cut()

@@ -9,6 +9,7 @@ import contextlib
 import time
 
 import pytest
+from waiting import wait_until
 
 from mirobot_async import (
     Mirobot,
@@ -30,9 +31,7 @@ def at_zero(report: StatusReport) -> bool:
 
 async def homing_started(arm: Mirobot) -> None:
     """Returns once the client has written the homing line (it is silent from then on)."""
-    async with asyncio.timeout(30):
-        while arm.homing is None:  # noqa: ASYNC110 - a property of the client, no event
-            await asyncio.sleep(0.01)
+    await wait_until(lambda: arm.homing is not None, 30, "the homing line written")
 
 
 async def test_home_waits_through_the_silent_search(arm: Mirobot, profile: str) -> None:
@@ -96,7 +95,7 @@ async def test_a_statuses_consumer_survives_homing(arm: Mirobot, profile: str) -
 
     consumer = asyncio.create_task(consume())
     try:
-        await asyncio.sleep(0)
+        await asyncio.sleep(0)  # one loop turn: the consumer has started
         assert at_zero(await arm.home())
         after_homing.set()
         async with asyncio.timeout(30):

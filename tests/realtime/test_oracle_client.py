@@ -9,6 +9,7 @@ import asyncio
 import time
 
 import pytest
+from waiting import wait_until
 
 from mirobot_async import Mirobot, MirobotTimeoutError, State
 
@@ -19,9 +20,7 @@ async def test_home_on_the_real_firmware(oracle: str) -> None:
     async with Mirobot.connect(oracle) as arm:
         homing = asyncio.create_task(arm.home())
         try:
-            async with asyncio.timeout(30):
-                while arm.homing is None:  # noqa: ASYNC110 - a property of the client
-                    await asyncio.sleep(0.01)
+            await wait_until(lambda: arm.homing is not None, 30, "the homing line written")
             with pytest.raises(MirobotTimeoutError, match="homing"):
                 await arm.status()  # the firmware answers no "?" during the search
             report = await homing
@@ -55,7 +54,10 @@ async def test_send_home_and_a_statuses_consumer_on_the_real_firmware(oracle: st
             assert output is not None
             report = await arm.wait_idle()
             assert all(abs(j) < 0.05 for j in report.joints), report
-            await asyncio.sleep(0.5)  # the consumer is still alive after homing
+            after = len(states)  # the consumer is still alive after homing: it reports on
+            await wait_until(
+                lambda: len(states) >= after + 2 or consumer.done(), 10, "reports after homing"
+            )
             assert not consumer.done(), consumer
         finally:
             consumer.cancel()

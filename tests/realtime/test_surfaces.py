@@ -16,6 +16,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from waiting import poll_until
 
 from mirobot_async import State
 from mirobot_async._cli import main
@@ -178,9 +179,11 @@ async def test_bus_controller_homing_keeps_the_arms_client(tmp_path: Path, profi
             other = await bus.connect_arm(2)
             homing = asyncio.create_task(bus.controller(1).home())
             try:
-                async with asyncio.timeout(20):
-                    while (await bus.controller(1).arm_state()).word != "Home":  # noqa: ASYNC110
-                        await asyncio.sleep(0.05)
+
+                async def searching() -> bool:
+                    return (await bus.controller(1).arm_state()).word == "Home"
+
+                await poll_until(searching, 20, "the controller's Home state", every=0.05)
                 asking = asyncio.create_task(arm.status(timeout=60))
                 assert (await other.status()).state is not None  # the bus stays free
                 await homing

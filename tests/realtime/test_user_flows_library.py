@@ -15,6 +15,7 @@ import time
 
 import pytest
 from user_flow_arms import ARMS, ROOT, arm_at_real_speed
+from waiting import wait_for
 
 from mirobot_async import Mirobot, State, StatusReport
 from mirobot_async.sync import Mirobot as SyncMirobot
@@ -100,10 +101,12 @@ def test_homing_with_a_monitor_thread_running(
         try:
             homed = bot.home()
             after = len(seen)
-            deadline = time.monotonic() + 10
-            while len(seen) < after + 2 and watcher.is_alive():  # two reports after homing
-                assert time.monotonic() < deadline, "the monitor stopped reporting after homing"
-                time.sleep(0.05)
+            wait_for(
+                lambda: len(seen) >= after + 2 or not watcher.is_alive(),
+                10,
+                "two reports of the monitor after homing",
+            )
+            assert len(seen) >= after + 2, "the monitor stopped reporting after homing"
         finally:
             stop.set()
             watcher.join(15)

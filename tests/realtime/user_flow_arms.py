@@ -15,11 +15,11 @@ import signal
 import subprocess
 import sys
 import threading
-import time
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+import waiting
 
 from mirobot_async.testing import EmulatorError, EmulatorPool
 from mirobot_async.testing._oracle import oracle_command
@@ -84,19 +84,21 @@ class Spawned:
     def wait_for(self, text: str, timeout: float, *, count: int = 1) -> None:
         """Return once ``text`` has appeared ``count`` times on stderr (``AssertionError`` after
         ``timeout`` s, or when the command ends first)."""
-        deadline = time.monotonic() + timeout
-        while self.stderr.count(text) < count:
-            if self.proc.poll() is not None:
-                for reader in self._readers:
-                    reader.join(5)
-                if self.stderr.count(text) >= count:
-                    return
+
+        def seen_or_ended() -> bool:
+            return self.stderr.count(text) >= count or self.proc.poll() is not None
+
+        try:
+            waiting.wait_for(seen_or_ended, timeout, f"{text!r} x{count}", every=0.01)
+        except AssertionError as error:
+            raise AssertionError(f"{error}: {self.stderr}") from None
+        if self.stderr.count(text) < count:  # ended: read what it wrote last
+            for reader in self._readers:
+                reader.join(5)
+            if self.stderr.count(text) < count:
                 raise AssertionError(
                     f"ended ({self.proc.returncode}) before {text!r}: {self.stderr}"
                 )
-            if time.monotonic() > deadline:
-                raise AssertionError(f"no {text!r} x{count} within {timeout} s: {self.stderr}")
-            time.sleep(0.01)
 
     def interrupt(self) -> None:
         """Ctrl-C in the terminal: SIGINT to the command's process group."""

@@ -532,16 +532,18 @@ def test_interrupted_run_says_what_was_still_queued() -> None:
     assert line_ranges([1, 3, 5, 7, 9, 11]) == "1, 3, 5, ..., 11"
 
 
-async def _fail_soon() -> None:
-    await asyncio.sleep(0)
-    raise OSError("disk full")
+async def _fail_soon(failing: asyncio.Event) -> None:
+    await asyncio.sleep(0)  # a job that fails after it has started
+    failing.set()
+    raise OSError("disk full")  # in the same step: the waiter on ``failing`` runs after this
 
 
 async def test_background_job_failure_is_a_warning_not_the_result(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    async with background_jobs(status_recording=_fail_soon(), nothing=None):
-        await asyncio.sleep(0.01)
+    failing = asyncio.Event()
+    async with background_jobs(status_recording=_fail_soon(failing), nothing=None):
+        await failing.wait()
     assert "warning: status recording failed: OSError: disk full" in capsys.readouterr().err
 
 
@@ -549,8 +551,9 @@ async def test_background_job_failure_does_not_replace_the_blocks_error(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     with pytest.raises(MirobotLinkLostError):
-        async with background_jobs(status_recording=_fail_soon()):
-            await asyncio.sleep(0.01)
+        failing = asyncio.Event()
+        async with background_jobs(status_recording=_fail_soon(failing)):
+            await failing.wait()
             raise MirobotLinkLostError("link lost")
     assert "warning" not in capsys.readouterr().err  # most likely the same cause: debug only
 
@@ -562,7 +565,7 @@ async def test_cancelling_the_caller_during_background_clean_up_propagates() -> 
     async def stubborn() -> None:
         nonlocal job_done
         try:
-            await asyncio.sleep(10)
+            await asyncio.sleep(10)  # a job that runs until it is cancelled
         except asyncio.CancelledError:
             slow_clean_up.set()
             await asyncio.sleep(10)  # a slow clean-up, cut short by the second cancellation
@@ -571,7 +574,7 @@ async def test_cancelling_the_caller_during_background_clean_up_propagates() -> 
 
     async def body() -> str:
         async with background_jobs(job=stubborn()):
-            await asyncio.sleep(0)
+            await asyncio.sleep(0)  # a block of one loop turn: the job is still running
         return "finished"
 
     task = asyncio.create_task(body())

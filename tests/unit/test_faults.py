@@ -538,11 +538,11 @@ def test_split_bytes_from_the_control_channel() -> None:
 
 
 def test_delay_holds_every_reply_and_keeps_the_order() -> None:
-    with _served("delay:150") as (robot, fd):
+    with _served("delay:1000") as (robot, fd):
         start = time.monotonic()
         os.write(fd, b"M3 S5\n?\nM99\n")
         data = b"".join(_read_until(fd, lambda d: d.count(b"\n") >= 4))
-        assert time.monotonic() - start >= 0.14
+        assert time.monotonic() - start >= 0.99
         lines = data.split(b"\r\n")
         assert lines[0] == b"ok"
         assert lines[1].startswith(b"<Idle,") and b"Pump PWM:5," in lines[1]
@@ -552,7 +552,7 @@ def test_delay_holds_every_reply_and_keeps_the_order() -> None:
         start = time.monotonic()
         os.write(fd, b"\n")
         assert b"".join(_read_until(fd, lambda d: d.endswith(b"ok\r\n"))) == b"ok\r\n"
-        assert time.monotonic() - start < 0.14
+        assert time.monotonic() - start < 0.8  # not held for the 1 s delay any more
 
 
 def _stats(robot: VirtualMirobot) -> dict[str, int]:

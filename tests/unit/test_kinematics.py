@@ -423,9 +423,9 @@ def test_forward_is_fast() -> None:
     n = 2000
     best = math.inf
     for _ in range(3):
-        t0 = time.perf_counter()
+        t0 = time.process_time()  # CPU time: other processes on a loaded machine do not count
         for _ in range(n):
             forward(q)
-        best = min(best, (time.perf_counter() - t0) / n)
-    # Target is < 20 us; allow a wide margin for loaded CI machines.
+        best = min(best, (time.process_time() - t0) / n)
+    # Target is < 20 us; allow a wide margin for slow CI machines.
     assert best < 100e-6

@@ -119,7 +119,7 @@ class Toy:
         return self._value
 
     async def add(self, amount: int, *, fail: bool = False) -> int:
-        await asyncio.sleep(0)
+        await asyncio.sleep(0)  # a coroutine that suspends, as the client's do
         if fail:
             raise MirobotUsageError(f"amount={amount} refused")
         self._value += amount
@@ -135,7 +135,7 @@ class Toy:
     async def counting(self, stop: int) -> AsyncGenerator[int, None]:
         try:
             for number in range(stop):
-                await asyncio.sleep(0)
+                await asyncio.sleep(0)  # a generator that suspends, as the client's do
                 yield number
         finally:
             self.cancelled.append("counting closed")
