@@ -135,6 +135,19 @@ class Machine:
         sets it (oracle)."""
         self.alarm = interrupted or (power_on and self.profile == "2021") or self.alarm
 
+    def regrid(self, before: motion.AxisLimits) -> None:
+        """The steps per degree changed (a ``$`` setting, ``$RST``): GRBL keeps the machine
+        position in motor steps, so the idle arm's angles are its steps on the new grid (a
+        block from an angle off the grid would not start where the planner ends)."""
+        after = self.geometry.limits()
+        if after.steps is None or before.steps == after.steps:
+            return
+        if self.planner.blocks:  # (never: settings are refused while motion is queued)
+            return
+        # (from no steps at all, a ``$10x=0`` ideal machine: the nearest whole steps)
+        grid = after if before.steps is None else before
+        self.planner.set_position(after.from_steps(grid.to_steps(self.planner.position)))
+
     def parser_init(self, *, feed: float) -> None:
         """GRBL ``gc_init`` with ``feed``; the pose is the FK of the planned joints."""
         q = self.planner.planned_position

@@ -13,6 +13,7 @@ from ..motion import Vec7
 from . import codes as c
 from .geometry import vec7
 from .machine import N_STARTUP_LINE, Machine, Pending
+from .moves import MIN_FEED
 from .reports import status_line
 from .scanner import read_float, uint8
 
@@ -141,8 +142,10 @@ class SystemCommands:
             m.error(c.INVALID_STATEMENT)
             return
         if line[5] in "$*":
+            before = m.geometry.limits()
             m.settings.clear()  # in place: holders of ``settings`` see the change
             m.settings.update(cfg.default_settings(m.profile))
+            m.regrid(before)
         if line[5] == "*":
             m.startup_lines = [""] * N_STARTUP_LINE
             m.build_info = ""
@@ -193,7 +196,9 @@ class SystemCommands:
         if i != len(line) or parameter > 255:
             m.error(c.INVALID_STATEMENT)
             return
+        before = m.geometry.limits()
         m.reply(self._set_setting(uint8(parameter), value))
+        m.regrid(before)
 
     def _set_setting(self, number: int, value: float) -> int:
         """Store setting ``number``; the GRBL status (0 = ok)."""
@@ -292,6 +297,8 @@ class SystemCommands:
         if longest == 0.0:
             return
         feed = m.settings[24] * math.sqrt(math.fsum(d * d for d in delta)) / longest
+        if not feed > 0.0:  # ASSUMED: a homing feed $24=0 crawls, as a G1 feed of 0 does
+            feed = MIN_FEED
         limits = m.geometry.limits()
         m.planner.push(motion.joint_block(zero, vec7(target), feed, limits))
         m.rezero = zero
