@@ -64,6 +64,8 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     if session_link(config) != "oracle":
         return
     for item in items:
+        # the simulator's torn switch reads (tests/oracle/conftest.py: TORN_SWITCH_READ)
+        item.add_marker(pytest.mark.flaky(reruns=1, only_rerun=[r"Hard limit"]))
         for mark in item.iter_markers("oracle_differs"):
             strict = bool(mark.kwargs.get("strict", True))
             run = bool(mark.kwargs.get("run", True))
