@@ -57,7 +57,7 @@ def _copy(state: ModalState) -> ModalState:
     return ModalState(state.cartesian, state.relative, state.motion, state.chain)
 
 
-@settings(max_examples=3000, deadline=None)
+@settings(max_examples=1000, deadline=None)
 @given(line=lines, state=states)
 def test_a_line_the_profiles_may_not_judge_alike_is_always_flagged(
     line: str, state: ModalState
@@ -71,7 +71,7 @@ def test_a_line_the_profiles_may_not_judge_alike_is_always_flagged(
         assert may_differ_by_profile(parsed, _copy(state)), verdicts
 
 
-@settings(max_examples=1000, deadline=None)
+@settings(max_examples=300, deadline=None)
 @given(
     program=st.lists(lines, min_size=1, max_size=8),
     state=states,
@@ -97,7 +97,7 @@ def _first(codes: tuple[CodeWord, ...], letter: str, choices: set[int]) -> int |
     return next((w.code for w in codes if w.letter == letter and w.code in choices), None)
 
 
-@settings(max_examples=1000, deadline=None)
+@settings(max_examples=300, deadline=None)
 @given(line=lines)
 def test_the_facts_derived_at_parse_time_are_those_of_the_words(line: str) -> None:
     parsed = parse_line(line)
@@ -148,7 +148,7 @@ def _plain_reads(axes: frozenset[str], cartesian: bool | None, relative: bool | 
     return frozenset(read) if axes else frozenset()
 
 
-@settings(max_examples=2000, deadline=None)
+@settings(max_examples=600, deadline=None)
 @given(
     line=lines,
     cartesian=modes,
@@ -184,7 +184,7 @@ numbers = st.from_regex(r"\A[+-]?[0-9]{0,11}(\.[0-9]{0,11})?\Z").filter(
 )
 
 
-@settings(max_examples=2000, deadline=None)
+@settings(max_examples=600, deadline=None)
 @given(letter=st.sampled_from("XYZABCDFPSRGM"), number=numbers)
 def test_a_word_in_a_line_is_read_as_read_number_reads_it(letter: str, number: str) -> None:
     from mirobot_async._core.line import read_number
