@@ -59,9 +59,19 @@ PROFILES = ("2021", "classic")
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """On the oracle link, skip the tests that borrow no arm from the session's pool: what
-    they drive is an emulator they start themselves, never the firmware."""
-    if session_link(config) != "oracle":
+    """README's test command (no link chosen) runs the client's tests on in-process arms and
+    leaves the tests of the emulator as a process (marked ``emulator_process``: faults on its
+    wire, its control channel, its port) to the link lanes (``MIROBOT_TEST_LINK=pty|tcp``, as
+    CI runs them). On the oracle link, skip the tests that borrow no arm from the session's
+    pool: what they drive is an emulator they start themselves, never the firmware."""
+    link = session_link(config)
+    if link is None:
+        process = [item for item in items if item.get_closest_marker("emulator_process")]
+        if process:
+            config.hook.pytest_deselected(items=process)
+            items[:] = [item for item in items if not item.get_closest_marker("emulator_process")]
+        return
+    if link != "oracle":
         return
     for item in items:
         # the simulator's torn switch reads (tests/oracle/conftest.py: TORN_SWITCH_READ)

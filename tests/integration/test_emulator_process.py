@@ -30,7 +30,7 @@ from pathlib import Path
 import pytest
 import serial
 
-pytestmark = pytest.mark.timeout(30)
+pytestmark = [pytest.mark.timeout(30), pytest.mark.emulator_process]  # the process itself
 
 MODULE = (sys.executable, "-m", "mirobot_emulator")
 SCRIPT = Path(sys.executable).parent / "mirobot-emulator"

@@ -24,7 +24,7 @@ from waiting import wait_for
 from mirobot_async import Mirobot
 from mirobot_async.testing import EmulatorError, EmulatorPool, SyncEmulatorProcess
 
-pytestmark = pytest.mark.timeout(60)
+pytestmark = [pytest.mark.timeout(60), pytest.mark.emulator_process]  # the process itself
 
 LINKS = ("pty", "tcp")
 OPTIONS = ("--reset-on-open", "--fault", "drop-ok:1", "--seed", "3")  # banner at open, 1 drop
