@@ -13,6 +13,8 @@
 * ``arm``: a connected :class:`~mirobot_async.Mirobot` on ``emu`` (closed afterwards), its
   transport watched by ``wire_spy`` (the public ``open_transport`` seam).
 * ``ready_arm``: ``arm`` unlocked (``$X`` + ``M50``), so motion works on both profiles.
+* ``spawn``: ``spawn(call)`` starts a task cancelled and awaited when the test ends (the fault
+  tests' concurrent calls; helpers for them in ``fault_harness.py``).
 
 Every test module of the client also checks that no task is left behind (``no_leftover_tasks``,
 in tests/conftest.py).
@@ -42,6 +44,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from fault_harness import Spawn
 from waiting import WaitTimeout
 
 from mirobot_async import Mirobot, State
@@ -256,6 +259,26 @@ async def ready_arm(arm: Mirobot) -> Mirobot:
     """``arm`` with its axes unlocked (both profiles power on locked; 2021 also in Alarm)."""
     await arm.unlock()
     return arm
+
+
+@pytest.fixture
+async def spawn() -> AsyncIterator[Spawn]:
+    """Start tasks that are cancelled and awaited (exceptions retrieved) when the test ends."""
+    tasks: list[asyncio.Task[Any]] = []
+
+    def start(awaitable: Awaitable[Any]) -> asyncio.Task[Any]:
+        task = asyncio.ensure_future(_await(awaitable))
+        tasks.append(task)
+        return task
+
+    yield start
+    for task in tasks:
+        task.cancel()
+    await asyncio.gather(*tasks, return_exceptions=True)
+
+
+async def _await(awaitable: Awaitable[Any]) -> Any:
+    return await awaitable
 
 
 Cli = Callable[..., subprocess.CompletedProcess[str]]

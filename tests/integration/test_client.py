@@ -12,6 +12,7 @@ import logging
 import os
 import sys
 import time
+from collections.abc import Awaitable, Callable
 
 import pytest
 from waiting import wait_until
@@ -606,3 +607,55 @@ async def test_homes_own_status_ends_the_return_move_for_the_next_line(
     mark = wire_spy.mark()
     await arm.move_joints(j1=5, wait=False)
     assert wire_spy.since(mark)[0] == b"G90 G0 X5 G21\n", wire_spy.since(mark)
+
+
+@pytest.mark.mirobot_emulator(time_scale=1)
+async def test_the_firmware_profile_is_learnt_only_at_rest(
+    emu: EmulatorProcess, wire_spy: WireSpy, profile: str
+) -> None:
+    """13.11: set_setting() with an unknown profile sent "$$" at once; while the arm moved the
+    firmware answered "Not idle" and the call failed with "'$$' refused"."""
+    async with Mirobot.connect(emu.url, open_transport=wire_spy.opener) as arm:
+        # The emulator is powered on before its port is published, so the client's open-time
+        # flush drops the banner: the profile is unknown here, or this test proves nothing.
+        assert arm.firmware is None, "the banner was seen at connect (nothing to detect)"
+        await arm.unlock()
+        await arm.move_joints(j1=6, speed=900, wait=False)  # moving for about a second
+        await arm.set_setting(24, 1400, timeout=10)
+        assert arm.firmware == profile
+        assert (await arm.settings())[24] == 1400
+
+
+@pytest.mark.mirobot_emulator(time_scale=1)
+async def test_hold_on_exit_holds_the_arm_when_the_block_fails(
+    ready_arm: Mirobot, wire_spy: WireSpy, first_status: Callable[..., Awaitable[None]]
+) -> None:
+    arm = ready_arm
+    mark = wire_spy.mark()
+    async with arm.hold_on_exit():
+        await arm.send("M3 S1")
+    assert b"!" not in wire_spy.since(mark)  # a normal end sends nothing
+    await arm.move_joints(j1=30, speed=600, wait=False)
+    await first_status(arm, State.RUN)
+    mark = wire_spy.mark()
+    with pytest.raises(RuntimeError, match="boom"):
+        async with arm.hold_on_exit():
+            raise RuntimeError("boom")
+    assert b"!" in wire_spy.since(mark)  # written before the exception left the block
+    await first_status(arm, State.HOLD)  # a move of ~3 s, held: never Idle, never Hold unheld
+    await arm.resume()
+    await first_status(arm, State.RUN)
+
+    async def supervised() -> None:
+        async with arm.hold_on_exit():
+            await arm.wait_idle(timeout=30)
+
+    task = asyncio.create_task(supervised())
+    await wait_until(lambda: arm.status_waiter_count > 0, 5, "a status waiter")
+    mark = wire_spy.mark()
+    task.cancel()
+    with pytest.raises(asyncio.CancelledError):
+        await task
+    assert b"!" in wire_spy.since(mark)  # written as the cancellation left the block
+    await first_status(arm, State.HOLD)
+    await arm.reset()

@@ -4,7 +4,8 @@
 * ``send()``/``stream()`` refuse what :func:`mirobot_async._core.validation.check_line` flags,
 before
   writing a byte (issue 15 item 3);
-* ``move_path``/``move_joint_path`` (issue 12 item 2).
+* ``move_path``/``move_joint_path`` (issue 12 item 2);
+* structured moves state millimetres, whatever unit an earlier line chose (``G20``).
 """
 
 from __future__ import annotations
@@ -186,3 +187,14 @@ async def test_a_point_the_robot_refuses_is_named(ready_arm: Mirobot) -> None:
         await ready_arm.move_path([(200, 0, 200), (900, 0, 200), (200, 0, 200)], speed=2000)
     assert info.value.index == 1 and info.value.point == (900, 0, 200)
     assert isinstance(info.value.error, MotionRefusedError)
+
+
+async def test_structured_moves_state_millimetres(ready_arm: Mirobot) -> None:
+    """13.3: G20 (inches) left by an earlier session changed what move_pose() meant."""
+    arm = ready_arm
+    await arm.send("G20", validate=False)
+    report = await arm.move_pose(200, 0, 200)
+    assert report is not None
+    assert report.pose[:3] == pytest.approx((200, 0, 200), abs=0.1)
+    report = await arm.move_joints(j1=10)
+    assert report is not None and abs(report.joints[0] - 10) < 0.05

@@ -1,4 +1,7 @@
-"""Pipelined streaming and concurrency against the real emulator process."""
+"""Pipelined streaming and concurrency against the real emulator process: every line is
+answered once and in order, a stream stops at the first error (writing nothing after its reply
+arrived), items that are no lines are bad lines, and a stream runs in a task through ``run()``.
+"""
 
 from __future__ import annotations
 
@@ -18,7 +21,7 @@ from mirobot_async import (
     MotionRefusedError,
     State,
 )
-from mirobot_async.testing import WireSpy
+from mirobot_async.testing import EmulatorProcess, WireSpy
 
 pytestmark = [pytest.mark.timeout(60), pytest.mark.usefixtures("no_leftover_tasks")]
 
@@ -204,3 +207,75 @@ async def test_cancelling_a_stream_stops_sending_and_keeps_the_link_in_step(
     assert arm.stats.replies_discarded == in_flight
     assert arm.stats.lines_sent == sent + 1
     assert arm.pending_count == 0
+
+
+async def test_stream_items_of_other_types_are_bad_lines(
+    ready_arm: Mirobot, wire_spy: WireSpy
+) -> None:
+    """13.13: an int, None or a bytearray in a stream raised a bare AssertionError."""
+    arm = ready_arm
+    mark = wire_spy.mark()
+    items: list[object] = ["M3 S1", 5, None, bytearray(b"M3 S2"), b"M3 S3"]
+    result = await arm.stream(items, continue_on_error=True)  # type: ignore[arg-type]
+    assert result.sent == 3 and result.acknowledged == 3
+    assert [r.number for r in result.errors] == [2, 3]
+    assert all(isinstance(r.error, MirobotUsageError) for r in result.errors)
+    assert wire_spy.lines(mark) == [b"M3 S1\n", b"M3 S2\n", b"M3 S3\n"]
+    stopped = await arm.stream(["M3 S4", object(), "M3 S5"])  # type: ignore[list-item]
+    assert stopped.stopped and stopped.sent == 1
+    assert isinstance(stopped.errors[0].error, MirobotUsageError)
+    assert (await arm.status(fresh=True)).pump_pwm == 4
+
+
+@pytest.mark.emulator_process
+async def test_stream_writes_nothing_after_the_failing_reply_arrived(
+    ready_arm: Mirobot, emu: EmulatorProcess, wire_spy: WireSpy
+) -> None:
+    arm = ready_arm
+    lines = ["M3 S0"] * 30 + ["G4 P0.3", "FOO BAR"] + ["M3 S0"] * 60
+    failing = lines.index("FOO BAR") + 1
+    written = 0
+    written_when_error_arrived: int | None = None
+    written_after_error = 0
+
+    def write_spy(chunk: bytes) -> None:
+        nonlocal written, written_after_error
+        if not chunk.endswith(b"\n"):
+            return  # a realtime byte, not a line
+        written += 1
+        if written_when_error_arrived is not None:
+            written_after_error += 1
+
+    def receive_spy(chunk: bytes) -> None:
+        # runs right after the client handled the chunk (its replies dispatched)
+        nonlocal written_when_error_arrived
+        if written_when_error_arrived is None and b"rror" in chunk:
+            written_when_error_arrived = written
+
+    before = int((await emu.control("stats")).split("lines_in=")[1].split()[0])
+    wire_spy.write_hooks.append(write_spy)
+    wire_spy.receive_hooks.append(receive_spy)
+    # validate=False: the firmware itself must refuse the line, so its error reply arrives
+    result = await arm.stream(lines, validate=False)
+    assert result.stopped and len(result.errors) == 1
+    assert result.errors[0].number == failing
+    assert isinstance(result.errors[0].error, MirobotCommandError)
+    assert written_when_error_arrived is not None
+    assert written_after_error == 0
+    assert result.sent == written_when_error_arrived
+    # the lines after the failing one that were already in flight fit the 128-byte buffer
+    assert failing <= result.sent <= failing + 128 // len(b"M3 S0\n")
+    assert arm.pending_count == 0  # every written line was answered, so the emulator has it
+    after = int((await emu.control("stats")).split("lines_in=")[1].split()[0])
+    assert after - before == result.sent
+
+
+async def test_a_stream_runs_in_a_task_through_its_run_coroutine(ready_arm: Mirobot) -> None:
+    arm = ready_arm
+    task = asyncio.create_task(arm.stream(["M3 S0", "M3 S10"] * 10).run())
+    result = await task
+    assert result.ok and result.sent == result.acknowledged == 20
+    stream = arm.stream(["M3 S0"])
+    assert (await stream).acknowledged == 1
+    with pytest.raises(MirobotUsageError, match="only once"):
+        await stream.run()

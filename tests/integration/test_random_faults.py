@@ -1,4 +1,4 @@
-"""A seeded, randomized fault campaign against the real client and emulator (issue 13, "Also").
+"""A seeded, randomized fault campaign against the real client and emulator.
 
 Several tasks send lines, stream, poll and cancel while the emulator is told, at random
 moments, to drop an ``ok``, corrupt or ignore a status report, stall or delay its output,
