@@ -12,7 +12,11 @@ import pytest
 
 from mirobot_async import Mirobot, State
 
-pytestmark = [pytest.mark.timeout(60), pytest.mark.usefixtures("no_leftover_tasks")]
+pytestmark = [
+    pytest.mark.timeout(60),
+    pytest.mark.usefixtures("no_leftover_tasks"),
+    pytest.mark.emulator_process,  # a link paced like the arm's: an in-process arm has none
+]
 
 PACED = ("--baud", "115200", "--usb-latency-ms", "16")
 
