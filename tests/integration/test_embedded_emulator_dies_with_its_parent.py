@@ -45,6 +45,12 @@ pytestmark = pytest.mark.skipif(
 )
 
 
+def default_signal_actions() -> None:
+    """In the child before it runs: SIGINT and SIGHUP back to their default actions."""
+    for sig in (signal.SIGINT, signal.SIGHUP):
+        signal.signal(sig, signal.SIG_DFL)
+
+
 @pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGHUP])
 def test_a_killed_monitor_leaves_no_emulator(sig: signal.Signals) -> None:
     cli = subprocess.Popen(
@@ -52,6 +58,9 @@ def test_a_killed_monitor_leaves_no_emulator(sig: signal.Signals) -> None:
         stdin=subprocess.DEVNULL,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
+        # the signal's default action, as for a command run from a terminal (a runner started
+        # with nohup, or in the background, would leave SIGHUP/SIGINT ignored in its children)
+        preexec_fn=default_signal_actions,
     )
     emulator = 0
     try:

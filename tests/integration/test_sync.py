@@ -193,6 +193,11 @@ CTRL_C_SCRIPT = """
 """
 
 
+def default_sigint() -> None:
+    """In the child before it runs: SIGINT back to its default action."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_ctrl_c_in_a_script_interrupts_a_blocking_call(
     tmp_path: Path, mirobot_emulator_pool: EmulatorPool
 ) -> None:
@@ -200,7 +205,12 @@ def test_ctrl_c_in_a_script_interrupts_a_blocking_call(
     script.write_text(textwrap.dedent(CTRL_C_SCRIPT))
     with mirobot_emulator_pool.lend("2021", 1.0) as emu:
         process = subprocess.Popen(
-            [sys.executable, str(script), emu.url], stdout=subprocess.PIPE, text=True
+            [sys.executable, str(script), emu.url],
+            stdout=subprocess.PIPE,
+            text=True,
+            # SIGINT's default action, as in a terminal (a runner started in the background
+            # leaves it ignored in its children, and Python then installs no handler)
+            preexec_fn=default_sigint,
         )
         try:
             assert process.stdout is not None
