@@ -125,7 +125,8 @@ class LineScheduler:
         self._condition = condition
         self._poller = poller
         self._guard = guard
-        self._require_firmware = require_firmware
+        self.require_firmware = require_firmware
+        """``await require_firmware(deadline, timeout)``: learn the arm's firmware profile."""
         self._loop: asyncio.AbstractEventLoop | None = None
         self.slots: dict[int, Slot] = {}
         self._send_lock = asyncio.Lock()
@@ -320,7 +321,7 @@ class LineScheduler:
             parsed = parse_line(data)
         unknown = condition.firmware is None
         if guard.needs_firmware(parsed) or (validate and unknown and _disagree(parsed, guard)):
-            await self._require_firmware(deadline, timeout)
+            await self.require_firmware(deadline, timeout)
         exclusive = parsed.kind == "dollar"
         nbytes = len(data) + 1
         epoch = condition.reset_epoch

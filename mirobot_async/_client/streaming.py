@@ -99,6 +99,11 @@ def _text(item: object) -> str:
     return str(item).rstrip("\r\n")
 
 
+_PROFILES: Final = ("classic", "2021")
+_LEARN_FIRMWARE: Final = LineResult(0, "", ())
+"""A stream judged before its first byte whose verdict depends on the firmware profile."""
+
+
 @dataclass(slots=True)
 class _Queued:
     """A line taken from the input: its slot once written, or the error that kept it back."""
@@ -369,6 +374,9 @@ class Stream:
         if not self._check_envelope:
             guard.warn_stream_unchecked()
         refused, parsed = self._restart_refusal()
+        if refused is _LEARN_FIRMWARE:  # the verdict depends on the firmware: learn it first
+            await scheduler.require_firmware(deadline, self._timeout)
+            refused, parsed = self._restart_refusal()
         if refused is not None:  # nothing is written
             self.result.errors.append(refused)
             self.result.stopped = True
@@ -406,7 +414,13 @@ class Stream:
             return None, None  # a bad item: reported in order as the stream reaches it
         parsed = [parse_line(text) for text in texts]
         _scheduler, condition, guard = self._parts
-        found = first_restart(parsed, firmware=condition.firmware, state=guard.modal_state())
+        if condition.firmware is not None:
+            found = first_restart(parsed, firmware=condition.firmware, state=guard.modal_state())
+        else:  # judged per profile: where only one refuses, learn which the arm runs
+            each = [first_restart(parsed, firmware=p, state=guard.modal_state()) for p in _PROFILES]
+            if (each[0] is None) != (each[1] is None):
+                return _LEARN_FIRMWARE, None
+            found = each[0]
         if found is None:
             return None, parsed
         number, line, why = found

@@ -219,3 +219,27 @@ async def test_the_envelope_never_predicts_a_restarted_line(emu: EmulatorProcess
         moved = await arm.move_joints(j1=1, relative=True)
         assert moved is not None
         assert moved.joints[0] == pytest.approx(report.joints[0] + 1, abs=STEP)
+
+
+PROFILE_DEPENDENT = [
+    "M20 G90 G0 X198.67 Y0 Z230.72 A0 B0 C0",
+    "M20 G90 G1 F2000 X198.67 Y0 Z230.72 A0 B0 C0",
+    "M20 G90 G1 F2000 X198.67 Y0 Z230.72 A0 B0 C0",
+]
+"""Restarted on the 2021 firmware (its M20 G1 path starts from the parser's pose), not on classic
+(a whole pose: the same end either way)."""
+
+
+@pytest.mark.mirobot_emulator(time_scale=TIME_SCALE)
+async def test_a_list_judged_differently_per_profile_learns_the_profile_first(
+    ready_arm: Mirobot, profile: str
+) -> None:
+    """The client does not know the firmware yet: a list that only one profile would refuse is
+    judged once the profile is learnt, so it is refused before its first byte (2021) or sent
+    whole (classic), never cut after a byte."""
+    result = await ready_arm.stream(PROFILE_DEPENDENT)
+    if profile == "2021":
+        assert result.sent == 0 and result.stopped, result
+        assert isinstance(result.errors[0].error, MotionChainError)
+    else:
+        assert result.ok and result.sent == 3, result
