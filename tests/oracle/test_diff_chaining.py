@@ -11,6 +11,7 @@ from __future__ import annotations
 import asyncio
 import os
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, Phase, event, given, settings
@@ -24,10 +25,12 @@ STEP = 0.06
 """Two whole motor steps of the coarsest joint, in degrees (J3: 64 steps/degree)."""
 
 
-@pytest.fixture(scope="module")
-def oracle_port(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
-    """The oracle, powered on (banner read); its pty's path, free for the client to open."""
-    device: Device = spawn_oracle(tmp_path_factory.mktemp("chaining"))
+@pytest.fixture
+def oracle_port(tmp_path: Path) -> Iterator[str]:
+    """A fresh oracle for the test, powered on (banner read); its pty's path, free for the
+    client to open (fresh per test: an alarm in one test must not reach the next, nor its
+    rerun)."""
+    device: Device = spawn_oracle(tmp_path)
     try:
         device.connect()
         path = os.ttyname(device.fd)
