@@ -25,18 +25,27 @@ TIME_SCALE = 4.0
 IN_PROCESS_TIME_SCALE = 40.0
 """In-process, a line reaches the firmware the instant it is written: the arm still moves while
 the lines after it are parsed at this speed too."""
+STATUS_TIMEOUT = 10.0
+"""On the oracle link the simulator's clock slips behind the wall clock on a loaded host (a CI
+run timed out at the client's 2 s); the replies' timing is not what these tests judge."""
 STEP = 0.06
 """Two whole motor steps of the coarsest joint, in degrees (J3: 64 steps/degree)."""
 
 
 async def _both(url: str, program: list[str]) -> tuple[object, object]:
-    async with Mirobot.connect(url) as arm:
+    async with Mirobot.connect(url, status_timeout=STATUS_TIMEOUT) as arm:
         await arm.unlock()
         through_stream = await streamed(arm, program)
         one_at_a_time = await stepped(arm, program)
     return through_stream, one_at_a_time
 
 
+@pytest.mark.oracle_differs(
+    "the pool's oracle runs at time scale 4 here, which a loaded host cannot keep up (the "
+    "simulator's clock slips: replies late, a FlakyFailure in CI); the same property on a fresh "
+    "oracle per test is tests/oracle/test_diff_chaining.py",
+    strict=False,
+)
 @pytest.mark.parametrize("firmware", ["2021", "classic"])
 def test_streamed_programs_end_where_stepped_ones_do(
     lend_emulator: EmulatorLender, firmware: str
@@ -79,7 +88,7 @@ _MOVES = st.lists(
 async def _client_moves(
     url: str, moves: list[tuple[bool, bool, list[int]]], wait: bool
 ) -> tuple[float, ...]:
-    async with Mirobot.connect(url) as arm:
+    async with Mirobot.connect(url, status_timeout=STATUS_TIMEOUT) as arm:
         await arm.unlock()
         await to_zero(arm)
         start = await arm.status()
@@ -96,6 +105,12 @@ async def _client_moves(
         return joints_of(await arm.wait_idle())
 
 
+@pytest.mark.oracle_differs(
+    "the pool's oracle runs at time scale 4 here, which a loaded host cannot keep up (the "
+    "simulator's clock slips: replies late, a FlakyFailure in CI); the same property on a fresh "
+    "oracle per test is tests/oracle/test_diff_chaining.py",
+    strict=False,
+)
 @pytest.mark.parametrize("firmware", ["2021", "classic"])
 def test_the_clients_own_moves_chain_without_waiting(
     lend_emulator: EmulatorLender, firmware: str
