@@ -175,7 +175,8 @@ def test_the_joints_a_line_reads_and_moves_are_those_of_every_mode_it_may_run_in
     assert modal._moves(parsed, cartesian) == (frozenset(moved) if axes else frozenset())
     written: frozenset[str] = frozenset()
     if relative is False and cartesian is not None:
-        written = axes if not cartesian else ({"D"} & axes) | (_ARM if axes >= _ARM else set())
+        arm = _ARM if axes >= _ARM else frozenset()
+        written = axes if not cartesian else frozenset(({"D"} & axes) | arm)
     assert modal._writes(parsed, cartesian, relative) == written
 
 
