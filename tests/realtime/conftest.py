@@ -43,11 +43,15 @@ ORACLE_BUILD = Path(os.environ.get("MIROBOT_ORACLE_DIR", str(_CACHE / "mirobot-f
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Every test of this directory is a real-time test."""
+    """Every test of this directory is a real-time test; one on the firmware oracle gets one
+    rerun when its failure names a hard limit (the simulator's torn switch reads:
+    tests/oracle/conftest.py, TORN_SWITCH_READ)."""
     here = Path(__file__).parent
     for item in items:
         if here in Path(str(item.fspath)).parents:
             item.add_marker(pytest.mark.realtime)
+            if "oracle" in item.name:
+                item.add_marker(pytest.mark.flaky(reruns=1, only_rerun=[r"Hard limit"]))
 
 
 @pytest.fixture(params=PROFILES)
