@@ -4,7 +4,8 @@
 process (time scale 0) over a real pty while the status is polled every 50 ms: every line
 acknowledged exactly once and in order (on the client's side and, through the pump PWM in the
 status reports, on the firmware's side), nothing pending at the end, RSS growth below 5 MB. The
-million-line run is ``python benchmarks/soak.py``.
+million-line run is ``python benchmarks/soak.py``. A test of the emulator as a process and its
+pty: it runs on the link lanes (``MIROBOT_TEST_LINK=pty|tcp``), not on README's command.
 """
 
 from __future__ import annotations
@@ -47,6 +48,7 @@ def test_pwm_window_check() -> None:
     assert matches(0, 1001, 1002)  # line 1001 sets PWM 0 again
 
 
+@pytest.mark.emulator_process
 async def test_soak_20k_lines() -> None:
     result = await soak.run_soak(LINES, poll_interval=0.05)
     print(result.report())

@@ -29,9 +29,10 @@ def test_every_public_member_of_the_asyncio_class_is_typed_in_the_stub() -> None
     assert "-> Any" not in text
 
 
-CACHE = Path(__file__).resolve().parents[2] / ".mypy_cache" / "user-script"
-"""mypy's incremental cache for the user's script (the package's modules are checked once,
-then read from here; the script itself is new each time)."""
+CACHE = Path(__file__).resolve().parents[2] / ".mypy_cache"
+"""mypy's incremental cache: the project's own (``mypy`` at the repository's root, which CI runs
+first), so the package's modules are read from it, not checked again (0.5 s, not 10 s of CPU);
+only the user's script, new each time, is checked."""
 
 USER_CODE = """
 from mirobot_async.sync import Mirobot
