@@ -146,7 +146,7 @@ async def mcp_in_memory(*args: str) -> AsyncIterator[Tools]:
     parsed = build_parser().parse_args(["mcp", *args])
     assert parsed.handler is cmd_mcp
     processes, tasks = children(), asyncio.all_tasks()
-    async with open_server(parsed) as server, Client(server, mode="legacy") as client:
+    async with open_server(parsed) as server, Client(server, mode="legacy", cache=None) as client:
         yield Tools(client.session)
     await wait_until(lambda: not children() - processes, 10, "the server's children to exit")
     current = asyncio.current_task()
