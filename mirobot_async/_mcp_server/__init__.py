@@ -3,8 +3,9 @@ any MCP client) can drive the arm, with the safety envelope always on.
 
 Layout: :mod:`~mirobot_async._mcp_server.service` (what each tool does to the arm, without the
 SDK), :mod:`~mirobot_async._mcp_server.server` (the tools and resources on the ``mcp`` SDK, an
-optional dependency: ``pip install 'mirobot-async[mcp]'``) and :func:`serve` (the command:
-open the arm with its envelope, a virtual twin for ``--dry-run``, serve over stdio).
+optional dependency: ``pip install 'mirobot-async[mcp]'``), :func:`open_server` (the command's
+server: the arm with its envelope, a virtual twin for ``--dry-run``) and :func:`serve` (the
+command: that server over stdio).
 """
 
 from __future__ import annotations
@@ -20,9 +21,11 @@ from mirobot_async._cli.session import envelope_of, firmware_of, open_robot
 from mirobot_async._mcp_server.service import ArmService, default_envelope
 
 if TYPE_CHECKING:
+    from mcp.server.mcpserver import MCPServer
+
     from mirobot_async._client.client import Mirobot
 
-__all__ = ["ArmService", "serve"]
+__all__ = ["ArmService", "open_server", "serve"]
 
 TWIN_TIME_SCALE = 0.0
 """The dry run's virtual twin finishes every motion at once: it only has to say whether the
@@ -49,8 +52,12 @@ async def _twin(args: argparse.Namespace, arm: Mirobot) -> AsyncIterator[Mirobot
         yield twin
 
 
-async def serve(args: argparse.Namespace) -> int:
-    """Run the MCP server over stdio until the client closes it (exit status 0)."""
+@contextlib.asynccontextmanager
+async def open_server(args: argparse.Namespace) -> AsyncIterator[MCPServer]:
+    """The MCP server ``mirobot mcp ARGS`` serves, its arm (``--port`` or the embedded virtual
+    Mirobot, with its safety envelope) and the ``--dry-run`` twin open for the block.
+
+    Without the MCP SDK: a CliError saying how to install it."""
     try:
         from mirobot_async._mcp_server.server import build_server
     except ImportError as err:
@@ -65,6 +72,11 @@ async def serve(args: argparse.Namespace) -> int:
         source = args.envelope or "the default envelope"
         note(f"safety envelope ({source}): {describe_envelope(envelope)}")
         async with _twin(args, arm) as twin:
-            server = build_server(ArmService(arm, twin))
-            await server.run_stdio_async()
+            yield build_server(ArmService(arm, twin))
+
+
+async def serve(args: argparse.Namespace) -> int:
+    """Run the MCP server over stdio until the client closes it (exit status 0)."""
+    async with open_server(args) as server:
+        await server.run_stdio_async()
     return 0

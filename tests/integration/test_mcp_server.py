@@ -1,10 +1,18 @@
-"""``mirobot mcp`` as an MCP client uses it: the SDK's own client (``stdio_client`` and
-``ClientSession``) starts the server as a subprocess over stdio, against the embedded virtual
-Mirobot and against an emulator of the test pool on a pty (``--port``).
+"""``mirobot mcp`` as an MCP client uses it, with the SDK's own client.
+
+Two tests start the command as a subprocess over stdio (``stdio_client`` and ``ClientSession``):
+on the embedded virtual Mirobot, and with ``--port`` and ``--envelope`` on an emulator of the test
+pool on a pty. The other behaviour tests (hold and resume, reset, dry run, a cancelled call)
+drive the server the command builds (:func:`~mirobot_async._mcp_server.open_server`, from the
+same parsed arguments) over the SDK's in-memory transport (``Client(server, mode="legacy")``: the
+same JSON-RPC messages and initialize handshake) in the test process, on a pooled emulator: no
+interpreter and MCP SDK import (~1 s of CPU) per test.
 
 The arm is judged through channels the server does not control: the emulator's control channel
 (``stats``: the lines it received) and status reports. Waits are conditions with deadlines; each
-test checks that the server left no process behind.
+test checks that the server left no process (and, in this process, no task) behind. The MCP SDK
+is imported by the helpers, not at the top: a pytest-xdist worker that runs none of these tests
+does not pay for it at collection.
 """
 
 from __future__ import annotations
@@ -15,17 +23,19 @@ import json
 import sys
 from collections.abc import AsyncIterator, Awaitable, Callable, Iterator
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 import psutil
 import pytest
-from mcp import ClientSession, StdioServerParameters, stdio_client
-from mcp.types import CallToolResult, TextContent
 from waiting import poll_until, wait_until
 
 from mirobot_async._cli.arguments import build_parser
 from mirobot_async._cli.commands import cmd_mcp
 from mirobot_async.testing import EmulatorPool, EmulatorProcess
+
+if TYPE_CHECKING:
+    from mcp import ClientSession
+    from mcp.types import CallToolResult
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -62,6 +72,8 @@ G1 X0
 
 
 def text_of(result: CallToolResult) -> str:
+    from mcp.types import TextContent
+
     content = result.content[0]
     assert isinstance(content, TextContent)
     return content.text
@@ -90,12 +102,25 @@ def children() -> set[int]:
     return {child.pid for child in psutil.Process().children(recursive=True)}
 
 
+class Tools:
+    """``await tools(name, **arguments)``: call a tool of the server over ``session``."""
+
+    def __init__(self, session: ClientSession) -> None:
+        self.session = session
+
+    async def __call__(self, tool: str, **arguments: Any) -> CallToolResult:
+        return await self.session.call_tool(tool, arguments)
+
+
+Call = Callable[..., Awaitable["CallToolResult"]]
+
+
 @contextlib.asynccontextmanager
-async def mcp_server(
-    *args: str, errlog: TextIO
-) -> AsyncIterator[Callable[..., Awaitable[CallToolResult]]]:
-    """A ``mirobot mcp ARGS`` session; yields ``call(tool, **arguments)``. Every process the
-    server started is gone when the block ends."""
+async def mcp_command(*args: str, errlog: TextIO) -> AsyncIterator[Tools]:
+    """A ``mirobot mcp ARGS`` subprocess over stdio. Every process the server started is gone
+    when the block ends."""
+    from mcp import ClientSession, StdioServerParameters, stdio_client
+
     before = children()
     params = StdioServerParameters(
         command=sys.executable, args=["-m", "mirobot_async", "mcp", *args]
@@ -105,13 +130,30 @@ async def mcp_server(
         ClientSession(read, write) as session,
     ):
         await session.initialize()
-
-        async def call(tool: str, **arguments: Any) -> CallToolResult:
-            return await session.call_tool(tool, arguments)
-
-        call.session = session  # type: ignore[attr-defined]
-        yield call
+        yield Tools(session)
     await wait_until(lambda: not children() - before, 10, "the server's children to exit")
+
+
+@contextlib.asynccontextmanager
+async def mcp_in_memory(*args: str) -> AsyncIterator[Tools]:
+    """The server ``mirobot mcp ARGS`` builds, served in this process over the SDK's in-memory
+    transport. Its notes go to this process's stderr (``capsys``). Every process and task the
+    server started is gone when the block ends."""
+    from mcp import Client
+
+    from mirobot_async._mcp_server import open_server
+
+    parsed = build_parser().parse_args(["mcp", *args])
+    assert parsed.handler is cmd_mcp
+    processes, tasks = children(), asyncio.all_tasks()
+    async with open_server(parsed) as server, Client(server, mode="legacy", cache=None) as client:
+        yield Tools(client.session)
+    await wait_until(lambda: not children() - processes, 10, "the server's children to exit")
+    current = asyncio.current_task()
+    left = {task for task in asyncio.all_tasks() - tasks if task is not current}
+    if left:
+        await asyncio.wait(left, timeout=5)
+    assert all(task.done() for task in left), f"tasks left behind: {left}"
 
 
 async def lines_received(emulator: EmulatorProcess) -> int:
@@ -126,7 +168,7 @@ def on_the_way(status: dict[str, Any]) -> bool:
 
 
 async def wait_status(
-    call: Callable[..., Awaitable[CallToolResult]],
+    call: Call,
     condition: Callable[[dict[str, Any]], bool],
     what: str,
     limit: float = 20.0,
@@ -140,13 +182,21 @@ async def wait_status(
     return await poll_until(matching, limit, lambda: f"{what} (last status {seen})", every=0.02)
 
 
-async def test_the_tools_and_resources_a_client_sees(errlog: TextIO) -> None:
-    async with mcp_server("--time-scale", "0", errlog=errlog) as call:
-        session: ClientSession = call.session  # type: ignore[attr-defined]
-        listed = (await session.list_tools()).tools
-        resources = (await session.list_resources()).resources
-        envelope = await session.read_resource("mirobot://envelope")
-        settings = await session.read_resource("mirobot://settings")
+async def test_the_tools_resources_and_a_session_on_the_embedded_arm(errlog: TextIO) -> None:
+    async with mcp_command(errlog=errlog) as call:  # embedded, time scale 10
+        listed = (await call.session.list_tools()).tools
+        resources = (await call.session.list_resources()).resources
+        envelope = await call.session.read_resource("mirobot://envelope")
+        settings = await call.session.read_resource("mirobot://settings")
+        locked = data_of(await call("status"))
+        refused = await call("move_joints", j1=20)
+        homed = data_of(await call("home"))
+        moved = data_of(await call("move_joints", j1=20, j2=10))
+        pose = data_of(await call("move_pose", x=210, y=0, z=200))
+        checked = data_of(await call("check_program", program=SQUARE))
+        ran = data_of(await call("run_program", program=SQUARE))
+        pumped = data_of(await call("set_pump", pwm=1000))
+        gripped = data_of(await call("gripper", action="close"))
     assert {tool.name for tool in listed} == TOOLS
     for tool in listed:
         assert tool.description and "\n" not in tool.description.strip(), tool
@@ -167,19 +217,6 @@ async def test_the_tools_and_resources_a_client_sees(errlog: TextIO) -> None:
     box = json.loads(envelope.contents[0].text)["box_mm"]  # type: ignore[union-attr]
     assert box == {"x": [50.0, 300.0], "y": [-250.0, 250.0], "z": [20.0, 300.0]}
     assert "$1" in json.loads(settings.contents[0].text)  # type: ignore[union-attr]
-
-
-async def test_home_move_and_run_a_program_on_the_embedded_arm(errlog: TextIO) -> None:
-    async with mcp_server(errlog=errlog) as call:  # embedded, time scale 10
-        locked = data_of(await call("status"))
-        refused = await call("move_joints", j1=20)
-        homed = data_of(await call("home"))
-        moved = data_of(await call("move_joints", j1=20, j2=10))
-        pose = data_of(await call("move_pose", x=210, y=0, z=200))
-        checked = data_of(await call("check_program", program=SQUARE))
-        ran = data_of(await call("run_program", program=SQUARE))
-        pumped = data_of(await call("set_pump", pwm=1000))
-        gripped = data_of(await call("gripper", action="close"))
     assert locked["state"] == "Alarm"
     assert refused.is_error and "the arm is locked (Alarm" in text_of(refused)
     assert homed["status"]["state"] == "Idle"
@@ -211,7 +248,7 @@ async def test_an_envelope_refusal_is_a_tool_error_with_nothing_sent(
     leaving = "M20 G90 G21\nG0 X200 Y0 Z150 A0 B0 C0\nG1 Z5 F1000\n"
     async with mirobot_emulator_pool.lend_async(time_scale=0) as emulator:
         args = ("--port", emulator.url, "--envelope", ENVELOPE)
-        async with mcp_server(*args, errlog=errlog) as call:
+        async with mcp_command(*args, errlog=errlog) as call:
             data_of(await call("home"))
             data_of(await call("move_joints", j1=10))
             before = data_of(await call("status"))
@@ -235,11 +272,11 @@ async def test_an_envelope_refusal_is_a_tool_error_with_nothing_sent(
 
 
 async def test_hold_stops_a_running_program_and_resume_finishes_it(
-    errlog: TextIO, mirobot_emulator_pool: EmulatorPool
+    mirobot_emulator_pool: EmulatorPool,
 ) -> None:
     async with (
         mirobot_emulator_pool.lend_async(time_scale=1) as emulator,  # real time: 12 s of motion
-        mcp_server("--port", emulator.url, errlog=errlog) as call,
+        mcp_in_memory("--port", emulator.url) as call,
     ):
         data_of(await call("unlock"))
         running = asyncio.ensure_future(call("run_program", program=SLOW))
@@ -280,11 +317,11 @@ async def test_hold_stops_a_running_program_and_resume_finishes_it(
 
 
 async def test_reset_stops_a_running_program_at_once(
-    errlog: TextIO, mirobot_emulator_pool: EmulatorPool
+    mirobot_emulator_pool: EmulatorPool,
 ) -> None:
     async with (
         mirobot_emulator_pool.lend_async(time_scale=1) as emulator,  # real time: 12 s of motion
-        mcp_server("--port", emulator.url, errlog=errlog) as call,
+        mcp_in_memory("--port", emulator.url) as call,
     ):
         data_of(await call("unlock"))
         running = asyncio.ensure_future(call("run_program", program=SLOW))
@@ -306,18 +343,21 @@ async def test_reset_stops_a_running_program_at_once(
 
 
 async def test_dry_run_runs_every_motion_on_a_twin_first(
-    errlog: TextIO, mirobot_emulator_pool: EmulatorPool
+    mirobot_emulator_pool: EmulatorPool, capsys: pytest.CaptureFixture[str]
 ) -> None:
     async with mirobot_emulator_pool.lend_async(time_scale=0) as emulator:
         args = ("--port", emulator.url, "--dry-run", "--firmware", "2021")
-        async with mcp_server(*args, errlog=errlog) as call:
+        async with mcp_in_memory(*args) as call:
             data_of(await call("home"))
             moved = data_of(await call("move_joints", j1=15))
             ran = data_of(await call("run_program", program=SQUARE))
             sent = await lines_received(emulator)
             refused = await call("move_pose", z=5)
             assert await lines_received(emulator) == sent
-    assert "--dry-run: every motion runs first on a virtual twin (firmware 2021)" in said(errlog)
+    assert (
+        "--dry-run: every motion runs first on a virtual twin (firmware 2021)"
+        in capsys.readouterr().err
+    )
     assert moved["status"]["joints"]["j1"] == pytest.approx(15, abs=0.05)
     assert ran["outcome"] == "done"
     assert refused.is_error and "nothing was sent" in text_of(refused)
@@ -335,13 +375,13 @@ def test_the_readme_configuration_is_a_mirobot_mcp_command() -> None:
 
 
 async def test_a_cancelled_program_call_leaves_the_arm_held(
-    errlog: TextIO, mirobot_emulator_pool: EmulatorPool
+    mirobot_emulator_pool: EmulatorPool,
 ) -> None:
     """The client gives up on run_program (its request is cancelled): the arm is held at once,
     not left running the program with nobody watching."""
     async with (
         mirobot_emulator_pool.lend_async(time_scale=1) as emulator,  # real time: 12 s of motion
-        mcp_server("--port", emulator.url, errlog=errlog) as call,
+        mcp_in_memory("--port", emulator.url) as call,
     ):
         data_of(await call("unlock"))
         running = asyncio.ensure_future(call("run_program", program=SLOW))

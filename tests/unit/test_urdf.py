@@ -7,10 +7,10 @@ import io
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pytest
-import yourdfpy
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -18,8 +18,21 @@ from mirobot_async import kinematics
 from mirobot_async._urdf import JOINT_NAMES, TOOL_LINK, build_urdf, dh_of
 from mirobot_async.errors import MirobotUsageError
 
+if TYPE_CHECKING:
+    import yourdfpy
+
 PROFILES = ("2021", "classic")
-_MODELS = {p: yourdfpy.URDF.load(io.StringIO(build_urdf(p))) for p in PROFILES}
+
+
+@pytest.fixture(scope="module")
+def models() -> dict[str, yourdfpy.URDF]:
+    """yourdfpy's model of each profile's URDF. Imported here, not at the top: yourdfpy pulls in
+    trimesh, scipy and networkx (1.5 s of CPU), which each pytest-xdist worker would pay at
+    collection even when it runs none of these tests."""
+    import yourdfpy
+
+    return {p: yourdfpy.URDF.load(io.StringIO(build_urdf(p))) for p in PROFILES}
+
 
 joints = st.tuples(
     *(
@@ -32,8 +45,10 @@ joints = st.tuples(
 @pytest.mark.parametrize("firmware", PROFILES)
 @settings(max_examples=300)
 @given(q=joints)
-def test_tool_frame_matches_forward_kinematics(firmware: str, q: tuple[float, ...]) -> None:
-    model = _MODELS[firmware]
+def test_tool_frame_matches_forward_kinematics(
+    models: dict[str, yourdfpy.URDF], firmware: str, q: tuple[float, ...]
+) -> None:
+    model = models[firmware]
     model.update_cfg(np.radians(q))
     frame = model.get_transform(TOOL_LINK, "base_link")
     pose = kinematics.forward(q, dh_of(firmware))
@@ -45,10 +60,10 @@ def test_tool_frame_matches_forward_kinematics(firmware: str, q: tuple[float, ..
 
 
 @pytest.mark.parametrize("firmware", PROFILES)
-def test_zero_pose_is_the_protocol_s(firmware: str) -> None:
+def test_zero_pose_is_the_protocol_s(models: dict[str, yourdfpy.URDF], firmware: str) -> None:
     """PROTOCOL 8.1: at q = 0 the flange is at (A1 + D4, 0, D1 + A2 + A3 + L)."""
     dh = dh_of(firmware)
-    model = _MODELS[firmware]
+    model = models[firmware]
     model.update_cfg(np.zeros(6))
     frame = model.get_transform(TOOL_LINK, "base_link")
     expected = (dh.a1 + dh.d4, 0.0, dh.d1 + dh.a2 + dh.a3 + dh.l)
@@ -56,8 +71,10 @@ def test_zero_pose_is_the_protocol_s(firmware: str) -> None:
 
 
 @pytest.mark.parametrize("firmware", PROFILES)
-def test_joints_and_limits_are_the_firmware_s(firmware: str) -> None:
-    model = _MODELS[firmware]
+def test_joints_and_limits_are_the_firmware_s(
+    models: dict[str, yourdfpy.URDF], firmware: str
+) -> None:
+    model = models[firmware]
     assert tuple(model.actuated_joint_names) == JOINT_NAMES
     for joint, (low, high) in zip(model.actuated_joints, kinematics.JOINT_LIMITS, strict=True):
         assert joint.type == "revolute"
@@ -67,14 +84,14 @@ def test_joints_and_limits_are_the_firmware_s(firmware: str) -> None:
         assert joint.limit.velocity > 0
 
 
-def test_geometry_is_primitives_only() -> None:
+def test_geometry_is_primitives_only(models: dict[str, yourdfpy.URDF]) -> None:
     """Our own cylinders and boxes: no mesh file is referenced."""
     root = ET.fromstring(build_urdf("2021"))
     shapes = {child.tag for geometry in root.iter("geometry") for child in geometry}
     assert shapes <= {"cylinder", "box"}
     assert not list(root.iter("mesh"))
-    assert _MODELS["2021"].scene is not None
-    assert len(_MODELS["2021"].scene.geometry) >= 10  # yourdfpy built every shape
+    assert models["2021"].scene is not None
+    assert len(models["2021"].scene.geometry) >= 10  # yourdfpy built every shape
 
 
 def test_profiles_differ() -> None:
