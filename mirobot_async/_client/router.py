@@ -17,7 +17,6 @@ from mirobot_async._client.guard import EnvelopeGuard, NullGuard
 from mirobot_async._client.poller import StatusPoller
 from mirobot_async._client.scheduler import LineScheduler
 from mirobot_async._client.wire import Wire
-from mirobot_async._core.line import parse_line
 from mirobot_async._core.protocol import (
     AlarmRaised,
     BannerReceived,
@@ -107,10 +106,6 @@ class EventRouter:
             if refusal is not None and refusal.reason is RefusalReason.LOCKED:
                 # a locked arm moves nothing: every line before this one was refused too
                 self._guard.chain = self._guard.chain.at_rest()
-            if refusal is not None and isinstance(self._guard, NullGuard):
-                # "ok" but dropped: the parser's position may have moved, the arm did not (an
-                # envelope guard follows the parser's position itself: line_failed)
-                self._guard.chain = self._guard.chain.after_refusal(parse_line(event.line.line))
             self._lines.on_reply(event)
         elif isinstance(event, StatusCorrupted):
             self._poller.on_corrupted(event.reason)

@@ -183,6 +183,16 @@ class LineScheduler:
             return
         self._poller.on_line_reply(slot.sent_at)
         self._condition.on_line_answered(slot.parsed, event)
+        guard = self._guard
+        if (
+            isinstance(guard, NullGuard)
+            and isinstance(event, LineAcknowledged)
+            and event.refusal is not None
+            and slot.parsed is not None
+        ):
+            # "ok" but dropped: the parser's position may have moved, the arm did not (an
+            # envelope guard follows the parser's position itself: line_failed)
+            guard.chain = guard.chain.after_refusal(slot.parsed)
         if slot.tracked is not None:
             if isinstance(event, LineRejected):
                 self._guard.line_failed(slot.tracked, rejected=True)

@@ -16,7 +16,7 @@ from conftest import Cli, EmulatorLender
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
-from mirobot_async import Mirobot, MotionChainError, StatusReport
+from mirobot_async import Mirobot, MotionChainError, MotionRefusedError, StatusReport
 from mirobot_async._cli.exits import EXIT_FAILED
 from mirobot_async.testing import EmulatorProcess
 
@@ -189,6 +189,25 @@ async def test_send_refuses_a_mode_word_while_the_arm_may_move(ready_arm: Mirobo
     await arm.wait_idle()
     await arm.send("M21 G91 G0 X5")  # at rest: the restart is where the arm is
     assert (await arm.wait_idle()).joints[0] == pytest.approx(15, abs=STEP)
+
+
+@pytest.mark.mirobot_emulator(firmware="classic", time_scale=0)
+async def test_a_line_reading_where_a_refused_line_left_the_parser_is_refused(
+    emu: EmulatorProcess,
+) -> None:
+    """A refused motion line moves the firmware's parser, not the arm (oracle: locked
+    ``M21 G91 X10``, ``M50``, ``G91 X1`` ends at J1 10.999): a line that reads the parser
+    there is refused before its first byte; restating the mode restarts from the arm."""
+    async with Mirobot.connect(emu.url) as arm:  # locked: power-on
+        with pytest.raises(MotionRefusedError, match="locked"):
+            await arm.send("M21 G91 X10")
+        await arm.send("M50")
+        sent = arm.stats.lines_sent
+        with pytest.raises(MotionChainError, match="refused line 'M21 G91 X10'"):
+            await arm.send("G91 X1")
+        assert arm.stats.lines_sent == sent
+        await arm.send("M21 G91 X1")
+        assert (await arm.wait_idle()).joints[0] == pytest.approx(1, abs=STEP)
 
 
 def test_check_reports_the_line_and_the_fix(cli: Cli, tmp_path: Path) -> None:
