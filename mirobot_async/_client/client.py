@@ -504,8 +504,9 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
         the reply is consumed and discarded.
         """
         data = encode_line(line, self._wire.rx_buffer_size)
+        parsed = parse_line(data)
         if timeout == DEFAULT_TIMEOUT:
-            timeout = default_reply_timeout(parse_line(data))
+            timeout = default_reply_timeout(parsed)
         deadline = deadline_after(self._running_loop(), timeout)
         what = f"send({data.decode('ascii')!r})"
         if not validate:
@@ -517,6 +518,7 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
             check_envelope=check_envelope,
             what=what,
             validate=validate,
+            parsed=parsed,
         )
 
     def stream(

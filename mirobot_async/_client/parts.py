@@ -206,13 +206,16 @@ class ClientParts:
         what: str | None = None,
         idle: bool = False,
         validate: bool = False,
+        parsed: ParsedLine | None = None,
     ) -> tuple[str, ...]:
         """Send one line and return its output; raise what its reply means (``idle``: write it
         only when the robot is at rest; ``validate``: refuse what the firmware would refuse or
-        misread; see :meth:`LineScheduler.submit`). The line is parsed once, here."""
+        misread; see :meth:`LineScheduler.submit`). The line is parsed once: ``parsed`` (the
+        caller's parse of ``data``), or here."""
         data = data.rstrip(b"\n")
         command = data.decode("ascii")
-        parsed = parse_line(data)
+        if parsed is None:
+            parsed = parse_line(data)
         slot = await self._lines.submit(
             data,
             command,
