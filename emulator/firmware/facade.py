@@ -14,7 +14,7 @@ from . import codes as c
 from .gcode import GcodeExecutor
 from .geometry import switch_pins
 from .linebuffer import RX_BUFFER_SIZE, RX_CAPACITY
-from .linecost import line_seconds
+from .linecost import WAIT_POINT_SECONDS, line_seconds
 from .machine import Machine
 from .reports import banner, status_line
 from .scanner import read_float
@@ -90,8 +90,9 @@ class Firmware:
         self._wire = Wire(byte_seconds)
         self._parse_until: float | None = None
         """When the line being parsed (``Machine.parsing``) is done."""
-        self._status_after_parse = False
-        """``?`` arrived during a parse: answered right after the line's reply."""
+        self._parse_started = 0.0
+        self._status_after_parse: float | None = None
+        """When a ``?`` arrived during the parse (None: none did); see :meth:`_finish_parse`."""
         self._boot_until: float | None = None
         """When the banner after a soft reset is printed (``BOOT_SECONDS``): lines wait."""
         self._reset_at = -math.inf
@@ -256,7 +257,7 @@ class Firmware:
         m.pending = None
         m.parsing = None  # the line being parsed is dropped
         self._parse_until = None
-        self._status_after_parse = False
+        self._status_after_parse = None
         m.limit_blocks.clear()
         m.hold = False
         m.suspended = False
@@ -362,7 +363,8 @@ class Firmware:
             elif running is not None and running.kind == "home_search":
                 m.status_deferred = True  # oracle: the homing search answers no ``?``
             elif m.parsing is not None:
-                self._status_after_parse = True  # GRBL answers between lines
+                if self._status_after_parse is None:  # later ones are merged into its report
+                    self._status_after_parse = self.now
             elif not self.uart.merges(self.now):  # else merged into the report being printed
                 self.uart.print_report(m, self.now)
         elif byte == 0x21:  # !
@@ -416,10 +418,11 @@ class Firmware:
         m = self._m
         line = m.rx.take_line()
         if line is None:
-            m.planner.cycle_start()
+            m.start_cycle()
             return
         m.parsing = line
         cost = 0.0 if line.overflow else line_seconds(line.text, m.modal.cart_mode)
+        self._parse_started = self.now
         self._parse_until = self.now + cost
 
     def _finish_parse(self) -> None:
@@ -430,17 +433,36 @@ class Firmware:
         self._parse_until = None
         if line is None:  # pragma: no cover - only called with a line in progress
             return
+        requested, self._status_after_parse = self._status_after_parse, None
+        at_wait = requested is not None and requested <= self._parse_started + WAIT_POINT_SECONDS
+        if at_wait:
+            m.report_before_start = self._report_before_start
         if m.critical:
             m.line_cut_short = True  # a hard limit meanwhile: the reset prints its ok
         elif line.overflow:
             m.error(c.OVERFLOW)
         else:
             self._execute_line(line.text)
-        if self._status_after_parse:
-            self._status_after_parse = False
-            if not m.critical:
-                self.uart.print_report(m, self.now)
-        self._service()
+        if requested is not None and (not at_wait or m.report_before_start is not None):
+            # not printed at a wait of the line: after its reply, and before the queued blocks
+            # start when the ring holds no further line (GRBL's main loop starts them then)
+            m.report_before_start = self._report_before_start
+            self._service()
+            if m.report_before_start is not None:
+                self._report_before_start()
+        else:
+            self._service()
+        m.report_before_start = None
+
+    def _report_before_start(self) -> float:
+        """Print the status report a ``?`` during the parse asked for; seconds until it is
+        produced (the firmware's main loop waits for that before it goes on)."""
+        m = self._m
+        m.report_before_start = None
+        if m.critical:
+            return 0.0
+        self.uart.print_report(m, self.now)
+        return self.uart.production_left(self.now)
 
     def _execute_line(self, line: str) -> None:
         m = self._m
