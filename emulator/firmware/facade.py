@@ -91,8 +91,7 @@ class Firmware:
         self._parse_until: float | None = None
         """When the line being parsed (``Machine.parsing``) is done."""
         self._parse_started = 0.0
-        self._status_after_parse: float | None = None
-        """When a ``?`` arrived during the parse (None: none did); see :meth:`_finish_parse`."""
+        self._status_after_parse: float | None = None  # when a ``?`` came during the parse
         self._boot_until: float | None = None
         """When the banner after a soft reset is printed (``BOOT_SECONDS``): lines wait."""
         self._reset_at = -math.inf
@@ -251,20 +250,9 @@ class Firmware:
             interrupted = True  # the hard-limit alarm survives the reset
         if m.pending is not None or m.line_cut_short:
             m.emit("ok")  # oracle: the line in progress (homing, a dwell, a wait) ends with ok
-        m.line_cut_short = False
-        m.planner.abort()
-        m.rx.clear()
-        m.pending = None
-        m.parsing = None  # the line being parsed is dropped
-        self._parse_until = None
+        m.clear_on_reset()
+        self._parse_until = None  # the line being parsed is dropped
         self._status_after_parse = None
-        m.limit_blocks.clear()
-        m.hold = False
-        m.suspended = False
-        m.status_deferred = False
-        m.rezero = None
-        m.check = False
-        m.critical = False
         m.reset_condition(interrupted=interrupted)
         m.parser_init(feed=200.0)
         m.emit_lines(banner(m))
@@ -434,35 +422,22 @@ class Firmware:
         if line is None:  # pragma: no cover - only called with a line in progress
             return
         requested, self._status_after_parse = self._status_after_parse, None
-        at_wait = requested is not None and requested <= self._parse_started + WAIT_POINT_SECONDS
-        if at_wait:
-            m.report_before_start = self._report_before_start
+        early = requested is not None and requested <= self._parse_started + WAIT_POINT_SECONDS
+        m.report_before_start = self._report_now if early else None  # at the line's own wait
         if m.critical:
             m.line_cut_short = True  # a hard limit meanwhile: the reset prints its ok
         elif line.overflow:
             m.error(c.OVERFLOW)
         else:
             self._execute_line(line.text)
-        if requested is not None and (not at_wait or m.report_before_start is not None):
-            # not printed at a wait of the line: after its reply, and before the queued blocks
-            # start when the ring holds no further line (GRBL's main loop starts them then)
-            m.report_before_start = self._report_before_start
-            self._service()
-            if m.report_before_start is not None:
-                self._report_before_start()
-        else:
-            self._service()
-        m.report_before_start = None
+        if requested is not None and not (early and m.report_before_start is None):
+            m.report_before_start = self._report_now  # before the main loop's cycle start
+        self._service()
+        if m.report_before_start is not None:  # a further line: after this line's reply
+            self._report_now()
 
-    def _report_before_start(self) -> float:
-        """Print the status report a ``?`` during the parse asked for; seconds until it is
-        produced (the firmware's main loop waits for that before it goes on)."""
-        m = self._m
-        m.report_before_start = None
-        if m.critical:
-            return 0.0
-        self.uart.print_report(m, self.now)
-        return self.uart.production_left(self.now)
+    def _report_now(self) -> float:
+        return self.uart.report_before_start(self._m, self.now)
 
     def _execute_line(self, line: str) -> None:
         m = self._m

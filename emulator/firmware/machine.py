@@ -195,6 +195,23 @@ class Machine:
         self.alarm = True
         self.critical = True
 
+    def clear_on_reset(self) -> None:
+        """What a soft reset clears: motion, received bytes, the waiting and parsed line, the
+        hold, the check mode and a hard-limit lock."""
+        self.line_cut_short = False
+        self.planner.abort()
+        self.rx.clear()
+        self.pending = None
+        self.parsing = None
+        self.limit_blocks.clear()
+        self.hold = False
+        self.suspended = False
+        self.status_deferred = False
+        self.rezero = None
+        self.check = False
+        self.critical = False
+        self.report_before_start = None
+
     def start_cycle(self) -> None:
         """GRBL's auto cycle start. Its realtime step prints a requested status report before
         it starts the cycle, so a ``?`` that arrived during the parse of a line that then waits
