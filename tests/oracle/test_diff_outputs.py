@@ -78,8 +78,9 @@ def _name(case: tuple[tuple[str, ...], str]) -> str:
 
 STATUS_AFTER_THE_PARSE = b" " * 20 + b"?"
 """Behind the held line in the same write: 20 filtered bytes, so the ``?`` reaches the firmware
-2 ms (simulated: 0.1 ms a byte on both sides) after the line, when its parse has ended and the
-queued move has started (the longest parse measured, ``M4 E40 S500``, ends 0.45 ms after it).
+2 ms (simulated: 0.1 ms a byte on both sides) after the line's last byte, when the line waits
+and the queued move has started (the latest wait measured, ``M4 E40 S500``'s, comes 0.5-0.6 ms
+after that byte on the oracle).
 
 Not a ``?`` sent when the move's ``ok`` arrives: that one raced the held line's parse. GRBL
 prints a requested report before it starts queued blocks, so the oracle answers ``Idle`` at
@@ -88,7 +89,9 @@ it. That instant is 0.3-0.4 ms (simulated) after the move's ``ok`` is printed, w
 reaches the simulator after the host's reaction, in wall time at 5-7x (MIROBOT_ORACLE_REPORT
 of 20 runs of ``M3 S1000 then M4 E40 S500`` alone: 8 oracle ``Idle`` with angles 0.000, 12
 ``Run``; the longest line, so the widest window; probes at fixed instants: ``Idle`` for a ``?``
-up to 3.4 ms after the write, ``Run`` from 3.5 ms, every time)."""
+up to 3.4 ms after the write, ``Run`` from 3.5 ms, every time). Our emulator answered ``Run``
+in that window until it modelled the order (:func:`test_status_before_the_held_line_starts_the_move`
+compares the window itself at fixed instants)."""
 
 
 @pytest.mark.parametrize("case", WAITS, ids=_name)
@@ -105,7 +108,7 @@ def test_waits_for_motion(pair: Pair, case: tuple[tuple[str, ...], str]) -> None
 
 
 # (lines before the move, the held line, filtered bytes between it and the ``?``): the ``?``
-# arrives 0.1-0.3 ms before the oracle's held line reaches its synchronisation (the last
+# arrives 0.2-0.3 ms before the oracle's held line reaches its synchronisation (the last
 # ``Idle`` of a sweep in 0.1 ms steps: pads 4, 8, 7, 11; ours 3, 8, 7, 12)
 BEFORE_THE_START = [
     (("M3 S1000",), "M4 E40 S500", 2),
