@@ -14,7 +14,7 @@ from . import codes as c
 from .gcode import GcodeExecutor
 from .geometry import switch_pins
 from .linebuffer import RX_BUFFER_SIZE, RX_CAPACITY
-from .linecost import line_seconds
+from .linecost import WAIT_POINT_SECONDS, line_seconds
 from .machine import Machine
 from .reports import banner, status_line
 from .scanner import read_float
@@ -90,8 +90,8 @@ class Firmware:
         self._wire = Wire(byte_seconds)
         self._parse_until: float | None = None
         """When the line being parsed (``Machine.parsing``) is done."""
-        self._status_after_parse = False
-        """``?`` arrived during a parse: answered right after the line's reply."""
+        self._parse_started = 0.0
+        self._status_after_parse: float | None = None  # when a ``?`` came during the parse
         self._boot_until: float | None = None
         """When the banner after a soft reset is printed (``BOOT_SECONDS``): lines wait."""
         self._reset_at = -math.inf
@@ -250,20 +250,9 @@ class Firmware:
             interrupted = True  # the hard-limit alarm survives the reset
         if m.pending is not None or m.line_cut_short:
             m.emit("ok")  # oracle: the line in progress (homing, a dwell, a wait) ends with ok
-        m.line_cut_short = False
-        m.planner.abort()
-        m.rx.clear()
-        m.pending = None
-        m.parsing = None  # the line being parsed is dropped
-        self._parse_until = None
-        self._status_after_parse = False
-        m.limit_blocks.clear()
-        m.hold = False
-        m.suspended = False
-        m.status_deferred = False
-        m.rezero = None
-        m.check = False
-        m.critical = False
+        m.clear_on_reset()
+        self._parse_until = None  # the line being parsed is dropped
+        self._status_after_parse = None
         m.reset_condition(interrupted=interrupted)
         m.parser_init(feed=200.0)
         m.emit_lines(banner(m))
@@ -362,7 +351,8 @@ class Firmware:
             elif running is not None and running.kind == "home_search":
                 m.status_deferred = True  # oracle: the homing search answers no ``?``
             elif m.parsing is not None:
-                self._status_after_parse = True  # GRBL answers between lines
+                if self._status_after_parse is None:  # later ones are merged into its report
+                    self._status_after_parse = self.now
             elif not self.uart.merges(self.now):  # else merged into the report being printed
                 self.uart.print_report(m, self.now)
         elif byte == 0x21:  # !
@@ -416,10 +406,11 @@ class Firmware:
         m = self._m
         line = m.rx.take_line()
         if line is None:
-            m.planner.cycle_start()
+            m.start_cycle()
             return
         m.parsing = line
         cost = 0.0 if line.overflow else line_seconds(line.text, m.modal.cart_mode)
+        self._parse_started = self.now
         self._parse_until = self.now + cost
 
     def _finish_parse(self) -> None:
@@ -430,17 +421,23 @@ class Firmware:
         self._parse_until = None
         if line is None:  # pragma: no cover - only called with a line in progress
             return
+        requested, self._status_after_parse = self._status_after_parse, None
+        early = requested is not None and requested <= self._parse_started + WAIT_POINT_SECONDS
+        m.report_before_start = self._report_now if early else None  # at the line's own wait
         if m.critical:
             m.line_cut_short = True  # a hard limit meanwhile: the reset prints its ok
         elif line.overflow:
             m.error(c.OVERFLOW)
         else:
             self._execute_line(line.text)
-        if self._status_after_parse:
-            self._status_after_parse = False
-            if not m.critical:
-                self.uart.print_report(m, self.now)
+        if requested is not None and not (early and m.report_before_start is None):
+            m.report_before_start = self._report_now  # before the main loop's cycle start
         self._service()
+        if m.report_before_start is not None:  # a further line: after this line's reply
+            self._report_now()
+
+    def _report_now(self) -> float:
+        return self.uart.report_before_start(self._m, self.now)
 
     def _execute_line(self, line: str) -> None:
         m = self._m

@@ -26,7 +26,9 @@ kinematics in float), a Cartesian target (inverse kinematics: slower for general
 near the start pose, the model takes the general case), a joint target, a planned block. The
 2021 firmware is the same code base on the same MCU (ASSUMED the same costs). The line's
 effects, its ``ok`` and the next line wait for it; a ``?`` meanwhile is answered right after
-the line's reply (GRBL reports between lines); the other realtime bytes act at once.
+the line's reply (GRBL reports between lines), or, when it came before the line's wait for
+queued motion (:data:`WAIT_POINT_SECONDS`), at that wait, before the queued blocks start
+(``Idle``: GRBL reports before it starts a cycle); the other realtime bytes act at once.
 """
 
 from __future__ import annotations
@@ -40,6 +42,12 @@ LINE_SECONDS: Final = 0.2e-3
 
 RESYNC_SECONDS: Final = 6.8e-3
 """The ``M20`` word: the parser's position from the machine's (forward kinematics)."""
+
+WAIT_POINT_SECONDS: Final = LINE_SECONDS
+"""A line that waits for queued motion reaches its wait this long after its parse began, before
+its target's work (oracle, behind a move: a ``?`` up to 0.1-0.3 ms after the move's ``ok`` finds
+the move not started for ``M5``, ``M4 E65``, ``M4 E40 S500``; 1.3 ms after it, the move
+runs for ``M21 G90 X5 M3 S1000``, whose whole parse is 1.45 ms here)."""
 
 CARTESIAN_TARGET_SECONDS: Final = 6.3e-3
 """A Cartesian target (inverse kinematics of a general pose)."""

@@ -80,6 +80,9 @@ class Machine:
         self.check = False
         self.booting = False
         """The banner after a soft reset is being printed: received lines wait."""
+        self.report_before_start: Callable[[], float] | None = None
+        """A ``?`` arrived while the current line was parsed: :meth:`start_cycle` prints its
+        report (returning the seconds until it is produced) before queued blocks start."""
 
     # output ---------------------------------------------------------------------------------
 
@@ -192,6 +195,38 @@ class Machine:
         self.alarm = True
         self.critical = True
 
+    def clear_on_reset(self) -> None:
+        """What a soft reset clears: motion, received bytes, the waiting and parsed line, the
+        hold, the check mode and a hard-limit lock."""
+        self.line_cut_short = False
+        self.planner.abort()
+        self.rx.clear()
+        self.pending = None
+        self.parsing = None
+        self.limit_blocks.clear()
+        self.hold = False
+        self.suspended = False
+        self.status_deferred = False
+        self.rezero = None
+        self.check = False
+        self.critical = False
+        self.report_before_start = None
+
+    def start_cycle(self) -> None:
+        """GRBL's auto cycle start. Its realtime step prints a requested status report before
+        it starts the cycle, so a ``?`` that arrived during the parse of a line that then waits
+        finds queued blocks not yet started (``Idle`` at the old pose), and they start only
+        once the report is produced (oracle: ``M21 G90 X30 F300`` and ``M4 E40 S500`` written
+        at once, ``?`` 0.3 ms after the move's ``ok``: ``Idle``, motion ends 12.5 ms later than
+        with the ``?`` 0.1 ms later, ``Run``; the report's 175 bytes through the transmit
+        ring)."""
+        report = self.report_before_start
+        if report is not None and self.planner.blocks and not self.planner.started:
+            self.report_before_start = None
+            self.planner.cycle_start(delay=report())
+        else:
+            self.planner.cycle_start()
+
     # the waiting line -----------------------------------------------------------------------
 
     def wait(self, pending: Pending) -> None:
@@ -206,7 +241,7 @@ class Machine:
             while p.blocks and self.planner.free > 0:
                 self.planner.push(p.blocks.pop(0))
             if p.blocks or p.until != "queued":
-                self.planner.cycle_start()  # GRBL's auto cycle start: planner full, or a wait
+                self.start_cycle()  # GRBL's auto cycle start: planner full, or a wait
             if p.blocks:
                 return False
             if p.hard_limit is not None:

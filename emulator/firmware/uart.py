@@ -76,6 +76,20 @@ class Transmitter:
         self._seen = m.printed
         self.report(len(line) + 2, now)
 
+    def report_before_start(self, m: Machine, now: float) -> float:
+        """The report a ``?`` during a parse asked for (``m.report_before_start``), printed now
+        (none in a critical alarm); seconds until it is produced, which the main loop waits."""
+        m.report_before_start = None
+        if m.critical:
+            return 0.0
+        self.print_report(m, now)
+        return self.production_left(now)
+
+    def production_left(self, now: float) -> float:
+        """Seconds from ``now`` until the last report has been handed to the transmit ring
+        (its production blocks the firmware's main loop until then); 0 when unpaced."""
+        return max(0.0, self._report_until - now) if self.byte_seconds else 0.0
+
     def merges(self, now: float) -> bool:
         """Whether a ``?`` arriving at ``now`` is merged into the report being produced."""
         return now < self._report_until

@@ -365,15 +365,16 @@ class Planner:
             return
         self._replan(s, self._profile.v_at(self._t))
 
-    def cycle_start(self) -> None:
-        """Start the queued blocks (GRBL's auto cycle start). A firmware with
+    def cycle_start(self, delay: float = 0.0) -> None:
+        """Start the queued blocks (GRBL's auto cycle start), the first one ``delay`` seconds
+        later than usual (the firmware was busy). A firmware with
         ``deferred_start`` calls this when a block does not fit (the planner is full), when
         its receive buffer has run dry, and before it waits for the planner to empty (``G4``,
         ``M2``, ``$`` commands); no effect when already started or empty."""
         if self._started or not self._queue:
             return
         self._started = True
-        self._delay = 0.0 if self._queue[0].timed else self._start_latency
+        self._delay = (0.0 if self._queue[0].timed else self._start_latency) + max(delay, 0.0)
         self._motion_since = self.clock + self._delay
         self._replan(0.0, 0.0)
 

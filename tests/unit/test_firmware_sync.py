@@ -118,3 +118,52 @@ def test_2021_step_grid_follows_the_device_printout() -> None:
     assert fw.state == "Idle"
     ours = fw.status_line().split("Angle(ABCDXYZ):")[1].split(",Cartesian")[0]
     assert ours == device
+
+
+SLOW_MOVE = "M21 G90 X30 F300\n"
+
+
+@pytest.mark.parametrize(
+    ("line", "pad", "state"),
+    [
+        ("M4 E40 S500", 3, "Idle"),
+        ("M4 E40 S500", 5, "Run"),
+        ("M4 E65", 8, "Idle"),
+        ("M4 E65", 9, "Run"),
+        ("M3 S500", 7, "Idle"),
+        ("M3 S500", 8, "Run"),
+        ("M5", 11, "Idle"),
+        ("M5", 13, "Run"),
+    ],
+)
+def test_a_status_before_the_held_line_waits_finds_the_move_not_started(
+    line: str, pad: int, state: str
+) -> None:
+    """The move and the held line written at once, then ``pad`` filtered bytes and ``?``: the
+    oracle answers ``Idle`` at the start pose while the held line is parsed (GRBL reports before
+    it starts the cycle at the line's wait), ``Run`` once it waits (its last ``Idle`` and
+    first ``Run`` in 0.1 ms steps: pads 4/5, 8/9, 7/8, 11/12; tests/oracle/test_diff_outputs.py)."""
+    fw = unlocked("M3 S1000")
+    fw.receive(f"{SLOW_MOVE}{line}\n".encode() + b" " * pad + b"?")
+    fw.advance(0.05)
+    out = fw.read_output().split(b"\r\n")
+    assert out[0] == b"ok" and out[1].startswith(f"<{state},Angle(ABCDXYZ):0.000,".encode())
+    assert b"Pump PWM:1000,Valve PWM:0," in out[1]
+
+
+def test_the_move_starts_once_the_report_before_it_is_out() -> None:
+    """With the transmitter paced as the oracle's, the report printed before the start delays
+    the move by its production (oracle: the held line's ``ok`` 12.5 ms later; here 13.0 ms)."""
+    from mirobot_emulator.firmware.uart import ORACLE_BYTE_SECONDS
+
+    ends = []
+    for pad in (3, 5):
+        fw = unlocked("M3 S1000")
+        fw.uart.byte_seconds = ORACLE_BYTE_SECONDS
+        fw.receive(f"{SLOW_MOVE}M4 E40 S500\n".encode() + b" " * pad + b"?")
+        start, out = fw.now, b""
+        while out.count(b"ok") < 2:
+            fw.advance(0.0001)
+            out += fw.read_output()
+        ends.append(fw.now - start)
+    assert 0.0120 < ends[0] - ends[1] < 0.0135
