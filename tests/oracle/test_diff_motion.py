@@ -106,8 +106,10 @@ def test_burst(pair: Pair, program: str) -> None:
     pair.check()
 
 
-# Cartesian lines parse slower (about 14 ms) than their bytes arrive: the receive ring fills
-# and drops bytes, so the reply is read until one wall second of silence.
+# Cartesian lines parse slower (about 13 ms) than their bytes arrive: the receive ring fills
+# and drops bytes, so the reply is read until one wall second of silence. The ring keeps the
+# start of a line whose end was lost: the first ``G4 P0`` completes it (oracle: into ``M20 G91
+# G0 X1 G4 P0``, answered as its motion starts), the second waits for the motion to end.
 OVERFLOWING_BURSTS: dict[str, list[str]] = {
     "m20-rel-g0-20": ["M20 G91 G0 X1"] * 20,
     "m20-rel-g1-20": ["M20 G91 G1 X1 F2000"] * 20,
@@ -118,6 +120,7 @@ OVERFLOWING_BURSTS: dict[str, list[str]] = {
 def test_overflowing_burst(pair: Pair, program: str) -> None:
     pair.lines("M50")
     pair.send("".join(line + "\n" for line in OVERFLOWING_BURSTS[program]), Until(quiet=1.0))
+    pair.settle()
     pair.settle()
     pair.status()
     pair.check()
