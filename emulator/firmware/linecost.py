@@ -4,47 +4,58 @@ Measured on the oracle (the classic firmware on a simulated 16 MHz ATmega2560, `
 ``-l`` logs): bursts of identical lines written at once after an empty line (whose ``ok`` times
 the first byte), ``ok`` to ``ok`` once no more bytes arrive. Bytes arrive one every 100 us
 (:mod:`.wire`), so short lines are paced by the wire and the parse of a line overlaps the
-arrival of the next. Steady gaps at the start pose (all joints 0, no block planned):
+arrival of the next. Steady gaps, at the start pose (all joints 0) unless said, no block planned:
 
-=====================================  ======  =====================================
-line                                    gap ms  model ms
-=====================================  ======  =====================================
-``M20``                                 7.092   7.092
-``M20 G91``                             7.169   7.186
-``M20 G91 G0 X1`` (``X0.1``, ``X10``)   12.672  12.672
-``M20 G91 G1 X1``                       12.705  12.705
-``M20 G91 G1 X1 F2000``                 12.826  12.825
-``M20 G91 G0 X1 Y0`` (a zero word)      12.765  12.764
-``M20 G91 G0 X1 Y10`` / ``Y0.01``       13.17 / 13.23   13.19
-``M20 G91 G0 X1 B1`` / ``C1`` / ``A1``  12.90 / 13.04 / 13.46   12.92 / 13.05 / 13.39
-``M20 G91 G0 X1 A1 B1 C1``              13.931  13.947
-``M20 G90 G0 X203 Y0 Z181 A0 B0 C0``    13.216  13.139
-``M20 G91 G0 X1``, J2 0.529 J3 -0.531   13.112  13.142
-``M20 G91 G0 X1``, every joint at 10    14.446  14.632
-``M20`` at those two poses              7.41 / 8.05     7.41 / 8.05
-``X0`` joint mode (no block)            0.664   0.658
-=====================================  ======  =====================================
+======================================  =====================  =====================
+line                                    oracle gap ms          model gap ms
+======================================  =====================  =====================
+``M20``                                 7.092                  7.092
+``M20 G91``                             7.169                  7.186
+``M20 G91 G0 X1`` (``X0.1``, ``X10``)   12.672                 12.672
+``M20 G91 G1 X1``                       12.705                 12.705
+``M20 G91 G1 X1 F2000``                 12.826                 12.825
+``M20 G91 G0 X1 Y0`` (a zero word)      12.765                 12.764
+``M20 G91 G0 X1 Y10`` / ``Y0.01``       13.17 / 13.23          13.196
+``M20 G91 G0 X1 B1`` / ``C1`` / ``A1``  12.90 / 13.04 / 13.46  12.91 / 13.04 / 13.38
+``M20 G91 G0 X1 A1 B1 C1``              13.931                 13.946
+``M20 G90 G0 X203 Y0 Z181 A0 B0 C0``    13.216                 13.140
+``M20 G91 G0 X1``, J2 0.529 J3 -0.531   13.112                 13.142
+``M20 G91 G0 X1``, every joint at 10    14.446                 14.632
+``M20 G91 G1 X1 F2000``, same pose      14.600                 14.785
+``M20`` at those two poses              7.41 / 8.05            7.41 / 8.05
+``X0.1`` Cartesian G91 (a block each)   6.92-7.21              7.05
+``X0`` joint mode (no block)            0.664                  1.458
+======================================  =====================  =====================
 
 The work is in the words: each word of a Cartesian line (:data:`WORD_SECONDS`), the ``M20``
 word (the parser's pose from the machine's: forward kinematics, :func:`resync_seconds`), a
 Cartesian target (inverse kinematics, :func:`cartesian_target_seconds`), a joint target, and a
-planned block (:func:`block_seconds`: charged only when the line did plan one, oracle: a
-repeated ``M20 G91 G0 X1`` whose target rounds to the steps already planned makes none and is
-0.40 ms faster than the first). The float arithmetic of the AVR takes longer for non-zero
+planned block. A Cartesian line's block is charged after the line's effects, only when it did
+plan one (:func:`block_seconds`; oracle: a repeated ``M20 G91 G0 X1`` whose target rounds to
+the steps already planned makes none and is 0.40 ms faster than the first), its reply waits
+for it (:class:`ParserWork`); a joint line's block is charged before its effects
+(:data:`JOINT_BLOCK_SECONDS`). The float arithmetic of the AVR takes longer for non-zero
 values: the forward kinematics 0.16 ms per non-zero joint, the inverse kinematics more for a
 target off the arm's vertical plane (``Y``) or with a turned wrist (``A``/``B``/``C``). A line
 already waiting in the receive ring costs :data:`PULL_SECONDS` a byte to take into the line
 (five more spaces: +14 us); the bytes of a line that arrives while the parser is idle are
 taken as they come. Bytes that arrive during the parse slow it down by their receive
-interrupt (:data:`RX_INTERRUPT_SECONDS`, applied by the facade). The 2021 firmware is the same
-code base on the same MCU (ASSUMED the same costs). The line's effects, its ``ok`` and the
-next line wait for it; a ``?`` meanwhile is answered right after the line's reply (GRBL
-reports between lines); the other realtime bytes act at once.
+interrupt (:data:`RX_INTERRUPT_SECONDS`): so a burst of ``M20 G91 G0 X1`` lines (14 bytes,
+12.7 ms each) overflows the 127-byte ring, and which bytes are lost follows from these
+instants to the 100 us byte (oracle, 20 such lines written at once: 10 ``ok``, then ``error:
+Bad number format`` for an ``M`` whose line end was lost, and ``M20 G91 G0 X1`` left in the
+ring without its line end). The 2021 firmware is the same code base on the same MCU (ASSUMED
+the same costs; its Cartesian ``G1`` cut into blocks is charged one block). The line's
+effects, its ``ok`` and the next line wait for it; a ``?`` meanwhile is answered right after
+the line's reply (GRBL reports between lines); the other realtime bytes act at once.
 
 Not modelled: the exact float timing (the model sees zero or non-zero, e.g. ``B0.002`` is
 measured 0.18 ms, ``B1`` 0.14 ms, ``B10`` 0.11 ms, all 0.15 here), a target equal to the
 commanded pose (``M20 G91 G0 X0``: 0.16 ms faster), the re-planning growing with the blocks
-queued (``X0.1`` Cartesian G91 lines: 6.92 ms with one block queued, 7.21 ms with eleven).
+queued (``X0.1`` Cartesian G91 lines: 6.92 ms with one block queued, 7.21 ms with eleven), the
+stepper interrupt while the arm moves (joint ``X0`` lines 0.75-0.84 ms instead of 0.66) and
+the preparation of a move's first segments when it starts (the line after the one that
+starts a move takes up to 2.7 ms more).
 """
 
 from __future__ import annotations
