@@ -420,7 +420,7 @@ class Firmware:
             return
         m.parsing = line
         seconds, self._parser.work = line_seconds(m, line, waited=waited)
-        self._parser.begin(self.now, seconds)
+        self._parser.begin(m, self.now, seconds)
 
     def _finish_parse(self) -> None:
         """The parser is done with its line: execute it (:class:`~.linecost.ParserWork`)."""

@@ -80,8 +80,12 @@ waiting ``M20`` line, +14 us)."""
 
 RX_INTERRUPT_SECONDS: Final = 6.6e-6
 """The receive interrupt of each byte that arrives during a parse delays it (oracle: 40, 80,
-120 spaces behind ``M20 G91 G0 X0`` delay its ``ok`` by 0.266, 0.529, 0.792 ms; bytes lost to
-a full ring cost the same)."""
+120 spaces behind ``M20 G91 G0 X0`` delay its ``ok`` by 0.266, 0.529, 0.792 ms)."""
+
+RX_LOST_INTERRUPT_SECONDS: Final = 6.2e-6
+"""The receive interrupt of a byte the full ring loses (it stores nothing; oracle: the second
+of 20 ``M20 G91 G0 X1`` lines written at once, during which 14 bytes are stored and 114 lost,
+takes 13.469 ms, 0.799 ms more than the next ones)."""
 
 WORD_SECONDS: Final = 0.083e-3
 """A word of a Cartesian line (oracle: ``Y0`` added to ``M20 G91 G0 X1``, +0.091 ms with its
@@ -266,16 +270,25 @@ class ParserWork:
         self.reply: bytes | None = None
         """The executed line's reply, printed when its block is planned."""
         self._begun = (0.0, 0.0, 0)  # start, own seconds, bytes arrived by the start
+        self._room = 0  # free bytes in the receive ring at the start
 
-    def begin(self, now: float, seconds: float) -> None:
-        """``seconds`` of work from ``now``."""
-        self._begun = (now, seconds, self._wire.arrived_by(now))
-        self.until = self._wire.busy_until(*self._begun, RX_INTERRUPT_SECONDS)
+    def begin(self, m: Machine, now: float, seconds: float) -> None:
+        """``seconds`` of work from ``now`` (``m``'s receive ring as it is now)."""
+        arrived = self._wire.arrived_by(now)
+        self._room = m.rx.free - (arrived - self._wire.delivered)  # bytes due are not put yet
+        self._begun = (now, seconds, arrived)
+        self.until = self._wire.busy_until(*self._begun, self._interrupts)
 
     def more_bytes(self) -> None:
         """The host wrote more bytes: those that arrive before the end delay it."""
         if self.until is not None:
-            self.until = self._wire.busy_until(*self._begun, RX_INTERRUPT_SECONDS)
+            self.until = self._wire.busy_until(*self._begun, self._interrupts)
+
+    def _interrupts(self, count: int) -> float:
+        """The receive interrupts of ``count`` bytes arriving during the work: the ring takes
+        what it has room for (nothing leaves it meanwhile), the rest is lost."""
+        stored = min(count, max(self._room, 0))
+        return stored * RX_INTERRUPT_SECONDS + (count - stored) * RX_LOST_INTERRUPT_SECONDS
 
     def execute(
         self, m: Machine, line: ReceivedLine, run: Callable[[str], None], now: float
@@ -288,7 +301,7 @@ class ParserWork:
         if work is None or not work.cartesian or len(m.planner.blocks) <= queued or m.pending:
             return False
         self.reply = m.withdraw(mark)
-        self.begin(now, block_seconds(queued))
+        self.begin(m, now, block_seconds(queued))
         m.parsing = line
         return True
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Callable
 from typing import Final
 
 BYTE_SECONDS: Final = 100e-6
@@ -65,12 +66,14 @@ class Wire:
         count = math.floor((t - self._head_at) / self.byte_seconds + 1e-6) + 1
         return self.delivered + min(count, len(self._data))
 
-    def busy_until(self, start: float, seconds: float, arrived: int, per_byte: float) -> float:
+    def busy_until(
+        self, start: float, seconds: float, arrived: int, interrupts: Callable[[int], float]
+    ) -> float:
         """When ``seconds`` of work begun at ``start`` (``arrived`` bytes had come by then)
-        end, each byte arriving meanwhile adding ``per_byte`` (its receive interrupt)."""
+        end, the ``n`` bytes arriving meanwhile adding ``interrupts(n)`` seconds."""
         end = start + seconds
         for _ in range(64):  # each round adds the interrupts of the bytes the last one added
-            later = start + seconds + (self.arrived_by(end) - arrived) * per_byte
+            later = start + seconds + interrupts(self.arrived_by(end) - arrived)
             if later == end:
                 break
             end = later
