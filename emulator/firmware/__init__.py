@@ -62,13 +62,13 @@ What is modelled (checked against the oracle where it says so)
   ``reports.step_position``); during a ``G4`` dwell the state is ``Idle`` (oracle).
 * Parse time (oracle, :mod:`.linecost`): bytes arrive one per 100 us (:mod:`.wire`); each line
   occupies the parser with its words' work (``M20`` 6.8 ms + 0.16 ms per joint off zero, a
-  Cartesian target 5.3-6.3 ms by its ``Y``/``A``/``B``/``C``, a Cartesian block 0.40 ms, 1.45
-  ms behind others, charged only when planned; a joint line 1.45 ms), plus 6.6 us per byte
-  that arrives meanwhile (its receive interrupt); its effects, its ``ok`` and the next line
-  come after it; a ``?`` meanwhile is answered right after the line's reply. A full ring loses
-  the bytes that arrive (oracle: bursts of ``M20 G91`` lines lose the same bytes). GRBL's
-  auto cycle start: queued blocks wait until the planner is full, a line waits for it (``G4``,
-  homing, ``$``), or the receive ring has no complete line.
+  Cartesian target 5.3-6.3 ms by its ``Y``/``A``/``B``/``C``, a Cartesian block 0.40 ms, 1.45 ms
+  behind others, charged only when planned; a joint line 1.45 ms), plus 6.6 us per byte that
+  arrives meanwhile (its receive interrupt; 6.2 us if the full ring loses it); its effects, its
+  ``ok`` and the next line come after it; a ``?`` meanwhile is answered right after the line's
+  reply. A full ring loses the bytes that arrive (oracle: bursts of ``M20 G91`` lines lose the
+  same bytes). GRBL's auto cycle start: queued blocks wait until the planner is full, a line
+  waits for it (``G4``, homing, ``$``), or the receive ring has no complete line.
 * Cartesian lines (2021 ``$35=1``), gate moves and arcs are cut into blending joint-space
   blocks, one every 2 mm (ASSUMED; the 2021 ``$36`` point count is not used).
 

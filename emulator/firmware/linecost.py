@@ -32,22 +32,23 @@ word (the parser's pose from the machine's: forward kinematics, :func:`resync_se
 Cartesian target (inverse kinematics, :func:`cartesian_target_seconds`), a joint target, and a
 planned block. A Cartesian line's block is charged after the line's effects, only when it did
 plan one (:func:`block_seconds`; oracle: a repeated ``M20 G91 G0 X1`` whose target rounds to
-the steps already planned makes none and is 0.40 ms faster than the first), its reply waits
-for it (:class:`ParserWork`); a joint line's block is charged before its effects
+the steps already planned makes none and is 0.40 ms faster than the first), its reply waits for
+it (:class:`ParserWork`); a joint line's block is charged before its effects
 (:data:`JOINT_BLOCK_SECONDS`). The float arithmetic of the AVR takes longer for non-zero
 values: the forward kinematics 0.16 ms per non-zero joint, the inverse kinematics more for a
 target off the arm's vertical plane (``Y``) or with a turned wrist (``A``/``B``/``C``). A line
 already waiting in the receive ring costs :data:`PULL_SECONDS` a byte to take into the line
-(five more spaces: +14 us); the bytes of a line that arrives while the parser is idle are
-taken as they come. Bytes that arrive during the parse slow it down by their receive
-interrupt (:data:`RX_INTERRUPT_SECONDS`): so a burst of ``M20 G91 G0 X1`` lines (14 bytes,
-12.7 ms each) overflows the 127-byte ring, and which bytes are lost follows from these
-instants to the 100 us byte (oracle, 20 such lines written at once: 10 ``ok``, then ``error:
-Bad number format`` for an ``M`` whose line end was lost, and ``M20 G91 G0 X1`` left in the
-ring without its line end). The 2021 firmware is the same code base on the same MCU (ASSUMED
-the same costs; its Cartesian ``G1`` cut into blocks is charged one block). The line's
-effects, its ``ok`` and the next line wait for it; a ``?`` meanwhile is answered right after
-the line's reply (GRBL reports between lines); the other realtime bytes act at once.
+(five more spaces: +14 us); the bytes of a line that arrives while the parser is idle are taken
+as they come. Bytes that arrive during the parse slow it down by their receive interrupt
+(:data:`RX_INTERRUPT_SECONDS`, :data:`RX_LOST_INTERRUPT_SECONDS`): so a burst of ``M20 G91 G0
+X1`` lines (14 bytes, 12.7 ms each) overflows the 127-byte ring, and which bytes are lost
+follows from these instants to the 100 us byte (oracle, 20 such lines written at once: 10
+``ok``, then ``error: Bad number format`` for an ``M`` whose line end was lost, and ``M20 G91
+G0 X1`` left in the ring without its line end). The 2021 firmware is the same code base on the
+same MCU (ASSUMED the same costs; its Cartesian ``G1`` cut into blocks is charged one block).
+The line's effects, its ``ok`` and the next line wait for it; a ``?`` meanwhile is answered
+right after the line's reply (GRBL reports between lines); the other realtime bytes act at
+once.
 
 Not modelled: the exact float timing (the model sees zero or non-zero, e.g. ``B0.002`` is
 measured 0.18 ms, ``B1`` 0.14 ms, ``B10`` 0.11 ms, all 0.15 here), a target equal to the
@@ -55,7 +56,9 @@ commanded pose (``M20 G91 G0 X0``: 0.16 ms faster), the re-planning growing with
 queued (``X0.1`` Cartesian G91 lines: 6.92 ms with one block queued, 7.21 ms with eleven), the
 stepper interrupt while the arm moves (joint ``X0`` lines 0.75-0.84 ms instead of 0.66) and
 the preparation of a move's first segments when it starts (the line after the one that
-starts a move takes up to 2.7 ms more).
+starts a move takes up to 2.7 ms more), the time of a refused line (``M20 G91 M20 G91 G1 X1
+F2000``: a modal group violation after 14.24 ms, here 13.01 ms; an ``M``: 0.47 ms, here 0.29)
+and of an empty line (0.06 ms, here :data:`LINE_SECONDS`).
 """
 
 from __future__ import annotations
