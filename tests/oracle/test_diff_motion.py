@@ -61,6 +61,7 @@ MOVES: dict[str, list[str]] = {
     "modal-words": ["G91", "M21", "F1800", "X3", "Y3", "G90", "X0 Y0"],
     "pump-valve": ["M3 S1000", "M3 S0", "M4 E65", "M4 E40", "M3 S500", "M5"],
     "dwell": ["G4 P0.5", "G4 P0"],
+    "dwell-with-motion": ["M21 G91 G0 X30 G4 P0.2"],  # answered when its motion starts: Run
     "g10-g28": ["G10 L2 P1 X0", "G28", "G92 X0"],
 }
 
