@@ -60,11 +60,15 @@ What is modelled (checked against the oracle where it says so)
   on (``G91ok``).
 * Status angles are whole motor steps, the pose is the FK of those angles (oracle:
   ``reports.step_position``); during a ``G4`` dwell the state is ``Idle`` (oracle).
-* Parse time (oracle, :mod:`.linecost`): each line occupies the parser ~100 us per received
-  byte plus its words' work (``M20`` ~6.7 ms, a Cartesian target 3.6-5.1 ms, a block 0.8 ms);
-  its effects, its ``ok`` and the next line come after it; a ``?`` meanwhile is answered right
-  after the line's reply. GRBL's auto cycle start: queued blocks wait until the planner is
-  full, a line waits for it (``G4``, homing, ``$``), or the receive ring has no complete line.
+* Parse time (oracle, :mod:`.linecost`): bytes arrive one per 100 us (:mod:`.wire`); each line
+  occupies the parser with its words' work (``M20`` 6.8 ms + 0.16 ms per joint off zero, a
+  Cartesian target 5.3-6.3 ms by its ``Y``/``A``/``B``/``C``, a Cartesian block 0.40 ms, 1.45 ms
+  behind others, charged only when planned; a joint line 1.45 ms), plus 6.6 us per byte that
+  arrives meanwhile (its receive interrupt; 6.2 us if the full ring loses it); its effects, its
+  ``ok`` and the next line come after it; a ``?`` meanwhile is answered right after the line's
+  reply. A full ring loses the bytes that arrive (oracle: bursts of ``M20 G91`` lines lose the
+  same bytes). GRBL's auto cycle start: queued blocks wait until the planner is full, a line
+  waits for it (``G4``, homing, ``$``), or the receive ring has no complete line.
 * Cartesian lines (2021 ``$35=1``), gate moves and arcs are cut into blending joint-space
   blocks, one every 2 mm (ASSUMED; the 2021 ``$36`` point count is not used).
 
@@ -73,8 +77,7 @@ Not modelled
 GRBL's look-ahead details (see :mod:`mirobot_emulator.motion`); probing (``G38.x``: the oracle
 prints ``ALARM: Probe fail``; here ``Unsupported command``) and ``G43`` without ``.1``; arcs in
 the classic firmware's real arc plane (its axes 0..2 are J4..J6); the limit-switch physics of
-homing (homing cannot fail except by ``%``); ``$50`` tool presets; the ``$36`` point count; the
-wire's own byte time (bytes reach the ring at once);
+homing (homing cannot fail except by ``%``); ``$50`` tool presets; the ``$36`` point count;
 EEPROM persistence (settings live as long as the object); the 500 ms stall GRBL adds after
 printing an alarm; the firmware's float32 FK (status numbers are float32, ``.float32``, but the
 pose is double FK of the float32 angles: the last digit differs in about 7.6 % of lines).
@@ -153,7 +156,8 @@ ASSUMED points implemented (each in one constant or function, named here)
   position reads zero again when the planner is next idle (oracle: ~2.3 s on classic).
   The classic profile accepts any ``$H...`` as ``$H`` except ``$HH`` (open firmware).
 * ``G4`` waits for the planner to empty, then dwells (state ``Idle``, oracle); its ``ok`` comes
-  after the dwell. ``M2``/``M30`` wait for the planner, reset the modal state as GRBL does and
+  after the dwell, and after the motion of its line is queued, not run (oracle: ``M21 G91 G0
+  X30 G4 P0.2``). ``M2``/``M30`` wait for the planner, reset the modal state as GRBL does and
   print ``[Pgm End]``; ``M0`` waits, then holds; its ``ok`` follows the ``~``.
 * A soft reset during a dwell or a completed feed hold is not "during motion" (no alarm), as in
   GRBL; during homing it is ``ALARM: Homing fail``.

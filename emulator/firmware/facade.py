@@ -14,7 +14,7 @@ from . import codes as c
 from .gcode import GcodeExecutor
 from .geometry import switch_pins
 from .linebuffer import RX_BUFFER_SIZE, RX_CAPACITY
-from .linecost import WAIT_POINT_SECONDS, line_seconds
+from .linecost import ParserWork, line_seconds, wait_point_seconds
 from .machine import Machine
 from .reports import banner, status_line
 from .scanner import read_float
@@ -88,8 +88,7 @@ class Firmware:
         """How many such instants there have been (``motion_end_times`` keeps the last ones)."""
         self._m = Machine(profile, self.homing_seconds)
         self._wire = Wire(byte_seconds)
-        self._parse_until: float | None = None
-        """When the line being parsed (``Machine.parsing``) is done."""
+        self._parser = ParserWork(self._wire)  # the work on the line ``Machine.parsing``
         self._parse_started = 0.0
         self._status_after_parse: float | None = None  # when a ``?`` came during the parse
         self._boot_until: float | None = None
@@ -121,6 +120,7 @@ class Firmware:
         due = self._wire.take_due(self.now)
         if due:
             self._deliver(due)
+        self._parser.more_bytes()  # bytes that arrive during a parse delay it
         self.uart.sync(self._m.printed, self.now)
 
     def _deliver(self, data: bytes) -> None:
@@ -155,7 +155,7 @@ class Firmware:
 
     def _pump_if_free(self) -> None:
         if not self._m.blocked():
-            self._pump()
+            self._pump(waited=False)
 
     def advance(self, dt: float) -> None:
         """Run the simulated clock ``dt`` seconds (``math.inf``: until nothing changes by itself).
@@ -174,7 +174,7 @@ class Firmware:
             now = self.now
             uart.sync(m.printed, now)  # what the last events printed, printed then
             step = next_change()
-            for at in (self._parse_until, next_arrival(), self._boot_until):
+            for at in (self._parser.until, next_arrival(), self._boot_until):
                 if at is not None:
                     wait = max(at - now, 0.0)
                     if step is None or wait < step:  # min(step, wait)
@@ -200,12 +200,12 @@ class Firmware:
             zero_steps = zero_steps + 1 if step == 0.0 else 0
             if planner.free != free:
                 self._block_done(busy)
+            if len(wire) and (due := wire.take_due(self.now)):
+                self._deliver(due)  # before the parse ends: a full ring lost what came meanwhile
             if self._boot_until is not None and self._boot_until <= self.now:
                 self._finish_boot()
-            if self._parse_until is not None and self._parse_until <= self.now:
+            if self._parser.until is not None and self._parser.until <= self.now:
                 self._finish_parse()
-            if len(wire) and (due := wire.take_due(self.now)):
-                self._deliver(due)
             if zero_steps > 100_000:  # pragma: no cover - a planner bug, never loop forever
                 break
         self._service()
@@ -229,7 +229,7 @@ class Firmware:
         when nothing changes by itself."""
         ttc = self._m.planner.time_to_next_change()
         deadline = None if ttc is None else self.now + ttc
-        for at in (self._parse_until, self._wire.next_event(), self._boot_until):
+        for at in (self._parser.until, self._wire.next_event(), self._boot_until):
             if at is not None:
                 deadline = at if deadline is None else min(deadline, at)
         return deadline
@@ -251,7 +251,7 @@ class Firmware:
         if m.pending is not None or m.line_cut_short:
             m.emit("ok")  # oracle: the line in progress (homing, a dwell, a wait) ends with ok
         m.clear_on_reset()
-        self._parse_until = None  # the line being parsed is dropped
+        self._parser.clear()  # the line being parsed is dropped
         self._status_after_parse = None
         m.reset_condition(interrupted=interrupted)
         m.parser_init(feed=200.0)
@@ -324,7 +324,7 @@ class Firmware:
         """When received bytes next arrive (a line end or realtime byte, :mod:`.wire`), the
         line being parsed is done (:mod:`.linecost`) or the boot after a reset ends
         (``BOOT_SECONDS``); None when nothing is in transit, being parsed or booting."""
-        times = [self._wire.next_event(), self._parse_until, self._boot_until]
+        times = [self._wire.next_event(), self._parser.until, self._boot_until]
         return min((t for t in times if t is not None), default=None)
 
     @property
@@ -400,36 +400,41 @@ class Firmware:
         if not m.blocked():
             self._pump()
 
-    def _pump(self) -> None:
-        """Start parsing the next complete line of the receive ring (the parser is free); when
-        the ring has none, the queued blocks start (GRBL's auto cycle start)."""
+    def _pump(self, *, waited: bool = True) -> None:
+        """Start parsing the next complete line of the receive ring (the parser is free; it
+        ``waited`` there, or came just now); without one, GRBL's auto cycle start."""
         m = self._m
         line = m.rx.take_line()
         if line is None:
             m.start_cycle()
             return
         m.parsing = line
-        cost = 0.0 if line.overflow else line_seconds(line.text, m.modal.cart_mode)
+        seconds, self._parser.work = line_seconds(m, line, waited=waited)
         self._parse_started = self.now
-        self._parse_until = self.now + cost
+        self._parser.begin(m, self.now, seconds)
 
     def _finish_parse(self) -> None:
-        """The parser is done with its line: execute it, then go on with the next one."""
-        m = self._m
+        """The parser is done with its line: execute it (:class:`~.linecost.ParserWork`)."""
+        m, parser = self._m, self._parser
         line = m.parsing
         m.parsing = None
-        self._parse_until = None
+        reply = parser.done()
         if line is None:  # pragma: no cover - only called with a line in progress
             return
         requested, self._status_after_parse = self._status_after_parse, None
-        early = requested is not None and requested <= self._parse_started + WAIT_POINT_SECONDS
+        wait_at = self._parse_started + wait_point_seconds(line.text)  # a held line's wait
+        early = requested is not None and requested <= wait_at
         m.report_before_start = self._report_now if early else None  # at the line's own wait
         if m.critical:
             m.line_cut_short = True  # a hard limit meanwhile: the reset prints its ok
+        elif reply is not None:  # the block is planned: the line's reply, then the next line
+            m.emit_bytes(reply)
         elif line.overflow:
             m.error(c.OVERFLOW)
-        else:
-            self._execute_line(line.text)
+        elif parser.execute(m, line, self._execute_line, self.now):
+            # the reply waits while the block is planned; a ? meanwhile is answered after it
+            self._status_after_parse, m.report_before_start = requested, None
+            return
         if requested is not None and not (early and m.report_before_start is None):
             m.report_before_start = self._report_now  # before the main loop's cycle start
         self._service()

@@ -204,10 +204,13 @@ class GcodeExecutor:
         blocks: list[Block] = []
         hard_limit: Block | None = None
         wait_idle = False
+        dwell: list[Block] = []
         if g.nonmodal == 4 and not m.check:
-            wait_idle = True
-            # The dwell starts where the queued motion ends; the motion of this line follows.
-            blocks.append(motion.dwell_block(g.words["P"], m.planner.planned_position))
+            # The dwell starts where the queued motion ends; the motion of this line is queued
+            # after it, and the reply does not wait for that motion (oracle: ``M21 G91 G0 X30
+            # G4 P0.2`` answers as its motion starts, like GRBL's dwell before step 19).
+            dwell.append(motion.dwell_block(g.words["P"], m.planner.planned_position))
+            blocks = list(dwell)
         if g.nonmodal in (10, 92, 281, 301, 921):
             self._store_offsets(line)
         elif g.nonmodal in (28, 30):
@@ -248,7 +251,8 @@ class GcodeExecutor:
         flow = g.flow
         if flow in (0, 2, 30) and not m.check:
             wait_idle = True
-        if not blocks and not wait_idle:
+        blocks = blocks[len(dwell) :]
+        if not blocks and not wait_idle and not dwell:
             if flow in (2, 30):
                 m.modal.program_end()
                 m.emit("[Pgm End]")
@@ -266,4 +270,7 @@ class GcodeExecutor:
 
         then = Pending([], "released", lambda: ["ok"]) if flow == 0 else None
         until = "idle" if wait_idle else "queued"
-        m.wait(Pending(blocks, until, finish, then=then, hard_limit=hard_limit))
+        pending = Pending(blocks, until, finish, then=then, hard_limit=hard_limit)
+        if dwell:
+            pending = Pending(dwell, "idle", list, then=pending)
+        m.wait(pending)

@@ -91,6 +91,18 @@ class Machine:
         self.out += data
         self.printed += len(data)
 
+    def withdraw(self, mark: int) -> bytes:
+        """Take back what was printed since the output held ``mark`` bytes (it is printed
+        later with :meth:`emit_bytes`: a reply that waits for the planning of its block)."""
+        data = bytes(self.out[mark:])
+        del self.out[mark:]
+        self.printed -= len(data)
+        return data
+
+    def emit_bytes(self, data: bytes) -> None:
+        self.out += data
+        self.printed += len(data)
+
     def emit_lines(self, lines: Sequence[str]) -> None:
         for line in lines:
             self.emit(line)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Callable
 from typing import Final
 
 BYTE_SECONDS: Final = 100e-6
@@ -30,6 +31,8 @@ class Wire:
         self._head_at = 0.0  # arrival of the first byte in transit
         self._last_at = -math.inf  # arrival of the last byte delivered
         self._event_index: int | None = None  # next_event's index into _data (None: unknown)
+        self.delivered = 0
+        """Bytes that have arrived so far (taken off the wire)."""
 
     def __len__(self) -> int:
         return len(self._data)
@@ -53,6 +56,29 @@ class Wire:
             index = self._event_index = found.start() if found is not None else len(self._data) - 1
         return self._head_at + index * self.byte_seconds
 
+    def arrived_by(self, t: float) -> int:
+        """How many bytes have arrived by ``t`` since power-on, those still in transit counted
+        at their arrival times (``t`` not before the last byte taken)."""
+        if not self._data or t < self._head_at - 1e-12:
+            return self.delivered
+        if self.byte_seconds <= 0.0:
+            return self.delivered + len(self._data)
+        count = math.floor((t - self._head_at) / self.byte_seconds + 1e-6) + 1
+        return self.delivered + min(count, len(self._data))
+
+    def busy_until(
+        self, start: float, seconds: float, arrived: int, interrupts: Callable[[int], float]
+    ) -> float:
+        """When ``seconds`` of work begun at ``start`` (``arrived`` bytes had come by then)
+        end, the ``n`` bytes arriving meanwhile adding ``interrupts(n)`` seconds."""
+        end = start + seconds
+        for _ in range(64):  # each round adds the interrupts of the bytes the last one added
+            later = start + seconds + interrupts(self.arrived_by(end) - arrived)
+            if later == end:
+                break
+            end = later
+        return end
+
     def take_due(self, now: float) -> bytes:
         """The bytes that have arrived by ``now`` (oldest first), taken off the wire."""
         if not self._data or now < self._head_at - 1e-12:
@@ -64,6 +90,7 @@ class Wire:
         count = min(count, len(self._data))
         due = bytes(self._data[:count])
         del self._data[:count]
+        self.delivered += count
         self._event_index = None
         self._last_at = self._head_at + (count - 1) * self.byte_seconds
         self._head_at += count * self.byte_seconds

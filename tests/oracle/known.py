@@ -16,16 +16,6 @@ KNOWN_DIFFERENCES: dict[str, str] = {
         "166.9755214, more than one float32 ulp; its order of operations is unknown, and a "
         "float32 evaluation of our formula agrees less often than double: ~7.5 % of poses)"
     ),
-    "test_diff_motion::test_overflowing_burst[m20-rel-g0-20]": (
-        "receive-ring overflow during slow Cartesian parses: the same first 8 replies, then the "
-        "oracle's 9th line is garbled differently (which bytes the full ring drops depends on "
-        "the parse time: ours 14.1 ms per M20 G91 line, the oracle's 12.7-13.7 ms near the "
-        "start pose; linecost takes the general pose's IK), so the end positions differ"
-    ),
-    "test_diff_motion::test_overflowing_burst[m20-rel-g1-20]": (
-        "as m20-rel-g0-20: after 7 ok and a modal-group violation the oracle prints 'error: "
-        "Expected command letter', ours 'ok' (different bytes dropped by the full ring)"
-    ),
     "test_diff_workspace::test_target[soft-on M20 G90 X200 Y0 Z170 A0 B-90 C0-G0]": (
         "degenerate wrist (J4 and J6 exactly +-180 in exact arithmetic): the oracle's IK gives "
         "J4 -180.000, ours 180.000 (the same physical angle), and its float32 FK splits Rx/Rz "

@@ -61,6 +61,7 @@ MOVES: dict[str, list[str]] = {
     "modal-words": ["G91", "M21", "F1800", "X3", "Y3", "G90", "X0 Y0"],
     "pump-valve": ["M3 S1000", "M3 S0", "M4 E65", "M4 E40", "M3 S500", "M5"],
     "dwell": ["G4 P0.5", "G4 P0"],
+    "dwell-with-motion": ["M21 G91 G0 X30 G4 P0.2"],  # answered when its motion starts: Run
     "g10-g28": ["G10 L2 P1 X0", "G28", "G92 X0"],
 }
 
@@ -106,8 +107,10 @@ def test_burst(pair: Pair, program: str) -> None:
     pair.check()
 
 
-# Cartesian lines parse slower (about 14 ms) than their bytes arrive: the receive ring fills
-# and drops bytes, so the reply is read until one wall second of silence.
+# Cartesian lines parse slower (about 13 ms) than their bytes arrive: the receive ring fills
+# and drops bytes, so the reply is read until one wall second of silence. The ring keeps the
+# start of a line whose end was lost: the first ``G4 P0`` completes it (oracle: into ``M20 G91
+# G0 X1 G4 P0``, answered as its motion starts), the second waits for the motion to end.
 OVERFLOWING_BURSTS: dict[str, list[str]] = {
     "m20-rel-g0-20": ["M20 G91 G0 X1"] * 20,
     "m20-rel-g1-20": ["M20 G91 G1 X1 F2000"] * 20,
@@ -118,6 +121,7 @@ OVERFLOWING_BURSTS: dict[str, list[str]] = {
 def test_overflowing_burst(pair: Pair, program: str) -> None:
     pair.lines("M50")
     pair.send("".join(line + "\n" for line in OVERFLOWING_BURSTS[program]), Until(quiet=1.0))
+    pair.settle()
     pair.settle()
     pair.status()
     pair.check()
