@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Final
 from mirobot_async._cli.exits import CliError, RobotNotReadyError, note
 from mirobot_async._client.ports import AUTO, find_mirobot
 from mirobot_async._core.replies import State, StatusReport
-from mirobot_async.errors import MirobotError, MirobotLinkLostError
+from mirobot_async.errors import MirobotError
 
 if TYPE_CHECKING:
     from mirobot_async._client.client import Mirobot
@@ -179,17 +179,15 @@ async def open_robot(
         f"no --port given; using an embedded virtual Mirobot "
         f"(firmware {firmware}, time-scale {scale:g})"
     )
-    token = _EMBEDDED.set(True)
-    try:
-        async with (
-            start_emulator(firmware=firmware, time_scale=scale) as url,
-            Mirobot.connect(
-                url, firmware="classic" if firmware == "classic" else "2021", envelope=envelope
-            ) as arm,
-        ):
-            yield arm
-    finally:
-        _EMBEDDED.reset(token)
+    # In this process (no subprocess, no pty): a command starts at once, and a Ctrl-C reaches
+    # only the command, which then stops the virtual arm as it would a real one.
+    async with (
+        start_emulator(firmware=firmware, time_scale=scale, in_process=True) as url,
+        Mirobot.connect(
+            url, firmware="classic" if firmware == "classic" else "2021", envelope=envelope
+        ) as arm,
+    ):
+        yield arm
 
 
 @contextlib.asynccontextmanager
@@ -269,10 +267,6 @@ async def background_jobs(**jobs: Awaitable[None] | None) -> AsyncIterator[None]
 _CURRENT: contextvars.ContextVar[Interrupts | None] = contextvars.ContextVar(
     "mirobot_cli_interrupts", default=None
 )
-_EMBEDDED: contextvars.ContextVar[bool] = contextvars.ContextVar(
-    "mirobot_cli_embedded", default=False
-)
-"""True while the arm is the embedded virtual Mirobot (:func:`open_robot` without a port)."""
 
 
 class Interrupts:
@@ -327,7 +321,7 @@ class Interrupts:
             self._urgent.remove(action)
 
 
-async def _stop_arm(arm: Mirobot, on_interrupt: str, embedded: bool) -> str:
+async def _stop_arm(arm: Mirobot, on_interrupt: str) -> str:
     """Feed hold (or soft reset) and wait up to :data:`STOP_WAIT` s; returns what happened.
 
     The first step writes ``!`` / ``%`` synchronously (:meth:`Mirobot.hold` and
@@ -351,10 +345,6 @@ async def _stop_arm(arm: Mirobot, on_interrupt: str, embedded: bool) -> str:
                 break
         else:
             return f"interrupted: feed hold sent (!); the arm was still moving after {STOP_WAIT} s"
-    except MirobotLinkLostError as err:
-        if embedded:  # a terminal's Ctrl-C reaches the emulator in the same process group too
-            return "interrupted: the embedded virtual Mirobot stopped with the signal"
-        return f"interrupted: the arm may still be moving: {err}"
     except MirobotError as err:
         return f"interrupted: the arm may still be moving: {err}"
     waited = (loop.time() - started) * 1000
@@ -383,10 +373,8 @@ async def stop_safely(
     loop = asyncio.get_running_loop()
     stopping: list[asyncio.Task[str]] = []
 
-    embedded = _EMBEDDED.get()  # read here: the signal callback runs in another context
-
     def stop_now() -> None:
-        stop = _stop_arm(arm, on_interrupt, embedded)
+        stop = _stop_arm(arm, on_interrupt)
         stopping.append(loop.create_task(stop, name="mirobot-stop"))
 
     with interrupts.urgent(stop_now):

@@ -191,10 +191,6 @@ class _InProcessLink:
     """The client's end of an :class:`InProcessArm`: a
     :class:`~mirobot_async._client.wire.Transport`."""
 
-    status_min_gap = 0.0
-    """No serial line: a report is printed the instant its ``?`` arrives, so the client needs
-    no gap between two ``?`` (a serial arm's 2 ms)."""
-
     def __init__(
         self,
         arm: InProcessArm,
@@ -202,6 +198,11 @@ class _InProcessLink:
         on_data: DataCallback,
         on_lost: LostCallback,
     ) -> None:
+        self.status_min_gap: float | None = 0.0 if arm.time_scale == 0 else None
+        """How far apart the client's ``?`` must be. At time scale 0 (nothing takes wall time) a
+        report is printed the instant its ``?`` arrives: no gap. When the arm moves in wall time,
+        ``None``: the client's gap on a port (2 ms), so that waiting for the arm costs no more
+        CPU than it does with an emulator process."""
         self._arm = arm
         self._loop = loop
         self._on_data = on_data

@@ -580,8 +580,8 @@ def test_monitor_stops_cleanly_on_sigint(tmp_path: Path) -> None:
             20,
             "three samples in the CSV",
         )
-        children = psutil.Process(proc.pid).children(recursive=True)
-        assert children  # the embedded emulator
+        # the embedded virtual Mirobot runs in the command's process: nothing to leave behind
+        assert not psutil.Process(proc.pid).children(recursive=True)
         proc.send_signal(signal.SIGINT)
         out, err = proc.communicate(timeout=20)
     finally:
@@ -589,8 +589,6 @@ def test_monitor_stops_cleanly_on_sigint(tmp_path: Path) -> None:
     assert proc.returncode == 0, err
     assert "Traceback" not in err and "Traceback" not in out, err
     assert "samples written to" in err
-    _, alive = psutil.wait_procs(children, timeout=5)
-    assert not alive  # the embedded emulator was stopped too
     rows = read_csv(trace)
     assert rows[0] == TRACE_HEADER
     assert len(rows) >= 4 and all(len(row) == len(TRACE_HEADER) for row in rows)

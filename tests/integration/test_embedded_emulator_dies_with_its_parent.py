@@ -1,6 +1,7 @@
-"""A command with an embedded emulator (no ``--port``) leaves no emulator behind when it is
+"""A program with an emulator process (``start_emulator``) leaves no emulator behind when it is
 killed (SIGKILL, SIGHUP: no cleanup of its own runs): every emulator ``start_emulator`` starts
-gets ``--exit-on-stdin-eof`` and exits when its parent's end of the pipe closes."""
+gets ``--exit-on-stdin-eof`` and exits when its parent's end of the pipe closes. (The CLI's
+embedded arm runs in the command's own process: tests/integration/test_cli.py.)"""
 
 from __future__ import annotations
 
@@ -51,10 +52,24 @@ def default_signal_actions() -> None:
         signal.signal(sig, signal.SIG_DFL)
 
 
+USER_PROGRAM = """
+import asyncio
+from mirobot_async import Mirobot
+from mirobot_async.testing import start_emulator
+
+async def main():
+    async with start_emulator(time_scale=0) as url, Mirobot.connect(url) as arm:
+        async for _ in arm.statuses(0.05):  # until it is killed
+            pass
+
+asyncio.run(main())
+"""
+
+
 @pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGHUP])
-def test_a_killed_monitor_leaves_no_emulator(sig: signal.Signals) -> None:
+def test_a_killed_program_leaves_no_emulator(sig: signal.Signals) -> None:
     cli = subprocess.Popen(
-        [sys.executable, "-m", "mirobot_async", "monitor", "--time-scale", "0"],
+        [sys.executable, "-c", USER_PROGRAM],
         stdin=subprocess.DEVNULL,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
