@@ -17,7 +17,7 @@ from mirobot_async.testing import start_emulator
 async def main(port: str | None) -> None:
     async with contextlib.AsyncExitStack() as stack:
         if port is None:
-            port = await stack.enter_async_context(start_emulator(time_scale=10))
+            port = await stack.enter_async_context(start_emulator(time_scale=10, in_process=True))
             print(f"no port given: using an embedded virtual Mirobot on {port}")
         arm = await stack.enter_async_context(Mirobot.connect(port))
 

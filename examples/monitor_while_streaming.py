@@ -29,7 +29,7 @@ async def watch(arm: Mirobot) -> None:
 async def main(port: str | None, lines: list[str]) -> None:
     async with contextlib.AsyncExitStack() as stack:
         if port is None:
-            port = await stack.enter_async_context(start_emulator(time_scale=10))
+            port = await stack.enter_async_context(start_emulator(time_scale=10, in_process=True))
             print(f"no port given: using an embedded virtual Mirobot on {port}")
         arm = await stack.enter_async_context(Mirobot.connect(port))
         await arm.home()

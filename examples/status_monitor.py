@@ -27,7 +27,7 @@ async def main(port: str | None, samples: int | None) -> None:
     embedded = port is None
     async with contextlib.AsyncExitStack() as stack:
         if port is None:
-            port = await stack.enter_async_context(start_emulator(time_scale=5))
+            port = await stack.enter_async_context(start_emulator(time_scale=5, in_process=True))
             print(f"no port given: using an embedded virtual Mirobot on {port}")
             samples = samples or 15
         arm = await stack.enter_async_context(Mirobot.connect(port))
