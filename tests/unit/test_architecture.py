@@ -4,6 +4,7 @@ sans-IO core, and an emulator that imports nothing of the client but the kinemat
 from __future__ import annotations
 
 import ast
+import functools
 from pathlib import Path
 
 import pytest
@@ -45,8 +46,14 @@ IMPURE_MODULES = {
 }
 
 
+@functools.cache
+def _tree(path: Path) -> ast.Module:
+    """``path`` parsed (once: several rules read each module)."""
+    return ast.parse(path.read_text())
+
+
 def _imports(path: Path) -> set[str]:
-    tree = ast.parse(path.read_text())
+    tree = _tree(path)
     names: set[str] = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
@@ -60,7 +67,7 @@ def _imports(path: Path) -> set[str]:
 
 
 def _relative_imports(path: Path) -> set[tuple[int, str]]:
-    tree = ast.parse(path.read_text())
+    tree = _tree(path)
     return {
         (node.level, node.module or "")
         for node in ast.walk(tree)
@@ -72,7 +79,7 @@ def _relative_imports(path: Path) -> set[tuple[int, str]]:
 def test_module_and_classes_are_small(path: Path) -> None:
     lines = path.read_text().count("\n")
     assert lines <= 600, f"{path.name}: {lines} lines"
-    for node in ast.walk(ast.parse(path.read_text())):
+    for node in ast.walk(_tree(path)):
         if isinstance(node, ast.ClassDef):
             size = (node.end_lineno or node.lineno) - node.lineno + 1
             assert size <= 400, f"class {node.name}: {size} lines"
@@ -86,7 +93,7 @@ def test_sans_io_core_is_pure(path: Path) -> None:
 
 def _top_level_imports(path: Path) -> set[str]:
     """mirobot_async modules imported at module level (not inside a function or TYPE_CHECKING)."""
-    tree = ast.parse(path.read_text())
+    tree = _tree(path)
     names: set[str] = set()
     for node in tree.body:
         if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
