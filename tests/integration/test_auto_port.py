@@ -20,6 +20,9 @@ from mirobot_async import Mirobot, MirobotConnectionError
 from mirobot_async._client.ports import AUTO_PORTS_ENV, find_mirobot
 from mirobot_async.testing import EmulatorPool, SyncEmulatorProcess
 
+# the emulator as a process and its links: run on the link lanes (MIROBOT_TEST_LINK=pty|tcp)
+pytestmark = pytest.mark.emulator_process
+
 PROBE = 0.5  # seconds a probe of a port that never answers a status takes
 STATUS = (
     b"<Idle,Angle(ABCDXYZ):0.000,0.000,0.000,0.000,0.000,0.000,0.000,"

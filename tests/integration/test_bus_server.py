@@ -14,7 +14,8 @@ import pytest
 import serial
 from mirobot_emulator.__main__ import main
 
-pytestmark = pytest.mark.timeout(60)
+# the emulator as a process and its links: run on the link lanes (MIROBOT_TEST_LINK=pty|tcp)
+pytestmark = [pytest.mark.timeout(60), pytest.mark.emulator_process]
 
 MODULE = (sys.executable, "-m", "mirobot_emulator")
 

@@ -14,7 +14,8 @@ import pytest
 
 from mirobot_async.testing import EmulatorPool, SyncEmulatorProcess
 
-pytestmark = pytest.mark.timeout(60)
+# the emulator as a process and its links: run on the link lanes (MIROBOT_TEST_LINK=pty|tcp)
+pytestmark = [pytest.mark.timeout(60), pytest.mark.emulator_process]
 
 
 def stats(emulator: SyncEmulatorProcess) -> dict[str, int]:

@@ -41,7 +41,8 @@ import serial
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-pytestmark = pytest.mark.timeout(120)
+# the emulator as a process and its links: run on the link lanes (MIROBOT_TEST_LINK=pty|tcp)
+pytestmark = [pytest.mark.timeout(120), pytest.mark.emulator_process]
 
 RX_BUFFER = 128
 MAX_LINE = 79  # bytes of a line after filtering; the 80th overflows

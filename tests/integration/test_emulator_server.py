@@ -27,7 +27,8 @@ from mirobot_emulator.server.link import INPUT_HOLD_LIMIT, OUTPUT_HOLD_LIMIT
 from mirobot_emulator.server.port import READ_CHUNK
 from waiting import wait_for
 
-pytestmark = pytest.mark.timeout(60)
+# the emulator as a process and its links: run on the link lanes (MIROBOT_TEST_LINK=pty|tcp)
+pytestmark = [pytest.mark.timeout(60), pytest.mark.emulator_process]
 
 LOOPBACK = ("127.0.0.1", 0)
 STATUS_LINE_MAX = 256  # a status line is ~170 bytes

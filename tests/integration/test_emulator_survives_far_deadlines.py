@@ -12,6 +12,9 @@ import pytest
 from mirobot_async import Mirobot, MirobotConnectionError, MirobotTimeoutError, State
 from mirobot_async.testing import EmulatorProcess
 
+# the emulator as a process and its links: run on the link lanes (MIROBOT_TEST_LINK=pty|tcp)
+pytestmark = pytest.mark.emulator_process
+
 
 @pytest.mark.parametrize(("line", "state"), [("G4 P3000000", None), ("G1 X10 F0.0001", State.RUN)])
 async def test_a_far_motion_deadline_keeps_the_emulator_serving(

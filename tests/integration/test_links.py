@@ -23,6 +23,9 @@ from waiting import wait_until
 from mirobot_async import Mirobot, MirobotError, State
 from mirobot_async.testing import EmulatorPool, EmulatorProcess, SyncEmulatorProcess, start_emulator
 
+# the emulator as a process and its links: run on the link lanes (MIROBOT_TEST_LINK=pty|tcp)
+pytestmark = pytest.mark.emulator_process
+
 LINKS = ("pty", "tcp") if os.name == "posix" else ("tcp",)
 HALF_STEP = 0.05  # degrees: the emulator reports whole motor steps
 LOST_LIMIT = 3.0  # seconds from the emulator's death to every pending call failing (the dwell
