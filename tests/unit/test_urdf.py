@@ -67,7 +67,9 @@ def test_zero_pose_is_the_protocol_s(models: dict[str, yourdfpy.URDF], firmware:
     model.update_cfg(np.zeros(6))
     frame = model.get_transform(TOOL_LINK, "base_link")
     expected = (dh.a1 + dh.d4, 0.0, dh.d1 + dh.a2 + dh.a3 + dh.l)
-    assert np.allclose(frame[:3, 3] * 1000.0, expected, atol=1e-9)
+    # a nanometre: the model is shared by the module's tests, and reaching q = 0 from another
+    # configuration leaves float noise (4e-7 mm seen)
+    assert np.allclose(frame[:3, 3] * 1000.0, expected, atol=1e-6)
 
 
 @pytest.mark.parametrize("firmware", PROFILES)
