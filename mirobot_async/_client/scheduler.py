@@ -33,6 +33,7 @@ from mirobot_async._core.protocol import (
 from mirobot_async._core.replies import StatusReport
 from mirobot_async._core.validation import (
     InvalidLineError,
+    ModalState,
     line_problems,
     may_differ_by_profile,
     validate_line,
@@ -72,6 +73,12 @@ def _disagree(parsed: ParsedLine, guard: EnvelopeGuard | NullGuard) -> bool:
         for profile in _PROFILES
     }
     return len(verdicts) > 1
+
+
+def _judged(judged_from: ModalState | None, guard: EnvelopeGuard | NullGuard) -> bool:
+    """The line was found free of problems from the modal state the guard now predicts (a
+    stream's line, judged before the stream began): judging it again would say the same."""
+    return judged_from is not None and judged_from == guard.modal_state()
 
 
 def _validate(parsed: ParsedLine, firmware: str | None, guard: EnvelopeGuard | NullGuard) -> None:
@@ -300,13 +307,16 @@ class LineScheduler:
         idle: bool = False,
         parsed: ParsedLine | None = None,
         validate: bool = False,
+        judged_from: ModalState | None = None,
     ) -> Slot:
         """Wait for this line's turn and for room in the receive buffer, then write it.
 
         ``parsed`` is ``data`` parsed once (``parse_line``; parsed here when omitted): the guard,
         the validation, the ``$`` barrier and the dwell all read it. With ``validate`` the line
         is judged by ``validate_line`` (modal state as the guard predicts it) right before it
-        would be written: a problem raises ``InvalidLineError`` and nothing is written.
+        would be written: a problem raises ``InvalidLineError`` and nothing is written. A line
+        already found free of problems from ``judged_from`` (a stream judged whole before it
+        began) is not judged again when the guard predicts that same state.
 
         ``should_stop`` (a stream's) is asked right before the write, with no await in between:
         if true, :class:`StreamStopped` is raised and nothing is written. ``watch`` is set on the
@@ -330,7 +340,9 @@ class LineScheduler:
         if parsed is None:
             parsed = parse_line(data)
         unknown = condition.firmware is None
-        if guard.needs_firmware(parsed) or (validate and unknown and _disagree(parsed, guard)):
+        if guard.needs_firmware(parsed) or (
+            validate and unknown and not _judged(judged_from, guard) and _disagree(parsed, guard)
+        ):
             await self.require_firmware(deadline, timeout)
         exclusive = parsed.kind == "dollar"
         nbytes = len(data) + 1
@@ -349,7 +361,7 @@ class LineScheduler:
                     )
                 if should_stop is not None and should_stop():
                     raise StreamStopped
-                if validate:
+                if validate and not _judged(judged_from, guard):
                     _validate(parsed, condition.firmware, guard)
                 if checking and checked_epoch != guard.epoch:
                     position_epoch = guard.epoch

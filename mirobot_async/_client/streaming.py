@@ -30,7 +30,7 @@ from mirobot_async._client.guard import EnvelopeGuard, NullGuard
 from mirobot_async._client.scheduler import LineScheduler, Slot, StreamStopped
 from mirobot_async._core.line import ParsedLine, parse_line
 from mirobot_async._core.protocol import LineRejected, encode_line
-from mirobot_async._core.validation import InvalidLineError, first_restart
+from mirobot_async._core.validation import InvalidLineError, ModalState, judge_stream
 from mirobot_async.errors import (
     MirobotAlarmError,
     MirobotError,
@@ -99,7 +99,14 @@ def _text(item: object) -> str:
     return str(item).rstrip("\r\n")
 
 
-_PROFILES: Final = ("classic", "2021")
+@dataclass(frozen=True, slots=True)
+class _Judged:
+    """A list of lines parsed, and judged (:func:`judge_stream`), before the stream began."""
+
+    lines: list[ParsedLine]
+    judged_from: tuple[ModalState | None, ...]
+
+
 _LEARN_FIRMWARE: Final = LineResult(0, "", ())
 """A stream judged before its first byte whose verdict depends on the firmware profile."""
 
@@ -133,7 +140,7 @@ class _StreamRun:
     reset_epoch: int = 0  # the robot's resets when the stream started: it stops at the next
     alarm_epoch: int = 0  # the robot's alarms when the stream started
     wait: bool = False  # end with the motion barrier (MOTION_BARRIER)
-    parsed: list[ParsedLine] | None = None  # the input's lines parsed before the stream began
+    judged: _Judged | None = None  # the input's lines parsed and judged before the stream began
     barrier: Slot | MirobotError | None = None  # its slot once written, or what kept it back
 
     def should_stop(self) -> bool:
@@ -184,7 +191,7 @@ class _StreamRun:
                 if not data:
                     continue  # a blank line
                 command = data.decode("ascii")
-                parsed = self._parsed(number, command)
+                parsed, judged_from = self._judged(number, command)
                 try:
                     slot = await self.scheduler.submit(
                         data,
@@ -199,6 +206,7 @@ class _StreamRun:
                         should_stop=self.should_stop,
                         watch=self.watch,
                         parsed=parsed,
+                        judged_from=judged_from,
                     )
                 except StreamStopped:
                     break
@@ -222,14 +230,17 @@ class _StreamRun:
             self.done = True
             self.wake.set()
 
-    def _parsed(self, number: int, command: str) -> ParsedLine | None:
+    def _judged(self, number: int, command: str) -> tuple[ParsedLine | None, ModalState | None]:
         """Input line ``number`` as parsed before the stream began, when it is ``command``
-        (parsing is a function of the text: the scheduler need not parse it again)."""
-        parsed = self.parsed
-        if parsed is None or number > len(parsed):
-            return None
-        line = parsed[number - 1]
-        return line if line.source == command else None
+        (parsing is a function of the text: the scheduler need not parse it again), and the
+        modal state it was found free of problems from (:attr:`StreamVerdict.judged_from`)."""
+        judged = self.judged
+        if judged is None or number > len(judged.lines):
+            return None, None
+        line = judged.lines[number - 1]
+        if line.source != command:
+            return None, None
+        return line, judged.judged_from[number - 1] if number <= len(judged.judged_from) else None
 
     async def _write_barrier(self) -> None:
         """Write :data:`MOTION_BARRIER` right after the last line (no round trip in between)."""
@@ -373,10 +384,10 @@ class Stream:
         condition.check_sendable(None, motion=False)
         if not self._check_envelope:
             guard.warn_stream_unchecked()
-        refused, parsed = self._restart_refusal()
+        refused, judged = self._restart_refusal()
         if refused is _LEARN_FIRMWARE:  # the verdict depends on the firmware: learn it first
             await scheduler.require_firmware(deadline, self._timeout)
-            refused, parsed = self._restart_refusal()
+            refused, judged = self._restart_refusal()
         if refused is not None:  # nothing is written
             self.result.errors.append(refused)
             self.result.stopped = True
@@ -394,7 +405,7 @@ class Stream:
             reset_epoch=condition.reset_epoch,
             alarm_epoch=condition.alarm_epoch,
             wait=self._wait,
-            parsed=parsed,
+            judged=judged,
         )
         producer = loop.create_task(run.produce(self._lines), name="mirobot-stream-producer")
         results = run.consume(producer)
@@ -402,10 +413,11 @@ class Stream:
             async for line_result in results:
                 yield line_result
 
-    def _restart_refusal(self) -> tuple[LineResult | None, list[ParsedLine] | None]:
+    def _restart_refusal(self) -> tuple[LineResult | None, _Judged | None]:
         """A list or tuple of lines is judged whole before its first byte: a line that would
         restart from where the moving arm is (its ``M20``/``M21``) refuses the stream. Also
-        the lines as parsed for that (the stream writes them without parsing them again)."""
+        the lines as parsed, and each line's verdict decided on the way (the stream writes
+        them without parsing or judging them again)."""
         lines = self._lines
         if not self._validate or not isinstance(lines, list | tuple):
             return None, None
@@ -414,16 +426,12 @@ class Stream:
             return None, None  # a bad item: reported in order as the stream reaches it
         parsed = [parse_line(text) for text in texts]
         _scheduler, condition, guard = self._parts
-        if condition.firmware is not None:
-            found = first_restart(parsed, firmware=condition.firmware, state=guard.modal_state())
-        else:  # judged per profile: where only one refuses, learn which the arm runs
-            each = [first_restart(parsed, firmware=p, state=guard.modal_state()) for p in _PROFILES]
-            if (each[0] is None) != (each[1] is None):
-                return _LEARN_FIRMWARE, None
-            found = each[0]
-        if found is None:
-            return None, parsed
-        number, line, why = found
+        verdict = judge_stream(parsed, firmware=condition.firmware, state=guard.modal_state())
+        if verdict.profiles_disagree:  # judged per profile: only one refuses; learn which
+            return _LEARN_FIRMWARE, None
+        if verdict.restart is None:
+            return None, _Judged(parsed, verdict.judged_from)
+        number, line, why = verdict.restart
         error = MotionChainError(line, f"{why}; nothing of the stream was sent")
         return LineResult(number, line, (), error), None
 

@@ -9,6 +9,7 @@ programs the rule passes end at the same motor steps streamed and stepped.
 
 from __future__ import annotations
 
+import copy
 import math
 
 import pytest
@@ -18,7 +19,13 @@ from mirobot_emulator.firmware import Firmware
 
 from mirobot_async._core.line import parse_line
 from mirobot_async._core.modal import Chaining, MotionModes
-from mirobot_async._core.validation import ModalState, check_program, first_restart
+from mirobot_async._core.validation import (
+    ModalState,
+    check_program,
+    first_restart,
+    judge_stream,
+    validate_line,
+)
 from mirobot_async.kinematics import DH_2021, DH_CLASSIC, forward
 
 # Oracle (classic 20191228_2), streamed vs stepped, J1 (or the named joint) in degrees: see the
@@ -81,6 +88,49 @@ def test_first_restart_needs_both_profiles_when_unknown() -> None:
     assert first_restart(program, firmware="2021", state=ModalState()) is not None
     found = first_restart(["M21 G91 X1"] * 2, firmware=None, state=ModalState())
     assert found is not None and found[:2] == (2, "M21 G91 X1")
+
+
+_ANY_LINE = st.sampled_from(
+    (
+        "M21 G90 G0 X10",
+        "M21 G91 X1",
+        "G91 X1",
+        "G90 Y5",
+        "M20 G90 G1 X200 Y0 Z170 A0 B0 C0 F2000",
+        "M20 G91 G0 X5",
+        "M20 G90 G0 Z120",
+        "G2 X1 Y1 I1",
+        "M21 G90 G0 D20",
+        "G4 P0",
+        "M20",
+        "M21",
+        "$H",
+        "$HX",
+        "M3 S1000",
+    )
+)
+
+
+@given(st.lists(_ANY_LINE, max_size=8), st.booleans(), st.sampled_from((None, "classic", "2021")))
+def test_a_stream_judged_whole_says_what_each_line_judged_alone_says(
+    lines: list[str], moving: bool, firmware: str | None
+) -> None:
+    """One walk of a stream (when the profile is known, or no line may differ by profile):
+    the restart :func:`first_restart` finds on each profile, and for every line it says needs
+    no judging again, :func:`validate_line` from that state finds nothing."""
+    state = ModalState(chain=Chaining(moving=frozenset("XYZ")) if moving else Chaining())
+    parsed = [parse_line(line) for line in lines]
+    profiles = ("classic", "2021") if firmware is None else (firmware,)
+    each = [first_restart(parsed, firmware=p, state=state) for p in profiles]
+    verdict = judge_stream(parsed, firmware=firmware, state=state)
+    assert verdict.profiles_disagree == ((each[0] is None) != (each[-1] is None))
+    if not verdict.profiles_disagree:
+        assert verdict.restart == each[0]
+    assert len(verdict.judged_from) <= len(parsed)
+    for line, judged_from in zip(parsed, verdict.judged_from, strict=False):
+        if judged_from is not None:
+            for profile in profiles:
+                validate_line(line, firmware=profile, state=copy.copy(judged_from))
 
 
 def test_a_refused_line_leaves_its_joints_stale_until_a_mode_word_at_rest() -> None:
