@@ -31,8 +31,12 @@ PROFILES = ("classic", "2021")
 STREAM_LINES = 100
 
 
-def user_lines() -> list[str]:
-    """The test's program: 100 absolute J1 moves in joint mode, each stating its modes."""
+def user_lines(distinct: bool = False) -> list[str]:
+    """The test's program: 100 absolute J1 moves in joint mode, each stating its modes, back
+    and forth over 10 targets; ``distinct``: no two lines (nor moves) alike, so that nothing
+    seen before can be reused."""
+    if distinct:
+        return [f"M21 G90 G01 X{i * 0.37 - 18:.2f} F{2000 + i}" for i in range(STREAM_LINES)]
     return [f"M21 G90 G01 X{i % 10} F2000" for i in range(STREAM_LINES)]
 
 
@@ -71,7 +75,7 @@ class Run:
     emulator_cpu: float
 
 
-async def one_test(firmware: str) -> Run:
+async def one_test(firmware: str, distinct: bool = False) -> Run:
     """One run of the user's test."""
     spent = [0.0]
     start, cpu = time.perf_counter(), time.process_time()
@@ -80,33 +84,34 @@ async def one_test(firmware: str) -> Run:
         async with Mirobot.connect(arm.url) as robot:
             await robot.home()
             await robot.move_joints(j1=10)
-            result = await robot.stream(user_lines())
+            result = await robot.stream(user_lines(distinct))
     run = Run(time.perf_counter() - start, time.process_time() - cpu, spent[0])
     assert result.ok and result.acknowledged == STREAM_LINES, result
     return run
 
 
-async def measure(firmware: str, runs: int) -> list[Run]:
+async def measure(firmware: str, runs: int, distinct: bool = False) -> list[Run]:
     """``runs`` runs of the user's test after one warm-up."""
-    await one_test(firmware)
+    await one_test(firmware, distinct)
     measured = []
     for _ in range(runs):
         gc.collect()
-        measured.append(await one_test(firmware))
+        measured.append(await one_test(firmware, distinct))
     return measured
 
 
 def item_in_process(config: Config, table: Table, runs: int | None = None) -> None:
     """Item 11 rows: the user's in-process test on each profile."""
     count = runs if runs is not None else (3 if config.quick else 30)
-    for firmware in PROFILES:
-        measured = asyncio.run(measure(firmware, count))
+    for firmware, distinct in [(p, False) for p in PROFILES] + [("classic", True)]:
+        measured = asyncio.run(measure(firmware, count, distinct))
         client = statistics.median(r.cpu - r.emulator_cpu for r in measured)
         emulator = statistics.median(r.emulator_cpu for r in measured)
         waiting = statistics.median(max(0.0, r.wall - r.cpu) for r in measured)
         table.add(
             "11",
-            f"In-process test, {firmware}: home, 1 move, {STREAM_LINES}-line stream",
+            f"In-process test, {firmware}: home, 1 move, {STREAM_LINES}-line stream"
+            + (" (no two lines alike)" if distinct else ""),
             Stat([r.wall for r in measured]),
             fmt_ms,
             f"median of {count}; CPU: client {fmt_ms(client)}, emulator model "
