@@ -280,7 +280,7 @@ class Geometry:
             limits = self.limits()
         if limits.steps is None:  # an ideal machine: the first switch position on the line
             return self._ideal_crossing(start, end)
-        first, last = limits.to_steps(vec7(start)), limits.to_steps(vec7(end))
+        first, last = limits.to_steps(start), limits.to_steps(end)  # (reads 7 numbers)
         candidates: list[tuple[int, int]] = []  # (axis, steps to its switch edge)
         for j, (lo, hi) in enumerate(self._switch_table(limits)):
             a, b = first[j], last[j]

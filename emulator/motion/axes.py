@@ -20,6 +20,7 @@ Steps7 = tuple[int, int, int, int, int, int, int]
 
 ZERO: Final[Vec7] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 _NO_STEPS: Final[Steps7] = (0, 0, 0, 0, 0, 0, 0)
+_INF: Final = math.inf  # ``-_INF < x < _INF``: x is finite (False for NaN)
 _UNSEEN: Final = object()  # the key of an empty slot of AxisLimits' memo (no argument is it)
 
 LETTER_TO_JOINT: Final[tuple[int, ...]] = (3, 4, 5, 6, 0, 1, 2)
@@ -56,6 +57,14 @@ def vec7(values: Iterable[float]) -> Vec7:
 
 def finite_vec7(values: Iterable[float], what: str) -> Vec7:
     """:func:`vec7` that also refuses NaN and infinities, naming ``what`` in the error."""
+    if type(values) is tuple and len(values) == AXES:  # seven finite floats: the same tuple
+        a, b, c, d, e, f, g = values
+        if (type(a) is float and type(b) is float and type(c) is float and type(d) is float
+                and type(e) is float and type(f) is float and type(g) is float
+                and -_INF < a < _INF and -_INF < b < _INF and -_INF < c < _INF
+                and -_INF < d < _INF and -_INF < e < _INF and -_INF < f < _INF
+                and -_INF < g < _INF):  # fmt: skip
+            return values
     v = vec7(values)
     isfinite = math.isfinite
     if not (isfinite(v[0]) and isfinite(v[1]) and isfinite(v[2]) and isfinite(v[3])

@@ -66,7 +66,12 @@ def _joint(start: Vec7, end: Vec7, feed: float | None, limits: AxisLimits, kind:
             x = axis_accel[i] / share
             if x < accel:
                 accel = x
-    block = JointBlock(kind, start, end, length, speed, accel, steps=steps, delta=delta)
+    d = delta  # floats (of floats), so ``d[i] / length`` is the float JointBlock would make
+    unit = (d[0] / length, d[1] / length, d[2] / length, d[3] / length, d[4] / length,
+            d[5] / length, d[6] / length)  # fmt: skip
+    block = JointBlock(
+        kind, start, end, length, speed, accel, steps=steps, delta=delta, direction=unit
+    )
     block.junction_deviation = limits.junction_deviation
     return block
 
