@@ -232,8 +232,10 @@ class Machine:
         at once, ``?`` 0.3 ms after the move's ``ok``: ``Idle``, motion ends 12.5 ms later than
         with the ``?`` 0.1 ms later, ``Run``; the report's 175 bytes through the transmit
         ring)."""
+        if self.planner.started:
+            return  # nothing waits for a cycle start
         report = self.report_before_start
-        if report is not None and self.planner.blocks and not self.planner.started:
+        if report is not None and self.planner.blocks:
             self.report_before_start = None
             self.planner.cycle_start(delay=report())
         else:
