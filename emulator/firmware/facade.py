@@ -174,7 +174,7 @@ class Firmware:
             now = self.now
             uart.sync(m.printed, now)  # what the last events printed, printed then
             step = next_change()
-            for at in (self._parser.until, next_arrival(), self._boot_until):
+            for at in (self._parser.until, (arrival := next_arrival()), self._boot_until):
                 if at is not None:
                     wait = max(at - now, 0.0)
                     if step is None or wait < step:  # min(step, wait)
@@ -185,14 +185,14 @@ class Firmware:
                     self.now = end
                 break
             left = end - now
-            free, busy = planner.free, planner.busy
+            busy = (free := planner.free) < planner.CAPACITY
             if step > left:
                 # within SNAP_SECONDS of a block end the planner finishes the block here
                 planner.advance(left)
                 self.now = end
                 if planner.free != free:
                     self._block_done(busy)
-                if len(wire) and (due := wire.take_due(self.now)):
+                if arrival is not None and (due := wire.take_due(self.now)):  # (None: no bytes)
                     self._deliver(due)  # the bytes arrived by ``end``
                 break
             planner.advance(step)
@@ -200,7 +200,7 @@ class Firmware:
             zero_steps = zero_steps + 1 if step == 0.0 else 0
             if planner.free != free:
                 self._block_done(busy)
-            if len(wire) and (due := wire.take_due(self.now)):
+            if arrival is not None and (due := wire.take_due(self.now)):
                 self._deliver(due)  # before the parse ends: a full ring lost what came meanwhile
             if self._boot_until is not None and self._boot_until <= self.now:
                 self._finish_boot()
