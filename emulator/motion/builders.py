@@ -45,7 +45,7 @@ def _joint(start: Vec7, end: Vec7, feed: float | None, limits: AxisLimits, kind:
         delta_steps = (last[0] - first[0], last[1] - first[1], last[2] - first[2],
                        last[3] - first[3], last[4] - first[4], last[5] - first[5],
                        last[6] - first[6])  # fmt: skip
-        start, end = limits.from_steps(first), limits.from_steps(last)
+        start, end = limits.grid_point(first), limits.grid_point(last)
         steps = (first, delta_steps, limits.steps)
     delta = sub(end, start)
     length = norm(delta)
