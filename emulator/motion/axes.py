@@ -131,15 +131,16 @@ class AxisLimits:
     accel: Vec7
     steps: Vec7 | None = None
     junction_deviation: float = 0.0
-    _steps_memo: list[tuple[object, Steps7]] = field(
-        default_factory=lambda: [(_UNSEEN, _NO_STEPS), (_UNSEEN, _NO_STEPS)],
+    _steps_memo: list[tuple[object, Steps7, bool]] = field(
+        default_factory=lambda: [(_UNSEEN, _NO_STEPS, False), (_UNSEEN, _NO_STEPS, False)],
         init=False,
         repr=False,
         compare=False,
     )
-    """The last two tuples given to :meth:`to_steps` (or made by :meth:`grid_point`) and their
-    results, the latest first (a joint line rounds its start and its end several times: the
-    no-step check, the switch crossing, the block; the next line starts where it ended)."""
+    """The last two tuples given to :meth:`to_steps` (or made by :meth:`grid_point`: flagged
+    True) and their results, the latest first (a joint line rounds its start and its end
+    several times: the no-step check, the switch crossing, the block; the next line starts
+    where it ended)."""
     _exact_grid: bool = field(default=False, init=False, repr=False, compare=False)
     """Whether every steps-per-degree value is within ``_GRID_SCALE`` of 1 (see grid_point)."""
 
@@ -195,7 +196,7 @@ class AxisLimits:
             return before[1]
         steps = self._round_steps(q, self.steps)
         if type(q) is tuple:
-            memo[:] = ((q, steps), last)  # one assignment: no torn pair for another thread
+            memo[:] = ((q, steps, False), last)  # one assignment: no torn pair for a thread
         return steps
 
     @staticmethod
@@ -229,9 +230,14 @@ class AxisLimits:
         q = self.from_steps(n)
         if self._exact_grid and min(n) > -_GRID_STEPS and max(n) < _GRID_STEPS:
             memo = self._steps_memo
-            memo[:] = ((q, n), memo[0])
+            memo[:] = ((q, n, True), memo[0])
         return q
 
     def quantise(self, q: Vec7) -> Vec7:
         """``q`` rounded to whole motor steps (unchanged for an ideal machine)."""
-        return q if self.steps is None else self.from_steps(self.to_steps(q))
+        if self.steps is None:
+            return q
+        for key, _, on_grid in self._steps_memo:
+            if key is q and on_grid:
+                return q  # made by grid_point: whole steps already (the same numbers)
+        return self.from_steps(self.to_steps(q))

@@ -54,3 +54,12 @@ def test_a_table_beyond_the_grid_scale_is_never_remembered() -> None:
     n = (1, 2, 3, 4, 5, 6, 7)
     q = limits.grid_point(n)
     assert limits.to_steps(q) == AxisLimits._round_steps(q, limits.steps)
+
+
+def test_quantise_of_a_grid_point_is_that_point_and_of_others_their_rounding() -> None:
+    limits = _limits("2021")
+    q = limits.grid_point((100, -200, 300, 0, 5, -6, 7))
+    assert limits.quantise(q) is q
+    other = (1.23456, -2.5, 0.0, 3.3, 4.4, 5.5, 6.6)
+    assert limits.quantise(other) == limits.from_steps(limits.to_steps(other))
+    assert limits.quantise(tuple(q)) == q
