@@ -14,7 +14,7 @@ from typing import Final
 from mirobot_async import kinematics as kin
 
 from .. import motion
-from ..motion import AxisLimits, Vec7, axes
+from ..motion import AxisLimits, Steps7, Vec7, axes
 from . import codes as c
 
 Pose = tuple[float, float, float, float, float, float]
@@ -269,18 +269,25 @@ class Geometry:
         return pins
 
     def switch_crossing(
-        self, start: Sequence[float], end: Sequence[float], limits: AxisLimits | None = None
+        self,
+        start: Sequence[float],
+        end: Sequence[float],
+        limits: AxisLimits | None = None,
+        steps: tuple[Steps7, Steps7] | None = None,
     ) -> Vec7 | None:
         """Where a joint move from ``start`` to ``end`` stops on a J1..J3 switch (``$21=1``):
         the step event of GRBL's Bresenham line at which the first switch closes, or None.
-        ``limits``: :meth:`limits` when the caller has just read them."""
+        ``limits``: :meth:`limits` when the caller has just read them; ``steps``: the ends in
+        their whole steps, likewise."""
         if not self.settings[21]:
             return None
         if limits is None:
             limits = self.limits()
         if limits.steps is None:  # an ideal machine: the first switch position on the line
             return self._ideal_crossing(start, end)
-        first, last = limits.to_steps(start), limits.to_steps(end)  # (reads 7 numbers)
+        if steps is None:
+            steps = limits.to_steps(start), limits.to_steps(end)
+        first, last = steps
         candidates: list[tuple[int, int]] = []  # (axis, steps to its switch edge)
         for j, (lo, hi) in enumerate(self._switch_table(limits)):
             a, b = first[j], last[j]

@@ -224,18 +224,23 @@ class MoveBuilder:
         if not any(squares):  # a length of 0 (fsum, exactly rounded, is 0 only then)
             return [], None, end
         limits = self.geometry.limits()
-        if limits.steps is not None and limits.to_steps(start) == limits.to_steps(end):
-            # GRBL drops a block of no steps: it takes no planner slot (oracle: a burst of 25
-            # ``M21 G91 X1`` lines ends at J1 1.040, each later line resynchronised near 0)
-            return [], None, end
+        steps = None  # the ends in whole steps (their rounding raises for NaN or infinity)
+        if limits.steps is not None:
+            steps = limits.to_steps(start), limits.to_steps(end)
+            if steps[0] == steps[1]:
+                # GRBL drops a block of no steps: it takes no planner slot (oracle: a burst of
+                # 25 ``M21 G91 X1`` lines ends at J1 1.040, each later line resynchronised near 0)
+                return [], None, end
         if feed is not None and feed_mode == 93:
             feed = feed * math.sqrt(math.fsum(squares))  # the length
         if feed is not None and not math.isfinite(feed):
             feed = None  # the max rates limit the motion
         elif feed is not None and feed <= 0.0:
             feed = MIN_FEED
-        cut = self.geometry.switch_crossing(start, end, limits)
+        cut = self.geometry.switch_crossing(start, end, limits, steps)
         try:
+            if cut is None and steps is not None:
+                return [motion.joint_block_in_steps(*steps, feed, limits)], None, end
             if cut is None:
                 return [motion.joint_block(start, end, feed, limits)], None, end
             to_switch = motion.joint_block(start, cut, feed, limits)

@@ -8,7 +8,7 @@ import math
 from collections.abc import Callable, Sequence
 from typing import Final
 
-from .axes import ARM_AXES, AXES, RAIL, AxisLimits, Vec7, finite_vec7, norm, sub, vec7
+from .axes import ARM_AXES, AXES, RAIL, AxisLimits, Steps7, Vec7, finite_vec7, norm, sub, vec7
 from .blocks import (
     Block,
     DwellBlock,
@@ -37,16 +37,38 @@ SEQUENTIAL_SEARCH_FRACTION: Final = 0.5
 def _joint(start: Vec7, end: Vec7, feed: float | None, limits: AxisLimits, kind: str) -> JointBlock:
     start = finite_vec7(start, "start")
     end = finite_vec7(end, "end")
-    if feed is not None and not (math.isfinite(feed) and feed > 0.0):
-        raise ValueError(f"feed must be a positive number of deg/min (or None for G0): {feed}")
-    steps = None
     if limits.steps is not None:
         first, last = limits.to_steps(start), limits.to_steps(end)
-        delta_steps = (last[0] - first[0], last[1] - first[1], last[2] - first[2],
-                       last[3] - first[3], last[4] - first[4], last[5] - first[5],
-                       last[6] - first[6])  # fmt: skip
-        start, end = limits.grid_point(first), limits.grid_point(last)
-        steps = (first, delta_steps, limits.steps)
+        return _joint_in_steps(first, last, feed, limits, kind)
+    _check_feed(feed)
+    return _joint_between(start, end, None, feed, limits, kind)
+
+
+def _check_feed(feed: float | None) -> None:
+    if feed is not None and not (math.isfinite(feed) and feed > 0.0):
+        raise ValueError(f"feed must be a positive number of deg/min (or None for G0): {feed}")
+
+
+def _joint_in_steps(
+    first: Steps7, last: Steps7, feed: float | None, limits: AxisLimits, kind: str
+) -> JointBlock:
+    _check_feed(feed)
+    delta_steps = (last[0] - first[0], last[1] - first[1], last[2] - first[2],
+                   last[3] - first[3], last[4] - first[4], last[5] - first[5],
+                   last[6] - first[6])  # fmt: skip
+    start, end = limits.grid_point(first), limits.grid_point(last)
+    assert limits.steps is not None  # (whole steps come from limits with steps)
+    return _joint_between(start, end, (first, delta_steps, limits.steps), feed, limits, kind)
+
+
+def _joint_between(
+    start: Vec7,
+    end: Vec7,
+    steps: tuple[Steps7, Steps7, Vec7] | None,
+    feed: float | None,
+    limits: AxisLimits,
+    kind: str,
+) -> JointBlock:
     delta = sub(end, start)
     length = norm(delta)
     if length == 0.0:
@@ -74,6 +96,14 @@ def _joint(start: Vec7, end: Vec7, feed: float | None, limits: AxisLimits, kind:
     )
     block.junction_deviation = limits.junction_deviation
     return block
+
+
+def joint_block_in_steps(
+    first: Steps7, last: Steps7, feed: float | None, limits: AxisLimits
+) -> Block:
+    """:func:`joint_block` between two whole-step points: ``first`` and ``last`` are what
+    ``limits.to_steps`` gave for its start and end (so both are finite)."""
+    return _joint_in_steps(first, last, feed, limits, "move")
 
 
 def joint_block(start: Vec7, end: Vec7, feed: float | None, limits: AxisLimits) -> Block:

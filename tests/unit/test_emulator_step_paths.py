@@ -6,7 +6,7 @@ from __future__ import annotations
 import random
 
 from mirobot_emulator.firmware.geometry import Geometry
-from mirobot_emulator.motion import AxisLimits
+from mirobot_emulator.motion import AxisLimits, Block, joint_block, joint_block_in_steps
 from mirobot_emulator.settings import default_settings
 
 
@@ -63,3 +63,24 @@ def test_quantise_of_a_grid_point_is_that_point_and_of_others_their_rounding() -
     other = (1.23456, -2.5, 0.0, 3.3, 4.4, 5.5, 6.6)
     assert limits.quantise(other) == limits.from_steps(limits.to_steps(other))
     assert limits.quantise(tuple(q)) == q
+
+
+def _block_fields(block: Block) -> tuple[object, ...]:
+    names = ("kind", "start", "end", "length", "speed", "accel", "direction_in", "direction_out",
+             "junction_deviation", "start_steps", "delta_steps", "timed", "duration")  # fmt: skip
+    return tuple(getattr(block, name) for name in names)
+
+
+def test_a_joint_block_from_whole_steps_is_the_block_from_its_ends() -> None:
+    rng = random.Random(11)
+    for profile in ("classic", "2021"):
+        limits = _limits(profile)
+        for _ in range(300):
+            a = tuple(rng.uniform(-120.0, 120.0) for _ in range(7))
+            b = tuple(x + rng.choice((0.0, rng.uniform(-30.0, 30.0))) for x in a)
+            feed = rng.choice((None, 2000.0, 1e-9, 5e5))
+            general = joint_block(a, b, feed, limits)
+            fast = joint_block_in_steps(limits.to_steps(a), limits.to_steps(b), feed, limits)
+            assert _block_fields(fast) == _block_fields(general)
+            for s in (0.0, general.length / 3, general.length):
+                assert fast.position_at(s) == general.position_at(s)
