@@ -149,6 +149,8 @@ class Planner:
         self.starved_seconds = 0.0
         self.run_outs = 0
         self._ran_out_at: float | None = None
+        self.finished = 0
+        """Blocks finished so far (read-only: a caller sees whether :meth:`advance` ended some)."""
 
     # ---- queries ---------------------------------------------------------------------------
 
@@ -454,6 +456,7 @@ class Planner:
     def _finish_head(self, v_exit: float) -> None:
         block = self._queue.popleft()
         self._junction.popleft()
+        self.finished += 1
         self._position = block.end
         self._t = 0.0
         if not self._queue:
