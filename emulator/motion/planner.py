@@ -431,6 +431,12 @@ class Planner:
             s0 = self._profile.s_at(self._t)
             v0 = self._profile.v_at(self._t)
         n = len(queue)
+        if n == 1:  # the passes below over one block: its exit is at rest
+            self._entry = [v0 * v0, 0.0]
+            if not head.timed:
+                self._profile = head.profile_from(s0, v0, 0.0)  # (math.sqrt(0.0))
+                self._t = 0.0
+            return
         entry = [0.0] * (n + 1)
         following = 0.0  # squared exit speed of block i (entry of i + 1)
         for i in range(n - 1, 0, -1):
