@@ -228,10 +228,14 @@ class AxisLimits:
         Exact within ``_GRID_STEPS`` steps and ``_GRID_SCALE`` steps per degree: ``n / s * s``
         is then within ``|n| * 2**-52 < 2**-22`` of ``n`` (two roundings of ``2**-53``)."""
         q = self.from_steps(n)
+        self.note_grid_point(q, n)
+        return q
+
+    def note_grid_point(self, q: Vec7, n: Steps7) -> None:
+        """Remember that ``q``, made by :meth:`grid_point` of ``n``, is ``n`` steps."""
         if self._exact_grid and min(n) > -_GRID_STEPS and max(n) < _GRID_STEPS:
             memo = self._steps_memo
             memo[:] = ((q, n, True), memo[0])
-        return q
 
     def quantise(self, q: Vec7) -> Vec7:
         """``q`` rounded to whole motor steps (unchanged for an ideal machine)."""

@@ -49,10 +49,34 @@ def _check_feed(feed: float | None) -> None:
         raise ValueError(f"feed must be a positive number of deg/min (or None for G0): {feed}")
 
 
+_RECENT_BLOCKS: dict[tuple[Steps7, Steps7, float | None, str], tuple[AxisLimits, JointBlock]] = {}
+"""Joint blocks built lately, by their whole steps, feed and kind, with the limits they were
+built with: a block is never changed once built, so a move made again (a stream going back
+and forth) shares it."""
+_RECENT_BLOCKS_MAX: Final = 64
+
+
 def _joint_in_steps(
     first: Steps7, last: Steps7, feed: float | None, limits: AxisLimits, kind: str
 ) -> JointBlock:
     _check_feed(feed)
+    key = (first, last, feed, kind)
+    recent = _RECENT_BLOCKS.get(key)
+    if recent is not None and recent[0] is limits:
+        block = recent[1]
+        limits.note_grid_point(block.start, first)  # as grid_point() below would
+        limits.note_grid_point(block.end, last)
+        return block
+    block = _joint_between_steps(first, last, feed, limits, kind)
+    if len(_RECENT_BLOCKS) >= _RECENT_BLOCKS_MAX:
+        _RECENT_BLOCKS.clear()
+    _RECENT_BLOCKS[key] = (limits, block)
+    return block
+
+
+def _joint_between_steps(
+    first: Steps7, last: Steps7, feed: float | None, limits: AxisLimits, kind: str
+) -> JointBlock:
     delta_steps = (last[0] - first[0], last[1] - first[1], last[2] - first[2],
                    last[3] - first[3], last[4] - first[4], last[5] - first[5],
                    last[6] - first[6])  # fmt: skip

@@ -1,10 +1,14 @@
-"""The emulator's step memo: a whole-step point made by ``grid_point`` rounds back to its steps,
-so answering ``to_steps`` of it from the memo gives what rounding it again gives."""
+"""The emulator's shortcuts for joint moves in whole steps give what the general code gives: a
+whole-step point made by ``grid_point`` rounds back to its steps (so ``to_steps`` of it may be
+answered from the memo), a block built from whole steps is the block built from its ends, and a
+block shared by a move made again runs as often as it is queued."""
 
 from __future__ import annotations
 
+import math
 import random
 
+from mirobot_emulator import motion
 from mirobot_emulator.firmware.geometry import Geometry
 from mirobot_emulator.motion import AxisLimits, Block, joint_block, joint_block_in_steps
 from mirobot_emulator.settings import default_settings
@@ -84,3 +88,22 @@ def test_a_joint_block_from_whole_steps_is_the_block_from_its_ends() -> None:
             assert _block_fields(fast) == _block_fields(general)
             for s in (0.0, general.length / 3, general.length):
                 assert fast.position_at(s) == general.position_at(s)
+
+
+def test_a_move_made_again_shares_its_block_and_runs_as_often_as_queued() -> None:
+    limits = _limits("classic")
+    there, back = (10.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0), motion.ZERO
+    first = joint_block(back, there, 2000.0, limits)
+    again = joint_block(back, there, 2000.0, limits)
+    assert again is first  # shared: a block never changes once built
+    other_limits = _limits("classic")  # other limits (settings changed): built anew
+    assert joint_block(back, there, 2000.0, other_limits) is not first
+    planner = motion.Planner(motion.ZERO)
+    for _ in range(3):
+        planner.push(joint_block(planner.planned_position, there, 2000.0, limits))
+        planner.push(joint_block(planner.planned_position, back, 2000.0, limits))
+    assert len(planner.blocks) == 6
+    planner.advance(math.inf)
+    assert not planner.busy
+    assert planner.position == limits.quantise(back)
+    assert planner.finished == 6
