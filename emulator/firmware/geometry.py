@@ -288,8 +288,12 @@ class Geometry:
         if steps is None:
             steps = limits.to_steps(start), limits.to_steps(end)
         first, last = steps
+        table = self._switch_table(limits)
+        (lo1, hi1), (lo2, hi2), (lo3, hi3) = table  # J1..J3
+        if lo1 < last[0] < hi1 and lo2 < last[1] < hi2 and lo3 < last[2] < hi3:
+            return None  # the move ends with every switch open: it closes none on the way
         candidates: list[tuple[int, int]] = []  # (axis, steps to its switch edge)
-        for j, (lo, hi) in enumerate(self._switch_table(limits)):
+        for j, (lo, hi) in enumerate(table):
             a, b = first[j], last[j]
             if not lo < a < hi:
                 continue  # closed already: no edge while it stays closed
