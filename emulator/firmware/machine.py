@@ -261,7 +261,7 @@ class Machine:
             if p.hard_limit is not None:
                 self.limit_blocks.append(p.hard_limit)
                 p.hard_limit = None
-            if not self._pending_done(p.until):
+            if p.until != "queued" and not self._pending_done(p.until):
                 return False
             self.pending = p.then
             self.emit_lines(p.finish())
