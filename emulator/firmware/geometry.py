@@ -69,6 +69,11 @@ _SOFT_LIMIT_AXES: Final = tuple(
 )
 """Per firmware axis a..g: its letter, its joint index and its ``$13x``/``$14x`` settings."""
 
+_joints_in_letter_order: Final = operator.itemgetter(*motion.LETTER_TO_JOINT)
+_soft_highs_of: Final = operator.itemgetter(*(high for _, _, high, _ in _SOFT_LIMIT_AXES))
+_soft_lows_of: Final = operator.itemgetter(*(low for _, _, _, low in _SOFT_LIMIT_AXES))
+"""A joint vector and the ``$13x``/``$14x`` settings in the order of :data:`_SOFT_LIMIT_AXES`."""
+
 
 class Refusal(Exception):
     """A motion refused with one of the "ok but dropped" texts (``then``: a second text the
@@ -221,6 +226,14 @@ class Geometry:
         settings = self.settings
         if settings[20] == 0:
             return None
+        try:  # every axis within its range (compared without a Python loop): none is outside
+            values = _joints_in_letter_order(q)
+            if all(map(operator.le, values, _soft_highs_of(settings))) and all(
+                map(operator.le, map(operator.neg, values), _soft_lows_of(settings))
+            ):
+                return None
+        except (KeyError, IndexError):
+            pass  # a setting or joint missing: the loop meets it where the firmware order does
         for letter, joint, high, low in _SOFT_LIMIT_AXES:
             value = q[joint]
             if value > settings[high] or value < -settings[low]:

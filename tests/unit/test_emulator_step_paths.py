@@ -1,7 +1,8 @@
 """The emulator's shortcuts for joint moves in whole steps give what the general code gives: a
 whole-step point made by ``grid_point`` rounds back to its steps (so ``to_steps`` of it may be
 answered from the memo), a block built from whole steps is the block built from its ends, and a
-block shared by a move made again runs as often as it is queued."""
+block shared by a move made again runs as often as it is queued, and the soft-limit check
+without its loop names the axis the loop names."""
 
 from __future__ import annotations
 
@@ -107,3 +108,27 @@ def test_a_move_made_again_shares_its_block_and_runs_as_often_as_queued() -> Non
     assert not planner.busy
     assert planner.position == limits.quantise(back)
     assert planner.finished == 6
+
+
+def _soft_violation_by_loop(settings: dict[int, float], q: tuple[float, ...]) -> str | None:
+    if settings[20] == 0:
+        return None
+    for k, letter in enumerate("ABCDXYZ"):  # firmware axes a..g = J4, J5, J6, D, J1, J2, J3
+        value = q[(3, 4, 5, 6, 0, 1, 2)[k]]
+        if value > settings[130 + k] or value < -settings[140 + k]:
+            return letter
+    return None
+
+
+def test_the_soft_limit_check_names_the_first_axis_out_of_range_in_firmware_order() -> None:
+    rng = random.Random(5)
+    for profile in ("classic", "2021"):
+        settings = dict(default_settings(profile))
+        settings[20] = 1.0
+        geometry = Geometry(profile, settings)
+        for _ in range(2000):
+            q = tuple(rng.choice((rng.uniform(-200.0, 200.0), 0.0, math.nan)) for _ in range(7))
+            assert geometry.soft_violation(q) == _soft_violation_by_loop(settings, q), q
+        settings[133] = math.nan  # a range that compares false
+        q = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 5.0)
+        assert geometry.soft_violation(q) == _soft_violation_by_loop(settings, q)
