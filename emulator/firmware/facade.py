@@ -174,9 +174,9 @@ class Firmware:
             now = self.now
             uart.sync(m.printed, now)  # what the last events printed, printed then
             step = next_change()
-            for at in (self._parser.until, next_arrival(), self._boot_until):
+            for at in (self._parser.until, (arrival := next_arrival()), self._boot_until):
                 if at is not None:
-                    wait = max(at - now, 0.0)
+                    wait = at - now if at > now else 0.0  # max(at - now, 0.0)
                     if step is None or wait < step:  # min(step, wait)
                         step = wait
             if step is None:
@@ -185,22 +185,22 @@ class Firmware:
                     self.now = end
                 break
             left = end - now
-            free, busy = planner.free, planner.busy
+            finished = planner.finished
             if step > left:
                 # within SNAP_SECONDS of a block end the planner finishes the block here
                 planner.advance(left)
                 self.now = end
-                if planner.free != free:
-                    self._block_done(busy)
-                if len(wire) and (due := wire.take_due(self.now)):
+                if planner.finished != finished:
+                    self._block_done()
+                if arrival is not None and (due := wire.take_due(self.now)):  # (None: no bytes)
                     self._deliver(due)  # the bytes arrived by ``end``
                 break
             planner.advance(step)
             self.now = now = now + step
             zero_steps = zero_steps + 1 if step == 0.0 else 0
-            if planner.free != free:
-                self._block_done(busy)
-            if len(wire) and (due := wire.take_due(self.now)):
+            if planner.finished != finished:
+                self._block_done()
+            if arrival is not None and (due := wire.take_due(self.now)):
                 self._deliver(due)  # before the parse ends: a full ring lost what came meanwhile
             if self._boot_until is not None and self._boot_until <= self.now:
                 self._finish_boot()
@@ -210,10 +210,10 @@ class Firmware:
                 break
         self._service()
 
-    def _block_done(self, was_busy: bool) -> None:
+    def _block_done(self) -> None:
         """After blocks finished: record an end of motion if the planner ran empty (before the
         waiting lines can refill it: ``G4 P0`` between buffered moves), then carry on."""
-        if was_busy and not self._m.planner.busy:
+        if not self._m.planner.busy:
             self.motion_end_times.append(self.now)
             self.motion_ends += 1
         self._after_step()

@@ -230,7 +230,7 @@ class GcodeExecutor:
                     line.feed,
                     line.feed_mode,
                     line.arc,
-                    cart_start=self._path_start(line, start),
+                    cart_start=self._path_start(line, start) if line.cart else m.modal.cart,
                     locked=m.locked,
                     check=m.check,
                 )
@@ -246,7 +246,8 @@ class GcodeExecutor:
                 blocks += new_blocks
                 if line.cart:
                     m.modal.cart = pose6(line.target[:6])
-        m.emit_lines(out)
+        if out:
+            m.emit_lines(out)
 
         flow = g.flow
         if flow in (0, 2, 30) and not m.check:

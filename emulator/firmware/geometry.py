@@ -14,7 +14,7 @@ from typing import Final
 from mirobot_async import kinematics as kin
 
 from .. import motion
-from ..motion import AxisLimits, Vec7, axes
+from ..motion import AxisLimits, Steps7, Vec7, axes
 from . import codes as c
 
 Pose = tuple[float, float, float, float, float, float]
@@ -68,6 +68,11 @@ _SOFT_LIMIT_AXES: Final = tuple(
     (letter, motion.LETTER_TO_JOINT[k], 130 + k, 140 + k) for k, letter in enumerate(FW_LETTERS)
 )
 """Per firmware axis a..g: its letter, its joint index and its ``$13x``/``$14x`` settings."""
+
+_joints_in_letter_order: Final = operator.itemgetter(*motion.LETTER_TO_JOINT)
+_soft_highs_of: Final = operator.itemgetter(*(high for _, _, high, _ in _SOFT_LIMIT_AXES))
+_soft_lows_of: Final = operator.itemgetter(*(low for _, _, _, low in _SOFT_LIMIT_AXES))
+"""A joint vector and the ``$13x``/``$14x`` settings in the order of :data:`_SOFT_LIMIT_AXES`."""
 
 
 class Refusal(Exception):
@@ -221,6 +226,14 @@ class Geometry:
         settings = self.settings
         if settings[20] == 0:
             return None
+        try:  # every axis within its range (compared without a Python loop): none is outside
+            values = _joints_in_letter_order(q)
+            if all(map(operator.le, values, _soft_highs_of(settings))) and all(
+                map(operator.le, map(operator.neg, values), _soft_lows_of(settings))
+            ):
+                return None
+        except (KeyError, IndexError):
+            pass  # a setting or joint missing: the loop meets it where the firmware order does
         for letter, joint, high, low in _SOFT_LIMIT_AXES:
             value = q[joint]
             if value > settings[high] or value < -settings[low]:
@@ -269,20 +282,31 @@ class Geometry:
         return pins
 
     def switch_crossing(
-        self, start: Sequence[float], end: Sequence[float], limits: AxisLimits | None = None
+        self,
+        start: Sequence[float],
+        end: Sequence[float],
+        limits: AxisLimits | None = None,
+        steps: tuple[Steps7, Steps7] | None = None,
     ) -> Vec7 | None:
         """Where a joint move from ``start`` to ``end`` stops on a J1..J3 switch (``$21=1``):
         the step event of GRBL's Bresenham line at which the first switch closes, or None.
-        ``limits``: :meth:`limits` when the caller has just read them."""
+        ``limits``: :meth:`limits` when the caller has just read them; ``steps``: the ends in
+        their whole steps, likewise."""
         if not self.settings[21]:
             return None
         if limits is None:
             limits = self.limits()
         if limits.steps is None:  # an ideal machine: the first switch position on the line
             return self._ideal_crossing(start, end)
-        first, last = limits.to_steps(vec7(start)), limits.to_steps(vec7(end))
+        if steps is None:
+            steps = limits.to_steps(start), limits.to_steps(end)
+        first, last = steps
+        table = self._switch_table(limits)
+        (lo1, hi1), (lo2, hi2), (lo3, hi3) = table  # J1..J3
+        if lo1 < last[0] < hi1 and lo2 < last[1] < hi2 and lo3 < last[2] < hi3:
+            return None  # the move ends with every switch open: it closes none on the way
         candidates: list[tuple[int, int]] = []  # (axis, steps to its switch edge)
-        for j, (lo, hi) in enumerate(self._switch_table(limits)):
+        for j, (lo, hi) in enumerate(table):
             a, b = first[j], last[j]
             if not lo < a < hi:
                 continue  # closed already: no edge while it stays closed

@@ -232,8 +232,10 @@ class Machine:
         at once, ``?`` 0.3 ms after the move's ``ok``: ``Idle``, motion ends 12.5 ms later than
         with the ``?`` 0.1 ms later, ``Run``; the report's 175 bytes through the transmit
         ring)."""
+        if self.planner.started:
+            return  # nothing waits for a cycle start
         report = self.report_before_start
-        if report is not None and self.planner.blocks and not self.planner.started:
+        if report is not None and self.planner.blocks:
             self.report_before_start = None
             self.planner.cycle_start(delay=report())
         else:
@@ -259,7 +261,7 @@ class Machine:
             if p.hard_limit is not None:
                 self.limit_blocks.append(p.hard_limit)
                 p.hard_limit = None
-            if not self._pending_done(p.until):
+            if p.until != "queued" and not self._pending_done(p.until):
                 return False
             self.pending = p.then
             self.emit_lines(p.finish())

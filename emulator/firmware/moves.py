@@ -213,29 +213,34 @@ class MoveBuilder:
             raise Refusal(c.TEXT_SOFT_LIMIT + letter)
         if check:
             return [], None, end
-        if len(start) == len(end) == 7:  # fsum is exactly rounded: as over a generator
+        squares: tuple[float, ...]
+        if len(start) == len(end) == 7:  # without a generator
             s, e = start, end
-            length = math.sqrt(math.fsum(((e[0] - s[0]) ** 2, (e[1] - s[1]) ** 2,
-                                          (e[2] - s[2]) ** 2, (e[3] - s[3]) ** 2,
-                                          (e[4] - s[4]) ** 2, (e[5] - s[5]) ** 2,
-                                          (e[6] - s[6]) ** 2)))  # fmt: skip
+            squares = ((e[0] - s[0]) ** 2, (e[1] - s[1]) ** 2, (e[2] - s[2]) ** 2,
+                       (e[3] - s[3]) ** 2, (e[4] - s[4]) ** 2, (e[5] - s[5]) ** 2,
+                       (e[6] - s[6]) ** 2)  # fmt: skip
         else:
-            length = math.sqrt(math.fsum((b - a) ** 2 for a, b in zip(start, end, strict=True)))
-        if length == 0.0:
+            squares = tuple((b - a) ** 2 for a, b in zip(start, end, strict=True))
+        if not any(squares):  # a length of 0 (fsum, exactly rounded, is 0 only then)
             return [], None, end
         limits = self.geometry.limits()
-        if limits.steps is not None and limits.to_steps(start) == limits.to_steps(end):
-            # GRBL drops a block of no steps: it takes no planner slot (oracle: a burst of 25
-            # ``M21 G91 X1`` lines ends at J1 1.040, each later line resynchronised near 0)
-            return [], None, end
+        steps = None  # the ends in whole steps (their rounding raises for NaN or infinity)
+        if limits.steps is not None:
+            steps = limits.to_steps(start), limits.to_steps(end)
+            if steps[0] == steps[1]:
+                # GRBL drops a block of no steps: it takes no planner slot (oracle: a burst of
+                # 25 ``M21 G91 X1`` lines ends at J1 1.040, each later line resynchronised near 0)
+                return [], None, end
         if feed is not None and feed_mode == 93:
-            feed = feed * length
+            feed = feed * math.sqrt(math.fsum(squares))  # the length
         if feed is not None and not math.isfinite(feed):
             feed = None  # the max rates limit the motion
         elif feed is not None and feed <= 0.0:
             feed = MIN_FEED
-        cut = self.geometry.switch_crossing(start, end, limits)
+        cut = self.geometry.switch_crossing(start, end, limits, steps)
         try:
+            if cut is None and steps is not None:
+                return [motion.joint_block_in_steps(*steps, feed, limits)], None, end
             if cut is None:
                 return [motion.joint_block(start, end, feed, limits)], None, end
             to_switch = motion.joint_block(start, cut, feed, limits)

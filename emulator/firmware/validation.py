@@ -106,24 +106,21 @@ def check_line(
     else:
         base = q0
         offset = (0.0,) * 7
+    system: Vec7 | None = None
+    g92: Vec7 | None = None
     if axis_letters and g.nonmodal != 53:
         system = work.systems[modal.coord_select if g.coord_select is None else g.coord_select]
         g92 = modal.g92
-        if len(offset) == len(system) == len(g92) == 7:  # as the generator below, unrolled
-            offset = (offset[0] + system[0] + g92[0], offset[1] + system[1] + g92[1],
-                      offset[2] + system[2] + g92[2], offset[3] + system[3] + g92[3],
-                      offset[4] + system[4] + g92[4], offset[5] + system[5] + g92[5],
-                      offset[6] + system[6] + g92[6])  # fmt: skip
-        else:
-            offset = tuple(a + b + c_ for a, b, c_ in zip(offset, system, g92, strict=True))
     target_list = list(base)
     for letter in axis_letters:  # the axis words present, in AXIS_WORDS order
         k = _AXIS_INDEX[letter]
         value = words[letter] * scale
-        if distance == 90:
-            target_list[k] = value + offset[k]
-        else:
+        if distance != 90:
             target_list[k] = value + base[k]
+        elif system is None or g92 is None:  # G53: no work offsets
+            target_list[k] = value + offset[k]
+        else:  # this axis's work offsets only (each axis's sum is the same)
+            target_list[k] = value + (offset[k] + system[k] + g92[k])
     target = vec7(tuple(target_list))
     # [19] G53
     if g.nonmodal == 53 and motion_mode not in (0, 1):

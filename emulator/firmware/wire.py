@@ -71,6 +71,8 @@ class Wire:
     ) -> float:
         """When ``seconds`` of work begun at ``start`` (``arrived`` bytes had come by then)
         end, the ``n`` bytes arriving meanwhile adding ``interrupts(n)`` seconds."""
+        if not self._data:  # nothing in transit: what arrived by any time is what came
+            return start + seconds + interrupts(self.delivered - arrived)
         end = start + seconds
         for _ in range(64):  # each round adds the interrupts of the bytes the last one added
             later = start + seconds + interrupts(self.arrived_by(end) - arrived)

@@ -87,6 +87,7 @@ from .builders import (
     dwell_block,
     homing_blocks,
     joint_block,
+    joint_block_in_steps,
     path_block,
     path_blocks,
 )
@@ -134,6 +135,7 @@ __all__ = [
     "dwell_block",
     "homing_blocks",
     "joint_block",
+    "joint_block_in_steps",
     "joints_to_letters",
     "junction_speed_sqr",
     "letters_to_joints",

@@ -20,6 +20,10 @@ Steps7 = tuple[int, int, int, int, int, int, int]
 
 ZERO: Final[Vec7] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 _NO_STEPS: Final[Steps7] = (0, 0, 0, 0, 0, 0, 0)
+_GRID_STEPS: Final = 2**30
+_GRID_SCALE: Final = 2.0**20
+"""Bounds within which a whole-step point rounds back to its steps (``grid_point``)."""
+_INF: Final = math.inf  # ``-_INF < x < _INF``: x is finite (False for NaN)
 _UNSEEN: Final = object()  # the key of an empty slot of AxisLimits' memo (no argument is it)
 
 LETTER_TO_JOINT: Final[tuple[int, ...]] = (3, 4, 5, 6, 0, 1, 2)
@@ -56,6 +60,14 @@ def vec7(values: Iterable[float]) -> Vec7:
 
 def finite_vec7(values: Iterable[float], what: str) -> Vec7:
     """:func:`vec7` that also refuses NaN and infinities, naming ``what`` in the error."""
+    if type(values) is tuple and len(values) == AXES:  # seven finite floats: the same tuple
+        a, b, c, d, e, f, g = values
+        if (type(a) is float and type(b) is float and type(c) is float and type(d) is float
+                and type(e) is float and type(f) is float and type(g) is float
+                and -_INF < a < _INF and -_INF < b < _INF and -_INF < c < _INF
+                and -_INF < d < _INF and -_INF < e < _INF and -_INF < f < _INF
+                and -_INF < g < _INF):  # fmt: skip
+            return values
     v = vec7(values)
     isfinite = math.isfinite
     if not (isfinite(v[0]) and isfinite(v[1]) and isfinite(v[2]) and isfinite(v[3])
@@ -119,14 +131,18 @@ class AxisLimits:
     accel: Vec7
     steps: Vec7 | None = None
     junction_deviation: float = 0.0
-    _steps_memo: list[tuple[object, Steps7]] = field(
-        default_factory=lambda: [(_UNSEEN, _NO_STEPS), (_UNSEEN, _NO_STEPS)],
+    _steps_memo: list[tuple[object, Steps7, bool]] = field(
+        default_factory=lambda: [(_UNSEEN, _NO_STEPS, False), (_UNSEEN, _NO_STEPS, False)],
         init=False,
         repr=False,
         compare=False,
     )
-    """The last two tuples given to :meth:`to_steps` and their results (a joint line rounds
-    its start and its end several times: the no-step check, the switch crossing, the block)."""
+    """The last two tuples given to :meth:`to_steps` (or made by :meth:`grid_point`: flagged
+    True) and their results, the latest first (a joint line rounds its start and its end
+    several times: the no-step check, the switch crossing, the block; the next line starts
+    where it ended)."""
+    _exact_grid: bool = field(default=False, init=False, repr=False, compare=False)
+    """Whether every steps-per-degree value is within ``_GRID_SCALE`` of 1 (see grid_point)."""
 
     def __post_init__(self) -> None:
         for name, values in (("max_rate", self.max_rate), ("accel", self.accel)):
@@ -139,6 +155,9 @@ class AxisLimits:
         jd = self.junction_deviation
         if not (math.isfinite(jd) and jd >= 0.0):
             raise ValueError(f"junction_deviation must be finite and >= 0: {jd}")
+        if self.steps is not None:
+            exact = all(1.0 / _GRID_SCALE <= v <= _GRID_SCALE for v in self.steps)
+            object.__setattr__(self, "_exact_grid", exact)
 
     @classmethod
     def from_settings(cls, settings: Mapping[int, float]) -> AxisLimits:
@@ -173,10 +192,11 @@ class AxisLimits:
         if last[0] is q:  # the same tuple object: the same value (a tuple is immutable)
             return last[1]
         if before[0] is q:
+            memo[:] = (before, last)
             return before[1]
         steps = self._round_steps(q, self.steps)
         if type(q) is tuple:
-            memo[:] = ((q, steps), last)  # one assignment: no torn pair for another thread
+            memo[:] = ((q, steps, False), last)  # one assignment: no torn pair for a thread
         return steps
 
     @staticmethod
@@ -201,6 +221,27 @@ class AxisLimits:
         return (n[0] / s[0], n[1] / s[1], n[2] / s[2], n[3] / s[3], n[4] / s[4], n[5] / s[5],
                 n[6] / s[6])  # fmt: skip
 
+    def grid_point(self, n: Steps7) -> Vec7:
+        """:meth:`from_steps` of the whole steps ``n`` that :meth:`to_steps` gave: that point
+        rounds back to ``n``, so :meth:`to_steps` of it is answered from the memo.
+
+        Exact within ``_GRID_STEPS`` steps and ``_GRID_SCALE`` steps per degree: ``n / s * s``
+        is then within ``|n| * 2**-52 < 2**-22`` of ``n`` (two roundings of ``2**-53``)."""
+        q = self.from_steps(n)
+        self.note_grid_point(q, n)
+        return q
+
+    def note_grid_point(self, q: Vec7, n: Steps7) -> None:
+        """Remember that ``q``, made by :meth:`grid_point` of ``n``, is ``n`` steps."""
+        if self._exact_grid and min(n) > -_GRID_STEPS and max(n) < _GRID_STEPS:
+            memo = self._steps_memo
+            memo[:] = ((q, n, True), memo[0])
+
     def quantise(self, q: Vec7) -> Vec7:
         """``q`` rounded to whole motor steps (unchanged for an ideal machine)."""
-        return q if self.steps is None else self.from_steps(self.to_steps(q))
+        if self.steps is None:
+            return q
+        for key, _, on_grid in self._steps_memo:
+            if key is q and on_grid:
+                return q  # made by grid_point: whole steps already (the same numbers)
+        return self.from_steps(self.to_steps(q))

@@ -145,8 +145,10 @@ class JointBlock(Block):
         *,
         steps: tuple[Steps7, Steps7, Vec7] | None = None,
         delta: Vec7 | None = None,
+        direction: Vec7 | None = None,
     ) -> None:
-        """``delta``: ``end - start`` when the caller has it (the builders do)."""
+        """``delta``: ``end - start`` when the caller has it (the builders do); ``direction``:
+        ``delta / length`` in floats, likewise."""
         self._delta = sub(end, start) if delta is None else delta
         self.start_steps: Steps7 | None = None
         self.delta_steps: Steps7 | None = None
@@ -159,7 +161,9 @@ class JointBlock(Block):
             self._events = max(map(abs, delta))
             self._per_step = _per_step(per_degree)
         super().__init__(kind, start, end, length, speed, accel)
-        if length > 0.0:
+        if direction is not None:
+            self.direction_in = self.direction_out = direction
+        elif length > 0.0:
             d = self._delta
             unit = (float(d[0] / length), float(d[1] / length), float(d[2] / length),
                     float(d[3] / length), float(d[4] / length), float(d[5] / length),

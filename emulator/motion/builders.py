@@ -8,7 +8,7 @@ import math
 from collections.abc import Callable, Sequence
 from typing import Final
 
-from .axes import ARM_AXES, AXES, RAIL, AxisLimits, Vec7, finite_vec7, norm, sub, vec7
+from .axes import ARM_AXES, AXES, RAIL, AxisLimits, Steps7, Vec7, finite_vec7, norm, sub, vec7
 from .blocks import (
     Block,
     DwellBlock,
@@ -37,16 +37,62 @@ SEQUENTIAL_SEARCH_FRACTION: Final = 0.5
 def _joint(start: Vec7, end: Vec7, feed: float | None, limits: AxisLimits, kind: str) -> JointBlock:
     start = finite_vec7(start, "start")
     end = finite_vec7(end, "end")
-    if feed is not None and not (math.isfinite(feed) and feed > 0.0):
-        raise ValueError(f"feed must be a positive number of deg/min (or None for G0): {feed}")
-    steps = None
     if limits.steps is not None:
         first, last = limits.to_steps(start), limits.to_steps(end)
-        delta_steps = (last[0] - first[0], last[1] - first[1], last[2] - first[2],
-                       last[3] - first[3], last[4] - first[4], last[5] - first[5],
-                       last[6] - first[6])  # fmt: skip
-        start, end = limits.from_steps(first), limits.from_steps(last)
-        steps = (first, delta_steps, limits.steps)
+        return _joint_in_steps(first, last, feed, limits, kind)
+    _check_feed(feed)
+    return _joint_between(start, end, None, feed, limits, kind)
+
+
+def _check_feed(feed: float | None) -> None:
+    if feed is not None and not (math.isfinite(feed) and feed > 0.0):
+        raise ValueError(f"feed must be a positive number of deg/min (or None for G0): {feed}")
+
+
+_RECENT_BLOCKS: dict[tuple[Steps7, Steps7, float | None, str], tuple[AxisLimits, JointBlock]] = {}
+"""Joint blocks built lately, by their whole steps, feed and kind, with the limits they were
+built with: a block is never changed once built, so a move made again (a stream going back
+and forth) shares it."""
+_RECENT_BLOCKS_MAX: Final = 64
+
+
+def _joint_in_steps(
+    first: Steps7, last: Steps7, feed: float | None, limits: AxisLimits, kind: str
+) -> JointBlock:
+    _check_feed(feed)
+    key = (first, last, feed, kind)
+    recent = _RECENT_BLOCKS.get(key)
+    if recent is not None and recent[0] is limits:
+        block = recent[1]
+        limits.note_grid_point(block.start, first)  # as grid_point() below would
+        limits.note_grid_point(block.end, last)
+        return block
+    block = _joint_between_steps(first, last, feed, limits, kind)
+    if len(_RECENT_BLOCKS) >= _RECENT_BLOCKS_MAX:
+        _RECENT_BLOCKS.clear()
+    _RECENT_BLOCKS[key] = (limits, block)
+    return block
+
+
+def _joint_between_steps(
+    first: Steps7, last: Steps7, feed: float | None, limits: AxisLimits, kind: str
+) -> JointBlock:
+    delta_steps = (last[0] - first[0], last[1] - first[1], last[2] - first[2],
+                   last[3] - first[3], last[4] - first[4], last[5] - first[5],
+                   last[6] - first[6])  # fmt: skip
+    start, end = limits.grid_point(first), limits.grid_point(last)
+    assert limits.steps is not None  # (whole steps come from limits with steps)
+    return _joint_between(start, end, (first, delta_steps, limits.steps), feed, limits, kind)
+
+
+def _joint_between(
+    start: Vec7,
+    end: Vec7,
+    steps: tuple[Steps7, Steps7, Vec7] | None,
+    feed: float | None,
+    limits: AxisLimits,
+    kind: str,
+) -> JointBlock:
     delta = sub(end, start)
     length = norm(delta)
     if length == 0.0:
@@ -66,9 +112,22 @@ def _joint(start: Vec7, end: Vec7, feed: float | None, limits: AxisLimits, kind:
             x = axis_accel[i] / share
             if x < accel:
                 accel = x
-    block = JointBlock(kind, start, end, length, speed, accel, steps=steps, delta=delta)
+    d = delta  # floats (of floats), so ``d[i] / length`` is the float JointBlock would make
+    unit = (d[0] / length, d[1] / length, d[2] / length, d[3] / length, d[4] / length,
+            d[5] / length, d[6] / length)  # fmt: skip
+    block = JointBlock(
+        kind, start, end, length, speed, accel, steps=steps, delta=delta, direction=unit
+    )
     block.junction_deviation = limits.junction_deviation
     return block
+
+
+def joint_block_in_steps(
+    first: Steps7, last: Steps7, feed: float | None, limits: AxisLimits
+) -> Block:
+    """:func:`joint_block` between two whole-step points: ``first`` and ``last`` are what
+    ``limits.to_steps`` gave for its start and end (so both are finite)."""
+    return _joint_in_steps(first, last, feed, limits, "move")
 
 
 def joint_block(start: Vec7, end: Vec7, feed: float | None, limits: AxisLimits) -> Block:

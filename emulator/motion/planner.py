@@ -133,7 +133,8 @@ class Planner:
         self._start_latency = start_latency
         self._delay = 0.0  # left of the start latency: the running block waits that long
         self._deferred = deferred_start
-        self._started = True
+        self.started = True
+        """False while queued blocks wait for :meth:`cycle_start` (deferred start); read-only."""
         self._queue: deque[Block] = deque()
         self._junction: deque[float] = deque()  # max squared entry speed of each queued block
         self._entry: list[float] = []  # planned squared entry speeds (index 0: the head)
@@ -148,6 +149,8 @@ class Planner:
         self.starved_seconds = 0.0
         self.run_outs = 0
         self._ran_out_at: float | None = None
+        self.finished = 0
+        """Blocks finished so far (read-only: a caller sees whether :meth:`advance` ended some)."""
 
     # ---- queries ---------------------------------------------------------------------------
 
@@ -155,12 +158,7 @@ class Planner:
     def running(self) -> Block | None:
         """The block at the head of the queue (running, or stopped by a hold); None when idle
         or while the queued blocks wait for :meth:`cycle_start`."""
-        return self._queue[0] if self._queue and self._started else None
-
-    @property
-    def started(self) -> bool:
-        """False while queued blocks wait for :meth:`cycle_start` (deferred start)."""
-        return self._started
+        return self._queue[0] if self._queue and self.started else None
 
     @property
     def blocks(self) -> tuple[Block, ...]:
@@ -181,7 +179,7 @@ class Planner:
 
     @property
     def state(self) -> str:
-        if not self._queue or not self._started:
+        if not self._queue or not self.started:
             return "idle"
         if self._held:
             return "hold"
@@ -226,7 +224,7 @@ class Planner:
 
         None when idle, and when stopped by a hold (nothing changes until :meth:`resume`).
         """
-        if not self._queue or not self._started:
+        if not self._queue or not self.started:
             return None
         left = max(self._profile.duration - self._t, 0.0) + self._delay
         if self._held and left <= SNAP_SECONDS:
@@ -239,6 +237,8 @@ class Planner:
             return 0.0
         if self._held:
             return math.inf
+        if not self.started:
+            self._replan(0.0, 0.0)  # as cycle_start() will
         total = [max(self._profile.duration - self._t, 0.0) + self._delay]
         entry = self._entry
         for i in range(1, len(self._queue)):
@@ -263,7 +263,9 @@ class Planner:
             raise PlannerFull(f"planner full ({self.CAPACITY} blocks)")
         planned = self.planned_position
         a, b = block.start, planned
-        if len(a) == len(b) == 7:  # without a generator (the same maximum)
+        if a == b:  # (the usual case: no gap)
+            gap = 0.0
+        elif len(a) == len(b) == 7:  # without a generator (the same maximum)
             gap = max(abs(a[0] - b[0]), abs(a[1] - b[1]), abs(a[2] - b[2]), abs(a[3] - b[3]),
                       abs(a[4] - b[4]), abs(a[5] - b[5]), abs(a[6] - b[6]))  # fmt: skip
         else:
@@ -272,7 +274,7 @@ class Planner:
             raise ValueError(f"block starts at {block.start}, planner ends at {planned}")
         was_empty = not self._queue
         if was_empty:
-            self._started = not self._deferred
+            self.started = not self._deferred
             self._motion_since = self.clock
             self._tail_direction = None
             if self._ran_out_at is not None:
@@ -284,22 +286,23 @@ class Planner:
         if was_empty:
             self._profile = block.profile_from(0.0)
             self._t = 0.0
-            self._entry = [0.0]
-        self._replan()
+            self._entry = [0.0, 0.0]  # (what the re-plan of one block from rest gives)
+        if self.started:  # else cycle_start() plans the blocks from rest when they start
+            self._replan()
 
     def advance(self, dt: float) -> None:
         """Move time forward by ``dt`` seconds (``math.inf``: run everything that can run)."""
         if not dt >= 0.0:
             raise ValueError(f"dt must be >= 0, got {dt}")
         remaining = dt
-        if self._delay > 0.0 and self._queue and self._started:
+        if self._delay > 0.0 and self._queue and self.started:
             wait = min(self._delay, remaining)
             self._delay -= wait
             self.clock += wait
             remaining -= wait
             if self._delay > 0.0:
                 return
-        while self._queue and self._started:
+        while self._queue and self.started:
             profile = self._profile
             left = profile.duration - self._t
             if remaining < left - SNAP_SECONDS:
@@ -371,9 +374,9 @@ class Planner:
         ``deferred_start`` calls this when a block does not fit (the planner is full), when
         its receive buffer has run dry, and before it waits for the planner to empty (``G4``,
         ``M2``, ``$`` commands); no effect when already started or empty."""
-        if self._started or not self._queue:
+        if self.started or not self._queue:
             return
-        self._started = True
+        self.started = True
         self._delay = (0.0 if self._queue[0].timed else self._start_latency) + max(delay, 0.0)
         self._motion_since = self.clock + self._delay
         self._replan(0.0, 0.0)
@@ -428,6 +431,12 @@ class Planner:
             s0 = self._profile.s_at(self._t)
             v0 = self._profile.v_at(self._t)
         n = len(queue)
+        if n == 1:  # the passes below over one block: its exit is at rest
+            self._entry = [v0 * v0, 0.0]
+            if not head.timed:
+                self._profile = head.profile_from(s0, v0, 0.0)  # (math.sqrt(0.0))
+                self._t = 0.0
+            return
         entry = [0.0] * (n + 1)
         following = 0.0  # squared exit speed of block i (entry of i + 1)
         for i in range(n - 1, 0, -1):
@@ -453,6 +462,7 @@ class Planner:
     def _finish_head(self, v_exit: float) -> None:
         block = self._queue.popleft()
         self._junction.popleft()
+        self.finished += 1
         self._position = block.end
         self._t = 0.0
         if not self._queue:

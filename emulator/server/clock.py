@@ -144,10 +144,10 @@ class Simulation:
         self._motion_ends_seen = total
         if new <= 0:
             return
+        if not self._scale > 0:  # motion has no duration: every end is now
+            self.motion_end_walls.extend(itertools.repeat(wall, new))
+            return
         for sim in (ends[-1],) if new == 1 else itertools.islice(ends, len(ends) - new, None):
-            if self._scale > 0:
-                self.motion_end_walls.append(
-                    self._wall_anchor + (float(sim) - self._sim_anchor) / self._scale
-                )
-            else:
-                self.motion_end_walls.append(wall)
+            self.motion_end_walls.append(
+                self._wall_anchor + (float(sim) - self._sim_anchor) / self._scale
+            )

@@ -1,0 +1,134 @@
+"""The emulator's shortcuts for joint moves in whole steps give what the general code gives: a
+whole-step point made by ``grid_point`` rounds back to its steps (so ``to_steps`` of it may be
+answered from the memo), a block built from whole steps is the block built from its ends, and a
+block shared by a move made again runs as often as it is queued, and the soft-limit check
+without its loop names the axis the loop names."""
+
+from __future__ import annotations
+
+import math
+import random
+
+from mirobot_emulator import motion
+from mirobot_emulator.firmware.geometry import Geometry
+from mirobot_emulator.motion import AxisLimits, Block, joint_block, joint_block_in_steps
+from mirobot_emulator.settings import default_settings
+
+
+def _limits(profile: str) -> AxisLimits:
+    return Geometry(profile, default_settings(profile)).limits()
+
+
+def test_whole_steps_round_back_to_themselves_within_the_grid_bounds() -> None:
+    rng = random.Random(7)
+    edge = 2**30 - 1
+    for profile in ("classic", "2021"):
+        limits = _limits(profile)
+        assert limits.steps is not None
+        tables = [
+            limits.steps,
+            (2.0**20,) * 7,
+            (2.0**-20,) * 7,
+            (0.3, 1.7, 3.0, 7.1, 9.9, 55.6, 1e6),
+        ]
+        for steps in tables:
+            samples = [tuple(rng.randint(-edge, edge) for _ in range(7)) for _ in range(3000)]
+            samples += [(edge, -edge, 0, 1, -1, edge - 1, -(edge - 1))]
+            for n in samples:
+                q = tuple(k / s for k, s in zip(n, steps, strict=True))
+                assert AxisLimits._round_steps(q, steps) == n, (steps, n)
+
+
+def test_to_steps_of_a_grid_point_is_its_steps() -> None:
+    limits = _limits("classic")
+    n = (567, -1134, 0, 3, -2, 999_999, -5)
+    q = limits.grid_point(n)
+    assert q == limits.from_steps(n)
+    assert limits.to_steps(q) == n
+    assert limits.to_steps(tuple(q)) == n
+    far = (2**31, 0, 0, 0, 0, 0, 0)  # beyond the bounds: not remembered, rounded again
+    far_q = limits.grid_point(far)
+    assert limits.to_steps(far_q) == AxisLimits._round_steps(far_q, limits.steps or far_q)
+
+
+def test_a_table_beyond_the_grid_scale_is_never_remembered() -> None:
+    settings = dict(default_settings("classic"))
+    settings[100] = 1e-7  # steps per degree far below 2**-20
+    limits = Geometry("classic", settings).limits()
+    assert limits.steps is not None
+    n = (1, 2, 3, 4, 5, 6, 7)
+    q = limits.grid_point(n)
+    assert limits.to_steps(q) == AxisLimits._round_steps(q, limits.steps)
+
+
+def test_quantise_of_a_grid_point_is_that_point_and_of_others_their_rounding() -> None:
+    limits = _limits("2021")
+    q = limits.grid_point((100, -200, 300, 0, 5, -6, 7))
+    assert limits.quantise(q) is q
+    other = (1.23456, -2.5, 0.0, 3.3, 4.4, 5.5, 6.6)
+    assert limits.quantise(other) == limits.from_steps(limits.to_steps(other))
+    assert limits.quantise(tuple(q)) == q
+
+
+def _block_fields(block: Block) -> tuple[object, ...]:
+    names = ("kind", "start", "end", "length", "speed", "accel", "direction_in", "direction_out",
+             "junction_deviation", "start_steps", "delta_steps", "timed", "duration")  # fmt: skip
+    return tuple(getattr(block, name) for name in names)
+
+
+def test_a_joint_block_from_whole_steps_is_the_block_from_its_ends() -> None:
+    rng = random.Random(11)
+    for profile in ("classic", "2021"):
+        limits = _limits(profile)
+        for _ in range(300):
+            a = tuple(rng.uniform(-120.0, 120.0) for _ in range(7))
+            b = tuple(x + rng.choice((0.0, rng.uniform(-30.0, 30.0))) for x in a)
+            feed = rng.choice((None, 2000.0, 1e-9, 5e5))
+            general = joint_block(a, b, feed, limits)
+            fast = joint_block_in_steps(limits.to_steps(a), limits.to_steps(b), feed, limits)
+            assert _block_fields(fast) == _block_fields(general)
+            for s in (0.0, general.length / 3, general.length):
+                assert fast.position_at(s) == general.position_at(s)
+
+
+def test_a_move_made_again_shares_its_block_and_runs_as_often_as_queued() -> None:
+    limits = _limits("classic")
+    there, back = (10.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0), motion.ZERO
+    first = joint_block(back, there, 2000.0, limits)
+    again = joint_block(back, there, 2000.0, limits)
+    assert again is first  # shared: a block never changes once built
+    other_limits = _limits("classic")  # other limits (settings changed): built anew
+    assert joint_block(back, there, 2000.0, other_limits) is not first
+    planner = motion.Planner(motion.ZERO)
+    for _ in range(3):
+        planner.push(joint_block(planner.planned_position, there, 2000.0, limits))
+        planner.push(joint_block(planner.planned_position, back, 2000.0, limits))
+    assert len(planner.blocks) == 6
+    planner.advance(math.inf)
+    assert not planner.busy
+    assert planner.position == limits.quantise(back)
+    assert planner.finished == 6
+
+
+def _soft_violation_by_loop(settings: dict[int, float], q: tuple[float, ...]) -> str | None:
+    if settings[20] == 0:
+        return None
+    for k, letter in enumerate("ABCDXYZ"):  # firmware axes a..g = J4, J5, J6, D, J1, J2, J3
+        value = q[(3, 4, 5, 6, 0, 1, 2)[k]]
+        if value > settings[130 + k] or value < -settings[140 + k]:
+            return letter
+    return None
+
+
+def test_the_soft_limit_check_names_the_first_axis_out_of_range_in_firmware_order() -> None:
+    rng = random.Random(5)
+    for profile in ("classic", "2021"):
+        settings = dict(default_settings(profile))
+        settings[20] = 1.0
+        geometry = Geometry(profile, settings)
+        for _ in range(2000):
+            q = tuple(rng.choice((rng.uniform(-200.0, 200.0), 0.0, math.nan)) for _ in range(7))
+            assert geometry.soft_violation(q) == _soft_violation_by_loop(settings, q), q
+        settings[133] = math.nan  # a range that compares false
+        q = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 5.0)
+        assert geometry.soft_violation(q) == _soft_violation_by_loop(settings, q)
