@@ -30,6 +30,7 @@ never be matched to that line.
 
 from __future__ import annotations
 
+import functools
 import re
 from collections import deque
 from collections.abc import Callable, Iterator
@@ -59,6 +60,11 @@ from mirobot_async._core.replies import (
     parse_status,
 )
 from mirobot_async.errors import MirobotProtocolError, MirobotUsageError
+
+_classify: Callable[[str], Reply] = functools.lru_cache(maxsize=256)(classify_line)
+""":func:`classify_line` once per distinct line: the robot repeats most of what it prints (``ok``,
+the 2021 firmware's ``Info, M21: Angle mode start.`` after every joint line), and a
+:class:`Reply` is immutable."""
 
 FinalReply = LineAcknowledged | LineRejected  # a line's final reply
 
@@ -358,7 +364,7 @@ class MirobotConnection:
             return
         if raw_bytes.isspace():
             return  # whitespace only: an empty line
-        reply = classify_line(raw)
+        reply = _classify(raw)
         kind = reply.kind
         if self._banner is not None and kind in _BANNER_BODY and not reply.ok:
             self._banner_line(reply.raw.strip(), kind is ReplyKind.BANNER_END)
