@@ -30,7 +30,8 @@ from mirobot_async._client.guard import EnvelopeGuard, NullGuard
 from mirobot_async._client.scheduler import LineScheduler, Slot, StreamStopped
 from mirobot_async._core.line import ParsedLine, parse_line
 from mirobot_async._core.protocol import LineRejected, encode_line
-from mirobot_async._core.validation import InvalidLineError, ModalState, judge_stream
+from mirobot_async._core.stream_verdict import judge_stream
+from mirobot_async._core.validation import InvalidLineError, ModalState
 from mirobot_async.errors import (
     MirobotAlarmError,
     MirobotError,

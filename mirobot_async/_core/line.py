@@ -293,10 +293,12 @@ def _dollar(text: str) -> DollarLine:
     return DollarLine("setting", parameter, value.value, canonical)
 
 
-_MOTION_G: Final = frozenset({0, 1, 2, 3, 5, 80})
-_DISTANCE_G: Final = frozenset({90, 91})
-_UNITS_G: Final = frozenset({20, 21})
-_COORDINATE_M: Final = frozenset({20, 21})
+_G_GROUP: Final = {
+    **dict.fromkeys((0, 1, 2, 3, 5, 80), "motion"),
+    **dict.fromkeys((90, 91), "distance"),
+    **dict.fromkeys((20, 21), "units"),
+}
+_M_GROUP: Final = dict.fromkeys((20, 21), "coordinate")
 _NO_AXES: Final[Mapping[str, float]] = MappingProxyType({})
 _PROGRAM_END: Final = frozenset({2, 30})
 
@@ -335,6 +337,8 @@ class ParsedLine:
     _coordinate_mode: int | None = field(init=False, repr=False, compare=False)
     _odd_numbers: bool = field(init=False, repr=False, compare=False)
     _axis_letters: frozenset[str] = field(init=False, repr=False, compare=False)
+    _group_conflict: bool = field(init=False, repr=False, compare=False)
+    _coordinate_conflict: str | None = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         codes: list[CodeWord] = []
@@ -342,26 +346,19 @@ class ParsedLine:
         twice: list[str] = []
         g_codes: list[int] = []
         m_codes: list[int] = []
-        motion = distance = units = coordinate = None
-        odd = False
+        first: dict[str, int] = {}  # the first code of each modal group
+        odd = twice_in_group = False
         for w in self.words:
             odd = odd or w.lossy
             if isinstance(w, CodeWord):
                 odd = odd or not w.canonical
                 codes.append(w)
                 code = w.code
-                if w.letter == "G":
-                    g_codes.append(code)
-                    if motion is None and code in _MOTION_G:
-                        motion = code
-                    elif distance is None and code in _DISTANCE_G:
-                        distance = code
-                    elif units is None and code in _UNITS_G:
-                        units = code
-                else:
-                    m_codes.append(code)
-                    if coordinate is None and code in _COORDINATE_M:
-                        coordinate = code
+                (g_codes if w.letter == "G" else m_codes).append(code)
+                group = (_G_GROUP if w.letter == "G" else _M_GROUP).get(code)
+                if group is not None:
+                    twice_in_group = twice_in_group or group in first
+                    first.setdefault(group, code)
             elif w.letter in values:
                 if w.letter not in twice:
                     twice.append(w.letter)
@@ -376,11 +373,15 @@ class ParsedLine:
         axes = {k: values[k] for k in AXIS_LETTERS if k in values}
         setter(self, "_axis_words", MappingProxyType(axes) if axes else _NO_AXES)
         setter(self, "_axis_letters", frozenset(axes))
-        setter(self, "_motion", motion)
-        setter(self, "_distance", distance)
-        setter(self, "_units", units)
+        coordinate = first.get("coordinate")
+        setter(self, "_motion", first.get("motion"))
+        setter(self, "_distance", first.get("distance"))
+        setter(self, "_units", first.get("units"))
         setter(self, "_coordinate_mode", coordinate)
         setter(self, "_odd_numbers", odd)
+        setter(self, "_group_conflict", twice_in_group)
+        conflict = None if coordinate is None else _coordinate_conflict(codes)
+        setter(self, "_coordinate_conflict", conflict)
 
     # ---- the words -------------------------------------------------------------------------
 
@@ -499,17 +500,13 @@ class ParsedLine:
         Seen on the firmware oracle: ``G21 M21`` (a units word before it) and ``M21 M3`` (another
         M word in the line) give ``Modal group violation``, yet the M20/M21 takes effect.
         """
-        if self.coordinate_mode is None:
-            return None
-        seen = False
-        for word in self.codes:
-            if word.letter == "M" and word.code in (20, 21):
-                seen = True
-            elif word.letter == "G" and word.code in (20, 21) and not seen:
-                return f"{word} before the M20/M21 word"
-            elif word.letter == "M" and word.code not in (20, 21):
-                return f"{word} in the same line as M20/M21"
-        return None
+        return self._coordinate_conflict
+
+    @property
+    def group_conflict(self) -> bool:
+        """Two words of one modal group in the line (motion, distance, units: ``G``; coordinate
+        mode: ``M20``/``M21``): the firmware refuses it (``Modal group violation``)."""
+        return self._group_conflict
 
     @property
     def may_move(self) -> bool:
@@ -524,6 +521,19 @@ class ParsedLine:
 
     def __str__(self) -> str:
         return self.text
+
+
+def _coordinate_conflict(codes: list[CodeWord]) -> str | None:
+    """:attr:`ParsedLine.coordinate_conflict` of a line with an ``M20``/``M21`` word."""
+    seen = False
+    for word in codes:
+        if word.letter == "M" and word.code in (20, 21):
+            seen = True
+        elif word.letter == "G" and word.code in (20, 21) and not seen:
+            return f"{word} before the M20/M21 word"
+        elif word.letter == "M" and word.code not in (20, 21):
+            return f"{word} in the same line as M20/M21"
+    return None
 
 
 _STILL_G: Final = frozenset({0, 1, 2, 3, 4, 5, 17, 20, 21, 40, 54, 61, 80, 90, 91, 93, 94})

@@ -67,12 +67,18 @@ def modes_of(parsed: ParsedLine, modes: MotionModes) -> MotionModes:
     distance = parsed.distance
     motion = parsed.motion
     units = parsed.units
-    return MotionModes(
-        modes.cartesian if coordinate is None else coordinate == 20,
-        modes.relative if distance is None else distance == 91,
-        modes.motion if motion is None else motion,
-        modes.inches if units is None else units == 20,
-    )
+    cartesian = modes.cartesian if coordinate is None else coordinate == 20
+    relative = modes.relative if distance is None else distance == 91
+    motion = modes.motion if motion is None else motion
+    inches = modes.inches if units is None else units == 20
+    if (cartesian, relative, motion, inches) == (
+        modes.cartesian,
+        modes.relative,
+        modes.motion,
+        modes.inches,
+    ):
+        return modes  # the line restates the modes in effect (most lines of a program)
+    return MotionModes(cartesian, relative, motion, inches)
 
 
 def modes_after(parsed: ParsedLine, modes: MotionModes) -> MotionModes:
@@ -81,28 +87,6 @@ def modes_after(parsed: ParsedLine, modes: MotionModes) -> MotionModes:
     if parsed.program_end:  # GRBL: M2/M30 reset the distance mode and make the motion G1
         return replace(new, relative=False, motion=1)
     return new
-
-
-_G_GROUP: Final = {
-    **dict.fromkeys((0, 1, 2, 3, 5, 80), "motion"),
-    **dict.fromkeys((90, 91), "distance"),
-    **dict.fromkeys((20, 21), "units"),
-}
-
-
-def _group_conflict(parsed: ParsedLine) -> bool:
-    """Two words of one modal group (motion, distance, units, coordinate mode) in the line."""
-    g_codes = parsed.g_codes
-    if len(g_codes) > 1:
-        seen: set[str] = set()
-        for code in g_codes:
-            group = _G_GROUP.get(code)
-            if group is not None:
-                if group in seen:
-                    return True
-                seen.add(group)
-    m_codes = parsed.m_codes
-    return len(m_codes) > 1 and sum(code in (20, 21) for code in m_codes) > 1
 
 
 def update_modes(line: str | bytes | ParsedLine, modes: MotionModes) -> MotionModes:
@@ -123,7 +107,7 @@ def update_modes(line: str | bytes | ParsedLine, modes: MotionModes) -> MotionMo
         return modes
     if parsed.has_odd_numbers or parsed.repeated:
         return MotionModes.unknown()
-    if parsed.coordinate_conflict is not None or _group_conflict(parsed):
+    if parsed.coordinate_conflict is not None or parsed.group_conflict:
         # the firmware refuses the line; an M20/M21 in it may take effect all the same
         return modes if parsed.coordinate_mode is None else replace(modes, cartesian=None)
     return modes_after(parsed, modes)
