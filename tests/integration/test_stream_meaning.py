@@ -8,7 +8,9 @@ tests/oracle/test_diff_chaining.py."""
 from __future__ import annotations
 
 import asyncio
+from collections.abc import Awaitable, Callable
 from pathlib import Path
+from typing import TypeVar
 
 import pytest
 from chaining_programs import joints_of, programs, stepped, streamed, to_zero
@@ -19,6 +21,8 @@ from hypothesis import strategies as st
 from mirobot_async import Mirobot, MotionChainError, MotionRefusedError, StatusReport
 from mirobot_async._cli.exits import EXIT_FAILED
 from mirobot_async.testing import EmulatorProcess
+
+_T = TypeVar("_T")
 
 TIME_SCALE = 4.0
 """Fast enough for many examples, slow enough that lines are parsed while the arm moves."""
@@ -32,12 +36,10 @@ STEP = 0.06
 """Two whole motor steps of the coarsest joint, in degrees (J3: 64 steps/degree)."""
 
 
-async def _both(url: str, program: list[str]) -> tuple[object, object]:
+async def _run(url: str, run: Callable[[Mirobot], Awaitable[_T]]) -> _T:
     async with Mirobot.connect(url, status_timeout=STATUS_TIMEOUT) as arm:
         await arm.unlock()
-        through_stream = await streamed(arm, program)
-        one_at_a_time = await stepped(arm, program)
-    return through_stream, one_at_a_time
+        return await run(arm)
 
 
 @pytest.mark.oracle_differs(
@@ -60,7 +62,10 @@ def test_streamed_programs_end_where_stepped_ones_do(
         with lend_emulator(
             firmware, TIME_SCALE, in_process_time_scale=IN_PROCESS_TIME_SCALE
         ) as url:
-            through_stream, one_at_a_time = asyncio.run(_both(url, program))
+            through_stream = asyncio.run(_run(url, lambda arm: streamed(arm, program)))
+        # The reference: each line from rest, so the arm's speed plays no part in it.
+        with lend_emulator(firmware, 0) as url:
+            one_at_a_time = asyncio.run(_run(url, lambda arm: stepped(arm, program)))
         if isinstance(through_stream, MotionChainError):
             event("refused before the first byte")
             assert "G4 P0" in str(through_stream) and "once at the top" in str(through_stream)
@@ -130,6 +135,8 @@ def test_the_clients_own_moves_chain_without_waiting(
             firmware, TIME_SCALE, in_process_time_scale=IN_PROCESS_TIME_SCALE
         ) as url:
             queued = asyncio.run(_client_moves(url, moves, wait=False))
+        # The reference: each move from rest, so the arm's speed plays no part in it.
+        with lend_emulator(firmware, 0) as url:
             waited = asyncio.run(_client_moves(url, moves, wait=True))
         assert queued == pytest.approx(waited, abs=STEP)
 
