@@ -183,7 +183,9 @@ async def wait_status(
 
 
 async def test_the_tools_resources_and_a_session_on_the_embedded_arm(errlog: TextIO) -> None:
-    async with mcp_command(errlog=errlog) as call:  # embedded, time scale 10
+    # embedded; at time scale 100 each move still takes milliseconds: a tool that returned
+    # before the arm stopped would report it in Run
+    async with mcp_command("--time-scale", "100", errlog=errlog) as call:
         listed = (await call.session.list_tools()).tools
         resources = (await call.session.list_resources()).resources
         envelope = await call.session.read_resource("mirobot://envelope")
