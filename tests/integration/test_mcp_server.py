@@ -298,7 +298,7 @@ async def test_hold_stops_a_running_program_and_resume_finishes_it(
 
             still = await wait_status(call, still_in_hold, "a held arm standing still")
             assert not running.done()  # the program waits, held
-            await emulator.control("time-scale 20")  # the rest of the motion needs no real time
+            await emulator.control("time-scale 100")  # the rest of the motion needs no real time
             resumed = data_of(await call("resume"))
             ran = data_of(await asyncio.wait_for(running, 60))
         finally:
