@@ -145,14 +145,15 @@ def test_the_clients_own_moves_chain_without_waiting(
 
 @pytest.mark.mirobot_emulator(time_scale=TIME_SCALE)
 async def test_relative_move_after_a_queued_one_adds_to_its_end(ready_arm: Mirobot) -> None:
-    """The issue's case: ``move_joints(j1=-40, wait=False)`` then ``move_joints(j1=60,
-    relative=True, wait=False)`` ends at J1 = 20 (with M21 on the second line the firmware
-    would measure it from where the arm is: 60)."""
+    """The issue's case, in smaller moves: ``move_joints(j1=-10, wait=False)`` then
+    ``move_joints(j1=15, relative=True, wait=False)`` ends at J1 = 5 (with M21 on the second
+    line the firmware would measure it from where the arm is: 15, as the issue's -40 then +60
+    ended at 60, not 20)."""
     arm = ready_arm
-    await arm.move_joints(j1=-40, wait=False)
-    await arm.move_joints(j1=60, relative=True, wait=False)
+    await arm.move_joints(j1=-10, wait=False)
+    await arm.move_joints(j1=15, relative=True, wait=False)
     report = await arm.wait_idle()
-    assert report.joints[0] == pytest.approx(20, abs=STEP)
+    assert report.joints[0] == pytest.approx(5, abs=STEP)
 
 
 @pytest.mark.mirobot_emulator(time_scale=TIME_SCALE)
