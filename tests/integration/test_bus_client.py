@@ -252,23 +252,17 @@ async def test_address_and_baud_queries(bus: ControllerBus) -> None:
     assert await bus.controller(3).bus_baud() == 38400
 
 
-SILENT = BusTiming(answer_timeout=0.25)
-"""For the tests that wait for nodes that never answer: half the default's wait (the bus
-emulator's nodes answer within milliseconds of wall time at its time scale)."""
-
-
-async def test_a_missing_node_times_out_naming_its_address(fast_bus: BusEmulator) -> None:
-    async with ControllerBus.open(fast_bus.path, timing=SILENT) as bus:
-        arm1 = await bus.connect_arm(1)
-        started = time.monotonic()
-        with pytest.raises(NodeSilentError, match="@05") as caught:
-            await bus.connect_arm(5)
-        assert isinstance(caught.value, MirobotTimeoutError) and caught.value.address == 5
-        with pytest.raises(NodeSilentError, match="@05"):
-            await bus.controller(5).arm_state()
-        assert time.monotonic() - started < 3.0
-        assert (await arm1.status()).state is not None  # the others keep working
-        assert (await bus.controller(2).arm_state()).word
+async def test_a_missing_node_times_out_naming_its_address(bus: ControllerBus) -> None:
+    arm1 = await bus.connect_arm(1)
+    started = time.monotonic()
+    with pytest.raises(NodeSilentError, match="@05") as caught:
+        await bus.connect_arm(5)
+    assert isinstance(caught.value, MirobotTimeoutError) and caught.value.address == 5
+    with pytest.raises(NodeSilentError, match="@05"):
+        await bus.controller(5).arm_state()
+    assert time.monotonic() - started < 3.0
+    assert (await arm1.status()).state is not None  # the others keep working
+    assert (await bus.controller(2).arm_state()).word
 
 
 async def test_cancelling_a_waiting_call_shifts_no_reply(paced_bus: ControllerBus) -> None:
@@ -288,7 +282,7 @@ async def test_cancelling_a_waiting_call_shifts_no_reply(paced_bus: ControllerBu
 
 
 async def test_change_of_address_and_baud(own_fast_bus: BusEmulator) -> None:
-    async with ControllerBus.open(own_fast_bus.path, timing=SILENT) as bus:
+    async with ControllerBus.open(own_fast_bus.path) as bus:
         controller = bus.controller(4)
         await controller.set_bus_address(7)
         assert controller.address == 7 and bus.controller(7) is controller
