@@ -87,7 +87,7 @@ async def test_hold_while_homing_is_refused_with_the_way_out(
 ) -> None:
     """The firmware ignores feed hold while it homes: hold says so (and that reset stops it)."""
     async with (
-        mirobot_emulator_pool.lend_async("2021", 20.0) as emulator,  # homing: ~0.5 s
+        mirobot_emulator_pool.lend_async("2021", 10.0) as emulator,
         Mirobot.connect(emulator.url, firmware="2021", envelope=default_envelope("2021")) as arm,
     ):
         service = ArmService(arm)
