@@ -12,7 +12,7 @@ import pytest
 from mirobot_async import Mirobot, State
 from mirobot_async._core.line import parse_line
 
-pytestmark = pytest.mark.mirobot_emulator(time_scale=20)
+pytestmark = pytest.mark.mirobot_emulator(time_scale=50)  # the reset lands in a 1.8 s move
 
 
 async def _remembered_alarm(arm: Mirobot) -> None:

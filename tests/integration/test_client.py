@@ -620,7 +620,8 @@ async def test_the_firmware_profile_is_learnt_only_at_rest(
         # flush drops the banner: the profile is unknown here, or this test proves nothing.
         assert arm.firmware is None, "the banner was seen at connect (nothing to detect)"
         await arm.unlock()
-        await arm.move_joints(j1=6, speed=900, wait=False)  # moving for about a second
+        # moving for 0.4 s (2 * sqrt(2 / 50): accelerating at 50 deg/s^2, never reaching F900)
+        await arm.move_joints(j1=2, speed=900, wait=False)
         await arm.set_setting(24, 1400, timeout=10)
         assert arm.firmware == profile
         assert (await arm.settings())[24] == 1400

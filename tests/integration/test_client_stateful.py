@@ -48,9 +48,9 @@ from mirobot_async.kinematics import (
 )
 from mirobot_async.testing import EmulatorPool, SyncEmulatorProcess
 
-# 12 examples of 20 steps take 6-20 s, a few minutes on a loaded CI host's pty lane (one run cut
-# at 120 s in a 30 s wait_idle); every wait inside has its own bound, which names what it waited
-# for: the test's bound stays above them.
+# 12 examples of 20 steps take 2-4 s (6-20 s at time scale 50), longer on a loaded CI host's pty
+# lane (one run cut at 120 s in a 30 s wait_idle); every wait inside has its own bound, which
+# names what it waited for: the test's bound stays above them.
 pytestmark = pytest.mark.timeout(300)
 
 _POOL: list[EmulatorPool] = []  # the session's pool while a test of this module runs
@@ -71,7 +71,11 @@ def _emulator_pool(mirobot_emulator_pool: EmulatorPool) -> Iterator[None]:
 
 
 T = TypeVar("T")
-TIME_SCALE = 50.0
+TIME_SCALE = 500.0
+"""Nothing here judges the arm's timing, only where it ends: its moves and homing may be quick.
+``hold_and_resume`` moves slowly enough (``HOLD_SPEED``) for its hold to land mid-move."""
+HOLD_SPEED = 300.0
+"""J1 moves at least 115 degrees at this speed: tens of milliseconds at ``TIME_SCALE``."""
 JOINT_TOL = 0.05  # half a motor step (the firmware moves in whole steps)
 POSE_TOL = 0.1
 
@@ -383,7 +387,7 @@ class ClientMachine(RuleBasedStateMachine):
         if m.joints is None:
             m.joints = self.run(arm.status()).joints
         goal = -80.0 if m.joints[0] > 35 else 150.0
-        assert self.run(arm.move_joints(j1=goal, speed=600, wait=False)) is None
+        assert self.run(arm.move_joints(j1=goal, speed=HOLD_SPEED, wait=False)) is None
         held = self.run(arm.hold())
         note(f"held: {held.to_line()}")
         assert held.state in (State.HOLD, State.IDLE)

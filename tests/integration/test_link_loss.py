@@ -12,6 +12,7 @@ import asyncio
 import gc
 import logging
 import os
+import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -202,17 +203,18 @@ async def test_connect_to_a_path_that_is_no_port_fails_at_once(tmp_path: Path, k
 class _PortSpy:
     """Wraps ``serial.serial_for_url``: records each port opened and whether it was closed."""
 
-    def __init__(self, monkeypatch: pytest.MonkeyPatch, delay: float = 0.0) -> None:
+    def __init__(self, monkeypatch: pytest.MonkeyPatch, *, hang: bool = False) -> None:
         import serial
 
         self.ports: list[Any] = []
         self.opening = False
+        self.release = threading.Event()  # with ``hang``, the open waits for it
         original = serial.serial_for_url
 
         def opener(*args: Any, **kwargs: Any) -> Any:
             self.opening = True
-            if delay:
-                time.sleep(delay)  # (in the executor thread) an open that hangs a while
+            if hang:  # an open that hangs until the test lets it finish
+                assert self.release.wait(10), "the test never let the open finish"
             port = original(*args, **kwargs)
             self.ports.append(port)
             return port
@@ -242,11 +244,13 @@ async def test_a_port_opened_after_the_open_timed_out_is_closed(
 ) -> None:
     from mirobot_async._client import transport
 
-    spy = _PortSpy(monkeypatch, delay=1.0)  # far past the open's timeout of 0.05 s
+    spy = _PortSpy(monkeypatch, hang=True)  # opened only after the open's timeout of 0.05 s
     with pytest.raises(MirobotConnectionError, match="within"):
         await transport.SerialLink.open(
             "loop://", on_data=lambda _: None, on_lost=lambda _: None, timeout=0.05
         )
+    assert not spy.ports  # still opening
+    spy.release.set()
     await wait_until(lambda: spy.ports and not spy.ports[0].is_open, 10, "the late port closed")
     assert len(spy.ports) == 1
     assert not spy.ports[0].is_open
@@ -257,14 +261,16 @@ async def test_a_port_opened_after_the_open_was_cancelled_is_closed(
 ) -> None:
     from mirobot_async._client import transport
 
-    spy = _PortSpy(monkeypatch, delay=1.0)
+    spy = _PortSpy(monkeypatch, hang=True)
     opening = asyncio.create_task(
         transport.SerialLink.open("loop://", on_data=lambda _: None, on_lost=lambda _: None)
     )
     await wait_until(lambda: spy.opening, 5, "the open under way (in its thread)")
-    opening.cancel()  # the open hangs for 1 s yet
+    opening.cancel()  # the open hangs yet
     with pytest.raises(asyncio.CancelledError):
         await opening
+    assert not spy.ports  # still opening
+    spy.release.set()
     await wait_until(lambda: spy.ports and not spy.ports[0].is_open, 10, "the late port closed")
     assert len(spy.ports) == 1
     assert not spy.ports[0].is_open

@@ -183,7 +183,9 @@ async def wait_status(
 
 
 async def test_the_tools_resources_and_a_session_on_the_embedded_arm(errlog: TextIO) -> None:
-    async with mcp_command(errlog=errlog) as call:  # embedded, time scale 10
+    # embedded; at time scale 100 each move still takes milliseconds: a tool that returned
+    # before the arm stopped would report it in Run
+    async with mcp_command("--time-scale", "100", errlog=errlog) as call:
         listed = (await call.session.list_tools()).tools
         resources = (await call.session.list_resources()).resources
         envelope = await call.session.read_resource("mirobot://envelope")
@@ -296,7 +298,7 @@ async def test_hold_stops_a_running_program_and_resume_finishes_it(
 
             still = await wait_status(call, still_in_hold, "a held arm standing still")
             assert not running.done()  # the program waits, held
-            await emulator.control("time-scale 20")  # the rest of the motion needs no real time
+            await emulator.control("time-scale 100")  # the rest of the motion needs no real time
             resumed = data_of(await call("resume"))
             ran = data_of(await asyncio.wait_for(running, 60))
         finally:

@@ -8,7 +8,9 @@ tests/oracle/test_diff_chaining.py."""
 from __future__ import annotations
 
 import asyncio
+from collections.abc import Awaitable, Callable
 from pathlib import Path
+from typing import TypeVar
 
 import pytest
 from chaining_programs import joints_of, programs, stepped, streamed, to_zero
@@ -20,11 +22,14 @@ from mirobot_async import Mirobot, MotionChainError, MotionRefusedError, StatusR
 from mirobot_async._cli.exits import EXIT_FAILED
 from mirobot_async.testing import EmulatorProcess
 
+_T = TypeVar("_T")
+
 TIME_SCALE = 4.0
 """Fast enough for many examples, slow enough that lines are parsed while the arm moves."""
-IN_PROCESS_TIME_SCALE = 40.0
+IN_PROCESS_TIME_SCALE = 100.0
 """In-process, a line reaches the firmware the instant it is written: the arm still moves while
-the lines after it are parsed at this speed too."""
+the lines after it are parsed at this speed too (a move of a few degrees lasts milliseconds;
+with the client's restart checks disabled the properties fail at 200 already)."""
 STATUS_TIMEOUT = 10.0
 """On the oracle link the simulator's clock slips behind the wall clock on a loaded host (a CI
 run timed out at the client's 2 s); the replies' timing is not what these tests judge."""
@@ -32,12 +37,10 @@ STEP = 0.06
 """Two whole motor steps of the coarsest joint, in degrees (J3: 64 steps/degree)."""
 
 
-async def _both(url: str, program: list[str]) -> tuple[object, object]:
+async def _run(url: str, run: Callable[[Mirobot], Awaitable[_T]]) -> _T:
     async with Mirobot.connect(url, status_timeout=STATUS_TIMEOUT) as arm:
         await arm.unlock()
-        through_stream = await streamed(arm, program)
-        one_at_a_time = await stepped(arm, program)
-    return through_stream, one_at_a_time
+        return await run(arm)
 
 
 @pytest.mark.oracle_differs(
@@ -60,7 +63,10 @@ def test_streamed_programs_end_where_stepped_ones_do(
         with lend_emulator(
             firmware, TIME_SCALE, in_process_time_scale=IN_PROCESS_TIME_SCALE
         ) as url:
-            through_stream, one_at_a_time = asyncio.run(_both(url, program))
+            through_stream = asyncio.run(_run(url, lambda arm: streamed(arm, program)))
+        # The reference: each line from rest, so the arm's speed plays no part in it.
+        with lend_emulator(firmware, 0) as url:
+            one_at_a_time = asyncio.run(_run(url, lambda arm: stepped(arm, program)))
         if isinstance(through_stream, MotionChainError):
             event("refused before the first byte")
             assert "G4 P0" in str(through_stream) and "once at the top" in str(through_stream)
@@ -130,6 +136,8 @@ def test_the_clients_own_moves_chain_without_waiting(
             firmware, TIME_SCALE, in_process_time_scale=IN_PROCESS_TIME_SCALE
         ) as url:
             queued = asyncio.run(_client_moves(url, moves, wait=False))
+        # The reference: each move from rest, so the arm's speed plays no part in it.
+        with lend_emulator(firmware, 0) as url:
             waited = asyncio.run(_client_moves(url, moves, wait=True))
         assert queued == pytest.approx(waited, abs=STEP)
 
@@ -138,14 +146,15 @@ def test_the_clients_own_moves_chain_without_waiting(
 
 @pytest.mark.mirobot_emulator(time_scale=TIME_SCALE)
 async def test_relative_move_after_a_queued_one_adds_to_its_end(ready_arm: Mirobot) -> None:
-    """The issue's case: ``move_joints(j1=-40, wait=False)`` then ``move_joints(j1=60,
-    relative=True, wait=False)`` ends at J1 = 20 (with M21 on the second line the firmware
-    would measure it from where the arm is: 60)."""
+    """The issue's case, in smaller moves: ``move_joints(j1=-10, wait=False)`` then
+    ``move_joints(j1=15, relative=True, wait=False)`` ends at J1 = 5 (with M21 on the second
+    line the firmware would measure it from where the arm is: 15, as the issue's -40 then +60
+    ended at 60, not 20)."""
     arm = ready_arm
-    await arm.move_joints(j1=-40, wait=False)
-    await arm.move_joints(j1=60, relative=True, wait=False)
+    await arm.move_joints(j1=-10, wait=False)
+    await arm.move_joints(j1=15, relative=True, wait=False)
     report = await arm.wait_idle()
-    assert report.joints[0] == pytest.approx(20, abs=STEP)
+    assert report.joints[0] == pytest.approx(5, abs=STEP)
 
 
 @pytest.mark.mirobot_emulator(time_scale=TIME_SCALE)
