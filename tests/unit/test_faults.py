@@ -534,7 +534,8 @@ def test_split_bytes_from_the_control_channel() -> None:
         chunks = _read_until(fd, lambda data: data.count(b"ok\r\n") == 50)
         assert b"".join(chunks) == b"ok\r\n" * 50
         assert robot.server.split_writes >= 0.9 * 200  # one write per byte
-        assert any(len(chunk) == 1 for chunk in chunks), [len(c) for c in chunks]
+        # (how the reads come out depends on when this process is scheduled: under load the
+        # pty hands over several single-byte writes at once, so the chunks are not checked)
 
 
 def test_delay_holds_every_reply_and_keeps_the_order() -> None:
