@@ -4,7 +4,6 @@ loop that feeds received lines to the ``$`` commands and the G-code executor."""
 from __future__ import annotations
 
 import math
-import re
 from collections import deque
 from typing import Final
 
@@ -47,11 +46,6 @@ RESET_DEAF_SECONDS: Final = 0.00035
 """A ``?`` that arrives this soon after the ``%`` is lost: the reset re-initialises the
 firmware's realtime flags after the byte was flagged (oracle: lost 100-300 us after ``%``,
 answered from 400 us; the bytes of lines are kept)."""
-
-_REALTIME: Final = frozenset(b"?!~%@")
-_LINE_ENDS: Final = frozenset(b"\r\n")
-_RUN: Final = re.compile(rb"[^?!~%@\r\n]*[\r\n]?")
-"""Bytes up to and including the next line end, stopping before a realtime byte."""
 
 
 class Firmware:
@@ -124,34 +118,8 @@ class Firmware:
         self.uart.sync(self._m.printed, self.now)
 
     def _deliver(self, data: bytes) -> None:
-        """Bytes that have arrived at the UART."""
-        rx = self._m.rx
-        waiting = False  # bytes put since the last pump (the parser takes them as they come)
-        i, n = 0, len(data)
-        while i < n:
-            if data[i] in _REALTIME:
-                if waiting:
-                    self._pump_if_free()  # what arrived before it is handled first
-                    waiting = False
-                self._realtime(data[i])
-                i += 1
-                continue
-            match = _RUN.match(data, i)
-            assert match is not None  # the pattern matches the non-realtime byte at i
-            run, i = match.group(), match.end()
-            ends_line = run[-1] in _LINE_ENDS
-            while run:
-                taken = rx.put_bytes(run)
-                run = run[taken:]
-                waiting = waiting or taken > 0
-                if (ends_line and not run) or not rx.free:
-                    self._pump_if_free()  # a line is complete or the ring is full
-                    waiting = False
-                    if run and not rx.free:
-                        rx.lose(len(run))  # the parser is busy: the rest is lost
-                        break
-        if waiting:
-            self._pump_if_free()
+        """Bytes that have arrived at the UART (:meth:`.LineBuffer.arrive`)."""
+        self._m.rx.arrive(data, self._pump_if_free, self._realtime)
 
     def _pump_if_free(self) -> None:
         if not self._m.blocked():
@@ -164,7 +132,7 @@ class Firmware:
         """
         if not dt >= 0.0:
             raise ValueError(f"dt must be >= 0, got {dt}")
-        m, uart, wire = self._m, self.uart, self._wire
+        m, uart, wire, parser = self._m, self.uart, self._wire, self._parser
         planner = m.planner
         end = self.now + dt
         self._service()
@@ -172,13 +140,22 @@ class Firmware:
         next_change, next_arrival = planner.time_to_next_change, wire.next_event
         while True:
             now = self.now
-            uart.sync(m.printed, now)  # what the last events printed, printed then
+            if m.printed != uart.seen:
+                uart.sync(m.printed, now)  # what the last events printed, printed then
             step = next_change()
-            for at in (self._parser.until, (arrival := next_arrival()), self._boot_until):
-                if at is not None:
-                    wait = at - now if at > now else 0.0  # max(at - now, 0.0)
-                    if step is None or wait < step:  # min(step, wait)
-                        step = wait
+            # the earliest of the planner's change, the parse's end, the next arrival, the boot
+            if (at := parser.until) is not None:
+                wait = at - now if at > now else 0.0  # max(at - now, 0.0)
+                if step is None or wait < step:  # min(step, wait)
+                    step = wait
+            if (arrival := next_arrival()) is not None:
+                wait = arrival - now if arrival > now else 0.0
+                if step is None or wait < step:
+                    step = wait
+            if (at := self._boot_until) is not None:
+                wait = at - now if at > now else 0.0
+                if step is None or wait < step:
+                    step = wait
             if step is None:
                 if not math.isinf(end):
                     planner.advance(end - now)  # its clock times the starvations
@@ -204,7 +181,7 @@ class Firmware:
                 self._deliver(due)  # before the parse ends: a full ring lost what came meanwhile
             if self._boot_until is not None and self._boot_until <= self.now:
                 self._finish_boot()
-            if self._parser.until is not None and self._parser.until <= self.now:
+            if parser.until is not None and parser.until <= self.now:
                 self._finish_parse()
             if zero_steps > 100_000:  # pragma: no cover - a planner bug, never loop forever
                 break
@@ -397,8 +374,12 @@ class Firmware:
         m = self._m
         if m.pending is not None and not m.progress_pending():
             return
-        if not m.blocked():
+        if m.parsing is not None or m.hold or m.suspended or m.critical or m.booting:
+            return  # (m.blocked(): the waiting line is done)
+        if m.rx.ring:
             self._pump()
+        elif not m.planner.started:
+            m.start_cycle()  # what _pump does without a line
 
     def _pump(self, *, waited: bool = True) -> None:
         """Start parsing the next complete line of the receive ring (the parser is free; it

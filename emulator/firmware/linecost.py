@@ -315,13 +315,14 @@ class ParserWork:
     ) -> bool:
         """Execute ``line`` with ``run``; if it queued a block (not waiting for a slot), hold
         its reply and keep ``line`` in ``m.parsing`` while the block is planned. True if so."""
-        queued, mark = len(m.planner.blocks), len(m.out)
+        planner = m.planner
+        free, mark = planner.free, len(m.out)
         run(line.text)
         work = self.work
-        if work is None or not work.cartesian or len(m.planner.blocks) <= queued or m.pending:
+        if work is None or not work.cartesian or planner.free >= free or m.pending:
             return False
         self.reply = m.withdraw(mark)
-        self.begin(m, now, block_seconds(queued))
+        self.begin(m, now, block_seconds(planner.CAPACITY - free))
         m.parsing = line
         return True
 
