@@ -204,11 +204,12 @@ class Firmware:
     def next_deadline(self) -> float | None:
         """Simulated time of the next internal change (a block ends, a line is parsed), None
         when nothing changes by itself."""
-        ttc = self._m.planner.time_to_next_change()
-        deadline = None if ttc is None else self.now + ttc
+        deadline = self._m.planner.time_to_next_change()
+        if deadline is not None:
+            deadline += self.now
         for at in (self._parser.until, self._wire.next_event(), self._boot_until):
-            if at is not None:
-                deadline = at if deadline is None else min(deadline, at)
+            if at is not None and (deadline is None or at < deadline):
+                deadline = at
         return deadline
 
     def reset(self) -> None:
@@ -403,8 +404,10 @@ class Firmware:
         if line is None:  # pragma: no cover - only called with a line in progress
             return
         requested, self._status_after_parse = self._status_after_parse, None
-        wait_at = self._parse_started + wait_point_seconds(line.text)  # a held line's wait
-        early = requested is not None and requested <= wait_at
+        early = (  # a ? came before the held line's wait
+            requested is not None
+            and requested <= self._parse_started + wait_point_seconds(line.text)
+        )
         m.report_before_start = self._report_now if early else None  # at the line's own wait
         if m.critical:
             m.line_cut_short = True  # a hard limit meanwhile: the reset prints its ok

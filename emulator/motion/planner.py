@@ -294,6 +294,10 @@ class Planner:
         """Move time forward by ``dt`` seconds (``math.inf``: run everything that can run)."""
         if not dt >= 0.0:
             raise ValueError(f"dt must be >= 0, got {dt}")
+        if not self._queue or not self.started:  # nothing runs: only the clock goes on
+            if dt != math.inf:
+                self.clock += dt
+            return
         remaining = dt
         if self._delay > 0.0 and self._queue and self.started:
             wait = min(self._delay, remaining)
