@@ -259,6 +259,20 @@ class GcodeExecutor:
                 m.emit("[Pgm End]")
             m.emit(ok)
             return
+        # what m.wait(Pending(blocks, "queued", ...)) does when every block has a free slot
+        if (
+            not wait_idle
+            and not dwell
+            and flow not in (0, 2, 30)
+            and m.pending is None
+            and len(blocks) <= m.planner.free
+        ):
+            for block in blocks:
+                m.planner.push(block)
+            if hard_limit is not None:
+                m.limit_blocks.append(hard_limit)
+            m.emit(ok)
+            return
 
         def finish() -> list[str]:
             if flow in (2, 30):
