@@ -45,6 +45,9 @@ class CheckedLine:
 
 _VALUE_WORDS: Final = frozenset("NFSTE")
 _AXIS_WORD_SET: Final = frozenset(AXIS_WORDS)
+_VALUE_AND_AXIS_WORDS: Final = _VALUE_WORDS | _AXIS_WORD_SET
+_P_WORD: Final = frozenset("P")
+_L_AND_P_WORDS: Final = frozenset("LP")
 _AXIS_INDEX: Final = {letter: k for k, letter in enumerate(AXIS_WORDS)}
 
 
@@ -62,7 +65,7 @@ def check_line(
     axis_letters = list(filter(words.__contains__, AXIS_WORDS))  # in AXIS_WORDS order
     nonmodal_axes = g.nonmodal in NONMODAL_AXIS_COMMANDS  # the axis words are G10/28/30/92's
     axis_command = not nonmodal_axes and (g.axis_command or bool(axis_letters))
-    used = set(_VALUE_WORDS | _AXIS_WORD_SET) if nonmodal_axes else set(_VALUE_WORDS)
+    used: frozenset[str] = _VALUE_AND_AXIS_WORDS if nonmodal_axes else _VALUE_WORDS
     if g.tool_length == 431:
         return c.INVALID_TOOL_LENGTH_AXIS  # oracle: G43.1 always (no axis fits the Mirobot)
 
@@ -85,7 +88,7 @@ def check_line(
     if g.nonmodal == 4:
         if "P" not in words:
             return c.VALUE_WORD_MISSING
-        used.add("P")
+        used = used | _P_WORD
     # [19] G10 and G92 need their words
     if g.nonmodal in (10, 92) and not axis_letters:
         return c.NO_AXIS_WORDS  # oracle: 'G10' alone -> 26, 'G10 C6' -> 28
@@ -94,7 +97,7 @@ def check_line(
             return c.VALUE_WORD_MISSING
         if words["L"] not in (2.0, 20.0) or words["P"] not in range(7):
             return c.UNSUPPORTED_COMMAND
-        used |= {"L", "P"}
+        used = used | _L_AND_P_WORDS
     # [12] units; [19] target (absolute targets add the work offsets, except with G53)
     scale = MM_PER_INCH if units == 20 else 1.0
     base: tuple[float, ...]
@@ -148,9 +151,9 @@ def check_line(
                 if isinstance(result, int):
                     return result
                 arc, arc_words = result
-                used |= arc_words
+                used = used | arc_words
     if axis_command:
-        used |= _AXIS_WORD_SET
+        used = _VALUE_AND_AXIS_WORDS if used is _VALUE_WORDS else used | _AXIS_WORD_SET
     if not used.issuperset(words):  # a word no command used
         return c.UNUSED_WORDS
     return CheckedLine(
