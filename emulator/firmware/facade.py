@@ -114,15 +114,22 @@ class Firmware:
         due = self._wire.take_due(self.now)
         if due:
             self._deliver(due)
-        self._parser.more_bytes()  # bytes that arrive during a parse delay it
-        self.uart.sync(self._m.printed, self.now)
+        if self._parser.until is not None:
+            self._parser.more_bytes()  # bytes that arrive during a parse delay it
+        if self._m.printed != self.uart.seen:
+            self.uart.sync(self._m.printed, self.now)
 
     def _deliver(self, data: bytes) -> None:
         """Bytes that have arrived at the UART (:meth:`.LineBuffer.arrive`)."""
         self._m.rx.arrive(data, self._pump_if_free, self._realtime)
 
     def _pump_if_free(self) -> None:
-        if not self._m.blocked():
+        m = self._m  # (not m.blocked(), without the call)
+        if (
+            m.pending is None
+            and m.parsing is None
+            and not (m.hold or m.suspended or m.critical or m.booting)
+        ):
             self._pump(waited=False)
 
     def advance(self, dt: float) -> None:

@@ -294,10 +294,16 @@ class ParserWork:
 
     def begin(self, m: Machine, now: float, seconds: float) -> None:
         """``seconds`` of work from ``now`` (``m``'s receive ring as it is now)."""
-        arrived = self._wire.arrived_by(now)
-        self._room = m.rx.free - (arrived - self._wire.delivered)  # bytes due are not put yet
+        wire = self._wire
+        if not wire.in_transit:  # no byte arrives meanwhile: no receive interrupt
+            self._room = m.rx.free
+            self._begun = (now, seconds, wire.delivered)
+            self.until = now + seconds + 0.0  # (what busy_until adds for no byte)
+            return
+        arrived = wire.arrived_by(now)
+        self._room = m.rx.free - (arrived - wire.delivered)  # bytes due are not put yet
         self._begun = (now, seconds, arrived)
-        self.until = self._wire.busy_until(*self._begun, self._interrupts)
+        self.until = wire.busy_until(*self._begun, self._interrupts)
 
     def more_bytes(self) -> None:
         """The host wrote more bytes: those that arrive before the end delay it."""
