@@ -145,6 +145,7 @@ class Firmware:
         self._service()
         zero_steps = 0
         next_change, next_arrival = planner.time_to_next_change, wire.next_event
+        in_transit = wire.in_transit  # (empty: next_arrival() is None)
         while True:
             now = self.now
             if m.printed != uart.seen:
@@ -155,7 +156,7 @@ class Firmware:
                 wait = at - now if at > now else 0.0  # max(at - now, 0.0)
                 if step is None or wait < step:  # min(step, wait)
                     step = wait
-            if (arrival := next_arrival()) is not None:
+            if (arrival := next_arrival() if in_transit else None) is not None:
                 wait = arrival - now if arrival > now else 0.0
                 if step is None or wait < step:
                     step = wait
@@ -214,7 +215,8 @@ class Firmware:
         deadline = self._m.planner.time_to_next_change()
         if deadline is not None:
             deadline += self.now
-        for at in (self._parser.until, self._wire.next_event(), self._boot_until):
+        arrival = self._wire.next_event() if self._wire.in_transit else None
+        for at in (self._parser.until, arrival, self._boot_until):
             if at is not None and (deadline is None or at < deadline):
                 deadline = at
         return deadline
