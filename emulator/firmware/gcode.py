@@ -252,7 +252,8 @@ class GcodeExecutor:
         flow = g.flow
         if flow in (0, 2, 30) and not m.check:
             wait_idle = True
-        blocks = blocks[len(dwell) :]
+        if dwell:
+            blocks = blocks[len(dwell) :]
         if not blocks and not wait_idle and not dwell:
             if flow in (2, 30):
                 m.modal.program_end()
