@@ -84,20 +84,22 @@ def check_line(
         feed = words.get("F", 0.0)
     pump = words.get("S", modal.pump_pwm)
     valve = words.get("E", modal.valve_pwm)
-    # [10] dwell
-    if g.nonmodal == 4:
-        if "P" not in words:
-            return c.VALUE_WORD_MISSING
-        used = used | _P_WORD
-    # [19] G10 and G92 need their words
-    if g.nonmodal in (10, 92) and not axis_letters:
-        return c.NO_AXIS_WORDS  # oracle: 'G10' alone -> 26, 'G10 C6' -> 28
-    if g.nonmodal == 10:
-        if "L" not in words or "P" not in words:
-            return c.VALUE_WORD_MISSING
-        if words["L"] not in (2.0, 20.0) or words["P"] not in range(7):
-            return c.UNSUPPORTED_COMMAND
-        used = used | _L_AND_P_WORDS
+    nonmodal = g.nonmodal
+    if nonmodal is not None:
+        # [10] dwell
+        if nonmodal == 4:
+            if "P" not in words:
+                return c.VALUE_WORD_MISSING
+            used = used | _P_WORD
+        # [19] G10 and G92 need their words
+        if nonmodal in (10, 92) and not axis_letters:
+            return c.NO_AXIS_WORDS  # oracle: 'G10' alone -> 26, 'G10 C6' -> 28
+        if nonmodal == 10:
+            if "L" not in words or "P" not in words:
+                return c.VALUE_WORD_MISSING
+            if words["L"] not in (2.0, 20.0) or words["P"] not in range(7):
+                return c.UNSUPPORTED_COMMAND
+            used = used | _L_AND_P_WORDS
     # [12] units; [19] target (absolute targets add the work offsets, except with G53)
     scale = MM_PER_INCH if units == 20 else 1.0
     base: tuple[float, ...]
@@ -111,7 +113,7 @@ def check_line(
         offset = (0.0,) * 7
     system: Vec7 | None = None
     g92: Vec7 | None = None
-    if axis_letters and g.nonmodal != 53:
+    if axis_letters and nonmodal != 53:
         system = work.systems[modal.coord_select if g.coord_select is None else g.coord_select]
         g92 = modal.g92
     target_list = list(base)
@@ -126,7 +128,7 @@ def check_line(
             target_list[k] = value + (offset[k] + system[k] + g92[k])
     target = vec7(tuple(target_list))
     # [19] G53
-    if g.nonmodal == 53 and motion_mode not in (0, 1):
+    if nonmodal == 53 and motion_mode not in (0, 1):
         return c.G53_INVALID_MOTION_MODE
     # [20] motion modes
     arc: Arc | None = None
