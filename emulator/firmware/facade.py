@@ -197,11 +197,24 @@ class Firmware:
 
     def _block_done(self) -> None:
         """After blocks finished: record an end of motion if the planner ran empty (before the
-        waiting lines can refill it: ``G4 P0`` between buffered moves), then carry on."""
-        if not self._m.planner.busy:
+        waiting lines can refill it: ``G4 P0`` between buffered moves), then carry on: the end
+        of homing's return move reads zero, a block that ran into a switch alarms, or the
+        waiting lines go on."""
+        m = self._m
+        idle = not m.planner.busy
+        if idle:
             self.motion_end_times.append(self.now)
             self.motion_ends += 1
-        self._after_step()
+            if m.rezero is not None:
+                m.planner.set_position(m.rezero)
+                m.rezero = None
+        if m.limit_blocks:
+            queued = m.planner.blocks
+            for block in m.limit_blocks:
+                if not any(b is block for b in queued):
+                    m.hard_limit_alarm(m.geometry.limit_pins(m.planner.position))
+                    return
+        self._service()
 
     def read_output(self) -> bytes:
         """Everything printed since the last call (each line ends ``\\r\\n``)."""
@@ -365,19 +378,6 @@ class Firmware:
 
     # ------------------------------------------------------------------------------------------
     # the main loop: pending lines, received bytes
-
-    def _after_step(self) -> None:
-        m = self._m
-        if m.rezero is not None and not m.planner.busy:
-            m.planner.set_position(m.rezero)  # the end of homing's return move reads zero
-            m.rezero = None
-        if m.limit_blocks:
-            queued = m.planner.blocks
-            for block in m.limit_blocks:
-                if not any(b is block for b in queued):
-                    m.hard_limit_alarm(m.geometry.limit_pins(m.planner.position))
-                    return
-        self._service()
 
     def _service(self) -> None:
         """Push waiting blocks, finish waiting lines, then start parsing a received line."""
