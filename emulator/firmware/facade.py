@@ -144,6 +144,7 @@ class Firmware:
         end = self.now + dt
         self._service()
         zero_steps = 0
+        serviced = False
         next_change, next_arrival = planner.time_to_next_change, wire.next_event
         in_transit = wire.in_transit  # (empty: next_arrival() is None)
         while True:
@@ -168,6 +169,7 @@ class Firmware:
                 if not math.isinf(end):
                     planner.advance(end - now)  # its clock times the starvations
                     self.now = end
+                    serviced = False
                 break
             left = end - now
             finished = planner.finished
@@ -179,42 +181,41 @@ class Firmware:
                     self._block_done()
                 if arrival is not None and (due := wire.take_due(self.now)):  # (None: no bytes)
                     self._deliver(due)  # the bytes arrived by ``end``
+                serviced = False
                 break
             planner.advance(step)
             self.now = now = now + step
             zero_steps = zero_steps + 1 if step == 0.0 else 0
-            if planner.finished != finished:
-                self._block_done()
+            # serviced: the step's last act was a _service (the same again would change nothing)
+            serviced = planner.finished != finished and self._block_done()
             if arrival is not None and (due := wire.take_due(self.now)):
                 self._deliver(due)  # before the parse ends: a full ring lost what came meanwhile
+                serviced = False
             if self._boot_until is not None and self._boot_until <= self.now:
                 self._finish_boot()
+                serviced = False
             if parser.until is not None and parser.until <= self.now:
                 self._finish_parse()
+                serviced = False
             if zero_steps > 100_000:  # pragma: no cover - a planner bug, never loop forever
                 break
-        self._service()
+        if not serviced:
+            self._service()
 
-    def _block_done(self) -> None:
-        """After blocks finished: record an end of motion if the planner ran empty (before the
-        waiting lines can refill it: ``G4 P0`` between buffered moves), then carry on: the end
-        of homing's return move reads zero, a block that ran into a switch alarms, or the
-        waiting lines go on."""
+    def _block_done(self) -> bool:
+        """After blocks finished: an end of motion if the planner ran empty (before the waiting
+        lines can refill it: ``G4 P0`` between moves), then carry on (True: by :meth:`_service`)."""
         m = self._m
-        idle = not m.planner.busy
-        if idle:
+        if not m.planner.busy:
             self.motion_end_times.append(self.now)
             self.motion_ends += 1
             if m.rezero is not None:
                 m.planner.set_position(m.rezero)
                 m.rezero = None
-        if m.limit_blocks:
-            queued = m.planner.blocks
-            for block in m.limit_blocks:
-                if not any(b is block for b in queued):
-                    m.hard_limit_alarm(m.geometry.limit_pins(m.planner.position))
-                    return
+        if m.limit_blocks and m.switch_reached():
+            return False
         self._service()
+        return True
 
     def read_output(self) -> bytes:
         """Everything printed since the last call (each line ends ``\\r\\n``)."""
