@@ -4,7 +4,6 @@ loop that feeds received lines to the ``$`` commands and the G-code executor."""
 from __future__ import annotations
 
 import math
-import re
 from collections import deque
 from typing import Final
 
@@ -47,11 +46,6 @@ RESET_DEAF_SECONDS: Final = 0.00035
 """A ``?`` that arrives this soon after the ``%`` is lost: the reset re-initialises the
 firmware's realtime flags after the byte was flagged (oracle: lost 100-300 us after ``%``,
 answered from 400 us; the bytes of lines are kept)."""
-
-_REALTIME: Final = frozenset(b"?!~%@")
-_LINE_ENDS: Final = frozenset(b"\r\n")
-_RUN: Final = re.compile(rb"[^?!~%@\r\n]*[\r\n]?")
-"""Bytes up to and including the next line end, stopping before a realtime byte."""
 
 
 class Firmware:
@@ -120,41 +114,22 @@ class Firmware:
         due = self._wire.take_due(self.now)
         if due:
             self._deliver(due)
-        self._parser.more_bytes()  # bytes that arrive during a parse delay it
-        self.uart.sync(self._m.printed, self.now)
+        if self._parser.until is not None:
+            self._parser.more_bytes()  # bytes that arrive during a parse delay it
+        if self._m.printed != self.uart.seen:
+            self.uart.sync(self._m.printed, self.now)
 
     def _deliver(self, data: bytes) -> None:
-        """Bytes that have arrived at the UART."""
-        rx = self._m.rx
-        waiting = False  # bytes put since the last pump (the parser takes them as they come)
-        i, n = 0, len(data)
-        while i < n:
-            if data[i] in _REALTIME:
-                if waiting:
-                    self._pump_if_free()  # what arrived before it is handled first
-                    waiting = False
-                self._realtime(data[i])
-                i += 1
-                continue
-            match = _RUN.match(data, i)
-            assert match is not None  # the pattern matches the non-realtime byte at i
-            run, i = match.group(), match.end()
-            ends_line = run[-1] in _LINE_ENDS
-            while run:
-                taken = rx.put_bytes(run)
-                run = run[taken:]
-                waiting = waiting or taken > 0
-                if (ends_line and not run) or not rx.free:
-                    self._pump_if_free()  # a line is complete or the ring is full
-                    waiting = False
-                    if run and not rx.free:
-                        rx.lose(len(run))  # the parser is busy: the rest is lost
-                        break
-        if waiting:
-            self._pump_if_free()
+        """Bytes that have arrived at the UART (:meth:`.LineBuffer.arrive`)."""
+        self._m.rx.arrive(data, self._pump_if_free, self._realtime)
 
     def _pump_if_free(self) -> None:
-        if not self._m.blocked():
+        m = self._m  # (not m.blocked(), without the call)
+        if (
+            m.pending is None
+            and m.parsing is None
+            and not (m.hold or m.suspended or m.critical or m.booting)
+        ):
             self._pump(waited=False)
 
     def advance(self, dt: float) -> None:
@@ -164,25 +139,37 @@ class Firmware:
         """
         if not dt >= 0.0:
             raise ValueError(f"dt must be >= 0, got {dt}")
-        m, uart, wire = self._m, self.uart, self._wire
+        m, uart, wire, parser = self._m, self.uart, self._wire, self._parser
         planner = m.planner
         end = self.now + dt
         self._service()
         zero_steps = 0
+        serviced = False
         next_change, next_arrival = planner.time_to_next_change, wire.next_event
+        in_transit = wire.in_transit  # (empty: next_arrival() is None)
         while True:
             now = self.now
-            uart.sync(m.printed, now)  # what the last events printed, printed then
+            if m.printed != uart.seen:
+                uart.sync(m.printed, now)  # what the last events printed, printed then
             step = next_change()
-            for at in (self._parser.until, (arrival := next_arrival()), self._boot_until):
-                if at is not None:
-                    wait = at - now if at > now else 0.0  # max(at - now, 0.0)
-                    if step is None or wait < step:  # min(step, wait)
-                        step = wait
+            # the earliest of the planner's change, the parse's end, the next arrival, the boot
+            if (at := parser.until) is not None:
+                wait = at - now if at > now else 0.0  # max(at - now, 0.0)
+                if step is None or wait < step:  # min(step, wait)
+                    step = wait
+            if (arrival := next_arrival() if in_transit else None) is not None:
+                wait = arrival - now if arrival > now else 0.0
+                if step is None or wait < step:
+                    step = wait
+            if (at := self._boot_until) is not None:
+                wait = at - now if at > now else 0.0
+                if step is None or wait < step:
+                    step = wait
             if step is None:
                 if not math.isinf(end):
                     planner.advance(end - now)  # its clock times the starvations
                     self.now = end
+                    serviced = False
                 break
             left = end - now
             finished = planner.finished
@@ -194,29 +181,41 @@ class Firmware:
                     self._block_done()
                 if arrival is not None and (due := wire.take_due(self.now)):  # (None: no bytes)
                     self._deliver(due)  # the bytes arrived by ``end``
+                serviced = False
                 break
             planner.advance(step)
             self.now = now = now + step
             zero_steps = zero_steps + 1 if step == 0.0 else 0
-            if planner.finished != finished:
-                self._block_done()
+            # serviced: the step's last act was a _service (the same again would change nothing)
+            serviced = planner.finished != finished and self._block_done()
             if arrival is not None and (due := wire.take_due(self.now)):
                 self._deliver(due)  # before the parse ends: a full ring lost what came meanwhile
+                serviced = False
             if self._boot_until is not None and self._boot_until <= self.now:
                 self._finish_boot()
-            if self._parser.until is not None and self._parser.until <= self.now:
+                serviced = False
+            if parser.until is not None and parser.until <= self.now:
                 self._finish_parse()
+                serviced = False
             if zero_steps > 100_000:  # pragma: no cover - a planner bug, never loop forever
                 break
-        self._service()
+        if not serviced:
+            self._service()
 
-    def _block_done(self) -> None:
-        """After blocks finished: record an end of motion if the planner ran empty (before the
-        waiting lines can refill it: ``G4 P0`` between buffered moves), then carry on."""
-        if not self._m.planner.busy:
+    def _block_done(self) -> bool:
+        """After blocks finished: an end of motion if the planner ran empty (before the waiting
+        lines can refill it: ``G4 P0`` between moves), then carry on (True: by :meth:`_service`)."""
+        m = self._m
+        if not m.planner.busy:
             self.motion_end_times.append(self.now)
             self.motion_ends += 1
-        self._after_step()
+            if m.rezero is not None:
+                m.planner.set_position(m.rezero)
+                m.rezero = None
+        if m.limit_blocks and m.switch_reached():
+            return False
+        self._service()
+        return True
 
     def read_output(self) -> bytes:
         """Everything printed since the last call (each line ends ``\\r\\n``)."""
@@ -227,11 +226,13 @@ class Firmware:
     def next_deadline(self) -> float | None:
         """Simulated time of the next internal change (a block ends, a line is parsed), None
         when nothing changes by itself."""
-        ttc = self._m.planner.time_to_next_change()
-        deadline = None if ttc is None else self.now + ttc
-        for at in (self._parser.until, self._wire.next_event(), self._boot_until):
-            if at is not None:
-                deadline = at if deadline is None else min(deadline, at)
+        deadline = self._m.planner.time_to_next_change()
+        if deadline is not None:
+            deadline += self.now
+        arrival = self._wire.next_event() if self._wire.in_transit else None
+        for at in (self._parser.until, arrival, self._boot_until):
+            if at is not None and (deadline is None or at < deadline):
+                deadline = at
         return deadline
 
     def reset(self) -> None:
@@ -379,26 +380,17 @@ class Firmware:
     # ------------------------------------------------------------------------------------------
     # the main loop: pending lines, received bytes
 
-    def _after_step(self) -> None:
-        m = self._m
-        if m.rezero is not None and not m.planner.busy:
-            m.planner.set_position(m.rezero)  # the end of homing's return move reads zero
-            m.rezero = None
-        if m.limit_blocks:
-            queued = m.planner.blocks
-            for block in m.limit_blocks:
-                if not any(b is block for b in queued):
-                    m.hard_limit_alarm(m.geometry.limit_pins(m.planner.position))
-                    return
-        self._service()
-
     def _service(self) -> None:
         """Push waiting blocks, finish waiting lines, then start parsing a received line."""
         m = self._m
         if m.pending is not None and not m.progress_pending():
             return
-        if not m.blocked():
+        if m.parsing is not None or m.hold or m.suspended or m.critical or m.booting:
+            return  # (m.blocked(): the waiting line is done)
+        if m.rx.ring:
             self._pump()
+        elif not m.planner.started:
+            m.start_cycle()  # what _pump does without a line
 
     def _pump(self, *, waited: bool = True) -> None:
         """Start parsing the next complete line of the receive ring (the parser is free; it
@@ -422,8 +414,10 @@ class Firmware:
         if line is None:  # pragma: no cover - only called with a line in progress
             return
         requested, self._status_after_parse = self._status_after_parse, None
-        wait_at = self._parse_started + wait_point_seconds(line.text)  # a held line's wait
-        early = requested is not None and requested <= wait_at
+        early = (  # a ? came before the held line's wait
+            requested is not None
+            and requested <= self._parse_started + wait_point_seconds(line.text)
+        )
         m.report_before_start = self._report_now if early else None  # at the line's own wait
         if m.critical:
             m.line_cut_short = True  # a hard limit meanwhile: the reset prints its ok

@@ -252,11 +252,26 @@ class GcodeExecutor:
         flow = g.flow
         if flow in (0, 2, 30) and not m.check:
             wait_idle = True
-        blocks = blocks[len(dwell) :]
+        if dwell:
+            blocks = blocks[len(dwell) :]
         if not blocks and not wait_idle and not dwell:
             if flow in (2, 30):
                 m.modal.program_end()
                 m.emit("[Pgm End]")
+            m.emit(ok)
+            return
+        # what m.wait(Pending(blocks, "queued", ...)) does when every block has a free slot
+        if (
+            not wait_idle
+            and not dwell
+            and flow not in (0, 2, 30)
+            and m.pending is None
+            and len(blocks) <= m.planner.free
+        ):
+            for block in blocks:
+                m.planner.push(block)
+            if hard_limit is not None:
+                m.limit_blocks.append(hard_limit)
             m.emit(ok)
             return
 

@@ -8,8 +8,9 @@ dropped, ``(...)`` and ``;`` comments removed, letters upper-cased.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Final
+import re
+from collections.abc import Callable
+from typing import Final, NamedTuple
 
 RX_BUFFER_SIZE: Final = 128
 """GRBL's receive ring in bytes; it holds one byte less (:data:`RX_CAPACITY`)."""
@@ -27,14 +28,21 @@ MAX_LINE_LENGTH: Final = LINE_BUFFER_SIZE - 1
 _DROPPED: Final = bytes(range(0x21)) + b"/"
 """Bytes the line filter drops: whitespace, control bytes and ``/`` (block delete)."""
 
+_REALTIME: Final = frozenset(b"?!~%@")
+_LINE_ENDS: Final = frozenset(b"\r\n")
+_RUN: Final = re.compile(rb"[^?!~%@\r\n]*[\r\n]?")
+"""Bytes up to and including the next line end, stopping before a realtime byte."""
+_PLAIN_LINE: Final = re.compile(rb"[^?!~%@\r\n]*[\r\n]")
+"""One line with its end and no realtime byte (the usual arrival)."""
+
 _NO_COMMENT: Final = 0
 _PARENTHESES: Final = 1
 _SEMICOLON: Final = 2
 
 
-@dataclass(frozen=True, slots=True)
-class ReceivedLine:
-    """A complete filtered line, or the overflow of one (``overflow``: ``text`` is empty)."""
+class ReceivedLine(NamedTuple):
+    """A complete filtered line, or the overflow of one (``overflow``: ``text`` is empty).
+    (A named tuple: one made per line, cheaper than a frozen dataclass.)"""
 
     text: str
     overflow: bool = False
@@ -55,6 +63,8 @@ class LineBuffer:
         self.lost: int = 0
         """Bytes lost so far because the ring was full."""
         self._ring = bytearray()
+        self.ring: Final = self._ring
+        """The ring's bytes (read them only: the same bytearray, never replaced)."""
         self._line = bytearray()
         self._comment = _NO_COMMENT
         self._raw = 0  # bytes taken into the line being assembled
@@ -81,6 +91,44 @@ class LineBuffer:
         taken = min(len(data), RX_CAPACITY - len(self._ring))
         self._ring += data[:taken]
         return taken
+
+    def arrive(
+        self, data: bytes, pump: Callable[[], None], realtime: Callable[[int], None]
+    ) -> None:
+        """Bytes that have arrived at the UART: each realtime byte acts at once (``realtime``),
+        after what came before it was handed to the parser (``pump``: it takes a line if it
+        is free); the others enter the ring, ``pump`` called when a line is complete or the
+        ring is full (the rest is lost if the parser is busy)."""
+        if len(data) <= RX_CAPACITY - len(self._ring) and _PLAIN_LINE.fullmatch(data):
+            self._ring += data  # the usual case: one whole line, room for it
+            pump()
+            return
+        waiting = False  # bytes put since the last pump (the parser takes them as they come)
+        i, n = 0, len(data)
+        while i < n:
+            if data[i] in _REALTIME:
+                if waiting:
+                    pump()  # what arrived before it is handled first
+                    waiting = False
+                realtime(data[i])
+                i += 1
+                continue
+            match = _RUN.match(data, i)
+            assert match is not None  # the pattern matches the non-realtime byte at i
+            run, i = match.group(), match.end()
+            ends_line = run[-1] in _LINE_ENDS
+            while run:
+                taken = self.put_bytes(run)
+                run = run[taken:]
+                waiting = waiting or taken > 0
+                if (ends_line and not run) or not self.free:
+                    pump()  # a line is complete or the ring is full
+                    waiting = False
+                    if run and not self.free:
+                        self.lose(len(run))  # the parser is busy: the rest is lost
+                        break
+        if waiting:
+            pump()
 
     def lose(self, count: int) -> None:
         """Count ``count`` received bytes as lost (they found the ring full)."""

@@ -294,10 +294,16 @@ class ParserWork:
 
     def begin(self, m: Machine, now: float, seconds: float) -> None:
         """``seconds`` of work from ``now`` (``m``'s receive ring as it is now)."""
-        arrived = self._wire.arrived_by(now)
-        self._room = m.rx.free - (arrived - self._wire.delivered)  # bytes due are not put yet
+        wire = self._wire
+        if not wire.in_transit:  # no byte arrives meanwhile: no receive interrupt
+            self._room = m.rx.free
+            self._begun = (now, seconds, wire.delivered)
+            self.until = now + seconds + 0.0  # (what busy_until adds for no byte)
+            return
+        arrived = wire.arrived_by(now)
+        self._room = m.rx.free - (arrived - wire.delivered)  # bytes due are not put yet
         self._begun = (now, seconds, arrived)
-        self.until = self._wire.busy_until(*self._begun, self._interrupts)
+        self.until = wire.busy_until(*self._begun, self._interrupts)
 
     def more_bytes(self) -> None:
         """The host wrote more bytes: those that arrive before the end delay it."""
@@ -315,13 +321,14 @@ class ParserWork:
     ) -> bool:
         """Execute ``line`` with ``run``; if it queued a block (not waiting for a slot), hold
         its reply and keep ``line`` in ``m.parsing`` while the block is planned. True if so."""
-        queued, mark = len(m.planner.blocks), len(m.out)
+        planner = m.planner
+        free, mark = planner.free, len(m.out)
         run(line.text)
         work = self.work
-        if work is None or not work.cartesian or len(m.planner.blocks) <= queued or m.pending:
+        if work is None or not work.cartesian or planner.free >= free or m.pending:
             return False
         self.reply = m.withdraw(mark)
-        self.begin(m, now, block_seconds(queued))
+        self.begin(m, now, block_seconds(planner.CAPACITY - free))
         m.parsing = line
         return True
 

@@ -207,6 +207,16 @@ class Machine:
         self.alarm = True
         self.critical = True
 
+    def switch_reached(self) -> bool:
+        """After blocks finished: if one that ran into a limit switch (``limit_blocks``) is done,
+        the hard-limit alarm (True)."""
+        queued = self.planner.blocks
+        for block in self.limit_blocks:
+            if not any(b is block for b in queued):
+                self.hard_limit_alarm(self.geometry.limit_pins(self.planner.position))
+                return True
+        return False
+
     def clear_on_reset(self) -> None:
         """What a soft reset clears: motion, received bytes, the waiting and parsed line, the
         hold, the check mode and a hard-limit lock."""

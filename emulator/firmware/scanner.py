@@ -162,8 +162,13 @@ def _scan(line: str, profile: str) -> tuple[GBlock, int]:
             parsed = _read_float_digits(line, word.start(2))
             assert parsed is not None  # it has digits
             value = parsed[0]
+        elif fraction:  # _kept_digits inlined (the same integer and power of ten)
+            intval = int(whole + fraction)
+            value = float(intval) * 10.0 ** -len(fraction) if intval else 0.0
         else:
-            value = _kept_digits(whole, fraction, sign == "-")
+            value = float(int(whole))  # (times 10.0**0)
+        if sign == "-" and ndigit <= 8:
+            value = -value
         status = _word(g, letter, value, groups, profile)
         if status:
             return g, status
@@ -191,8 +196,9 @@ def _scan_by_position(line: str, profile: str, g: GBlock, groups: _Groups) -> tu
 def _word(g: GBlock, letter: str, value: float, groups: _Groups, profile: str) -> int:
     """One word into ``g``: 0, or its GRBL status."""
     if letter == "G" or letter == "M":
-        int_value = uint8(value)
-        mantissa = c_round(100.0 * (value - int_value)) % 65536
+        int_value = math.trunc(value) % 256  # uint8(value), c_round(x) inlined
+        x = 100.0 * (value - int_value)
+        mantissa = (math.floor(x + 0.5) if x >= 0 else -math.floor(-x + 0.5)) % 65536
         if letter == "G":
             return _g_word(g, int_value, mantissa, groups, profile)
         return _m_word(g, int_value, mantissa, groups)

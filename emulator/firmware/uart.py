@@ -57,14 +57,15 @@ class Transmitter:
         """Seconds a byte (0: off, every ``?`` answered)."""
         self._free_at = 0.0  # when every byte printed so far has been sent
         self._report_until = 0.0  # a "?" arriving before this is merged into the last report
-        self._seen = 0  # bytes printed since power-on that the transmitter has queued
+        self.seen = 0
+        """Bytes printed since power-on that the transmitter has queued."""
 
     def sync(self, printed: int, now: float) -> None:
         """``printed`` bytes since power-on (``Machine.printed``): the new ones were printed at
         ``now`` and queue behind the earlier ones."""
-        count = printed - self._seen
+        count = printed - self.seen
         if count:
-            self._seen = printed
+            self.seen = printed
             if self.byte_seconds:
                 self._free_at = max(self._free_at, now) + count * self.byte_seconds
 
@@ -73,7 +74,7 @@ class Transmitter:
         self.sync(m.printed, now)
         line = status_line(m)
         m.emit(line)
-        self._seen = m.printed
+        self.seen = m.printed
         self.report(len(line) + 2, now)
 
     def report_before_start(self, m: Machine, now: float) -> float:

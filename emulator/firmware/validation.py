@@ -45,6 +45,9 @@ class CheckedLine:
 
 _VALUE_WORDS: Final = frozenset("NFSTE")
 _AXIS_WORD_SET: Final = frozenset(AXIS_WORDS)
+_VALUE_AND_AXIS_WORDS: Final = _VALUE_WORDS | _AXIS_WORD_SET
+_P_WORD: Final = frozenset("P")
+_L_AND_P_WORDS: Final = frozenset("LP")
 _AXIS_INDEX: Final = {letter: k for k, letter in enumerate(AXIS_WORDS)}
 
 
@@ -62,7 +65,7 @@ def check_line(
     axis_letters = list(filter(words.__contains__, AXIS_WORDS))  # in AXIS_WORDS order
     nonmodal_axes = g.nonmodal in NONMODAL_AXIS_COMMANDS  # the axis words are G10/28/30/92's
     axis_command = not nonmodal_axes and (g.axis_command or bool(axis_letters))
-    used = set(_VALUE_WORDS | _AXIS_WORD_SET) if nonmodal_axes else set(_VALUE_WORDS)
+    used: frozenset[str] = _VALUE_AND_AXIS_WORDS if nonmodal_axes else _VALUE_WORDS
     if g.tool_length == 431:
         return c.INVALID_TOOL_LENGTH_AXIS  # oracle: G43.1 always (no axis fits the Mirobot)
 
@@ -81,20 +84,22 @@ def check_line(
         feed = words.get("F", 0.0)
     pump = words.get("S", modal.pump_pwm)
     valve = words.get("E", modal.valve_pwm)
-    # [10] dwell
-    if g.nonmodal == 4:
-        if "P" not in words:
-            return c.VALUE_WORD_MISSING
-        used.add("P")
-    # [19] G10 and G92 need their words
-    if g.nonmodal in (10, 92) and not axis_letters:
-        return c.NO_AXIS_WORDS  # oracle: 'G10' alone -> 26, 'G10 C6' -> 28
-    if g.nonmodal == 10:
-        if "L" not in words or "P" not in words:
-            return c.VALUE_WORD_MISSING
-        if words["L"] not in (2.0, 20.0) or words["P"] not in range(7):
-            return c.UNSUPPORTED_COMMAND
-        used |= {"L", "P"}
+    nonmodal = g.nonmodal
+    if nonmodal is not None:
+        # [10] dwell
+        if nonmodal == 4:
+            if "P" not in words:
+                return c.VALUE_WORD_MISSING
+            used = used | _P_WORD
+        # [19] G10 and G92 need their words
+        if nonmodal in (10, 92) and not axis_letters:
+            return c.NO_AXIS_WORDS  # oracle: 'G10' alone -> 26, 'G10 C6' -> 28
+        if nonmodal == 10:
+            if "L" not in words or "P" not in words:
+                return c.VALUE_WORD_MISSING
+            if words["L"] not in (2.0, 20.0) or words["P"] not in range(7):
+                return c.UNSUPPORTED_COMMAND
+            used = used | _L_AND_P_WORDS
     # [12] units; [19] target (absolute targets add the work offsets, except with G53)
     scale = MM_PER_INCH if units == 20 else 1.0
     base: tuple[float, ...]
@@ -108,7 +113,7 @@ def check_line(
         offset = (0.0,) * 7
     system: Vec7 | None = None
     g92: Vec7 | None = None
-    if axis_letters and g.nonmodal != 53:
+    if axis_letters and nonmodal != 53:
         system = work.systems[modal.coord_select if g.coord_select is None else g.coord_select]
         g92 = modal.g92
     target_list = list(base)
@@ -123,7 +128,7 @@ def check_line(
             target_list[k] = value + (offset[k] + system[k] + g92[k])
     target = vec7(tuple(target_list))
     # [19] G53
-    if g.nonmodal == 53 and motion_mode not in (0, 1):
+    if nonmodal == 53 and motion_mode not in (0, 1):
         return c.G53_INVALID_MOTION_MODE
     # [20] motion modes
     arc: Arc | None = None
@@ -148,9 +153,9 @@ def check_line(
                 if isinstance(result, int):
                     return result
                 arc, arc_words = result
-                used |= arc_words
+                used = used | arc_words
     if axis_command:
-        used |= _AXIS_WORD_SET
+        used = _VALUE_AND_AXIS_WORDS if used is _VALUE_WORDS else used | _AXIS_WORD_SET
     if not used.issuperset(words):  # a word no command used
         return c.UNUSED_WORDS
     return CheckedLine(

@@ -28,6 +28,8 @@ class Wire:
             raise ValueError(f"byte_seconds must be finite and >= 0: {byte_seconds}")
         self.byte_seconds = byte_seconds
         self._data = bytearray()
+        self.in_transit: Final = self._data
+        """The bytes still in transit (read them only: the same bytearray, never replaced)."""
         self._head_at = 0.0  # arrival of the first byte in transit
         self._last_at = -math.inf  # arrival of the last byte delivered
         self._event_index: int | None = None  # next_event's index into _data (None: unknown)

@@ -103,6 +103,8 @@ def _joint_between(
     accel = math.inf
     max_rate, axis_accel = limits.max_rate, limits.accel
     for i, di in enumerate(delta):
+        if not di:
+            continue  # (a share of 0)
         share = abs(di) / length
         if share > 0.0:
             # ``min(speed, x)`` keeps ``speed`` unless ``x < speed``: the same comparison

@@ -85,15 +85,6 @@ def junction_speed_sqr(previous: Vec7, following: Vec7, accel: float, deviation:
     return accel * deviation * sin_half / (1.0 - sin_half)
 
 
-def _blends(block: Block) -> bool:
-    return not block.timed and block.direction_in is not None
-
-
-def _transparent(block: Block) -> bool:
-    """A joint block without motion: the speed passes through it unchanged."""
-    return isinstance(block, JointBlock) and block.length == 0.0
-
-
 class Planner:
     """The 18-block look-ahead planner with an explicit clock.
 
@@ -261,7 +252,8 @@ class Planner:
         """
         if len(self._queue) >= self.CAPACITY:
             raise PlannerFull(f"planner full ({self.CAPACITY} blocks)")
-        planned = self.planned_position
+        queue = self._queue
+        planned = queue[-1].end if queue else self._position  # self.planned_position
         a, b = block.start, planned
         if a == b:  # (the usual case: no gap)
             gap = 0.0
@@ -294,6 +286,10 @@ class Planner:
         """Move time forward by ``dt`` seconds (``math.inf``: run everything that can run)."""
         if not dt >= 0.0:
             raise ValueError(f"dt must be >= 0, got {dt}")
+        if not self._queue or not self.started:  # nothing runs: only the clock goes on
+            if dt != math.inf:
+                self.clock += dt
+            return
         remaining = dt
         if self._delay > 0.0 and self._queue and self.started:
             wait = min(self._delay, remaining)
@@ -404,9 +400,9 @@ class Planner:
 
     def _junction_limit(self, block: Block) -> float:
         """Largest squared entry speed of ``block`` after the current tail; updates the tail."""
-        if _transparent(block):
-            return math.inf
-        if not _blends(block):
+        if isinstance(block, JointBlock) and block.length == 0.0:
+            return math.inf  # a joint block without motion: the speed passes through it
+        if block.timed or block.direction_in is None:  # a block that does not blend
             self._tail_direction = None
             return 0.0
         assert block.direction_in is not None
