@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
-from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 from mirobot_emulator.firmware import RX_CAPACITY, Firmware
 from mirobot_emulator.firmware.wire import BYTE_SECONDS
@@ -1287,6 +1287,14 @@ def gcode_ish_lines(draw: st.DrawFn) -> bytes:
     dts=st.lists(st.sampled_from([0.0, 0.001, 0.3, 2.0]), min_size=7, max_size=7),
     prefix=st.sampled_from([b"", b"M50\n", b"$X\nM50\n"]),
 )
+@example(  # a program pause: its "ok" comes with the "~" that ends it
+    profile="classic",
+    lines=[b"M0.000"],
+    terminators=[b"\n"] * 8,
+    cuts=[],
+    dts=[0.0] * 7,
+    prefix=b"M50\n",
+)
 def test_every_line_gets_exactly_one_final_reply(
     profile: str,
     lines: list[bytes],
@@ -1307,6 +1315,9 @@ def test_every_line_gets_exactly_one_final_reply(
         fw.advance(dts[k % len(dts)])
         out += fw.read_output()
     fw.advance(math.inf)
+    for _ in lines:  # an M0 (any form: "M0.000", "M00") pauses until "~" (oracle: "ok" then)
+        fw.receive(b"~")
+        fw.advance(math.inf)
     out += fw.read_output()
     got = lines_of(bytes(out))
     assume(fw.rx_lost == 0)
