@@ -1,22 +1,22 @@
 """A stream judged whole before its first byte (:func:`judge_stream`): the chaining rule of
-:func:`~mirobot_async._core.validation.first_restart` and every line's
+:func:`first_restart` and every line's
 :func:`~mirobot_async._core.validation.validate_line` verdict, decided in one walk of the lines."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
-from mirobot_async._core.line import ParsedLine
+from mirobot_async._core.line import ParsedLine, parse_line
 from mirobot_async._core.validation import (
     ModalState,
+    _follow,
     _problems,
-    first_restart,
     may_differ_by_profile,
 )
 from mirobot_async._core.values import check_firmware
 
-__all__ = ["StreamVerdict", "judge_stream"]
+__all__ = ["StreamVerdict", "first_restart", "judge_stream"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -55,3 +55,42 @@ def judge_stream(
             return StreamVerdict((index, parsed.source.strip() or parsed.text, chain))
         judged.append(None if problems else before)
     return StreamVerdict(None, judged_from=tuple(judged))
+
+
+def first_restart(
+    lines: Iterable[str | bytes | ParsedLine], *, firmware: str | None, state: ModalState
+) -> tuple[int, str, str] | None:
+    """The first of ``lines`` (1-based number, text, why and the fix) that, streamed from
+    ``state``, would end elsewhere than sent one at a time after the arm stopped (its
+    ``M20``/``M21`` restarts from where the moving arm is:
+    :class:`~mirobot_async._core.modal.Chaining`), or ``None``. Other problems are not judged here.
+    ``firmware=None``: a line counts only if it does on both profiles. ``state`` is not changed.
+    Lines already parsed (:class:`ParsedLine`) are not parsed again; each other line is parsed
+    once for both profiles."""
+    profiles = (check_firmware(firmware),) if firmware is not None else ("classic", "2021")
+    items = iter(lines)
+    parsed_lines: list[ParsedLine] = []  # parsed so far (the next profile reads them again)
+
+    def parsed_at(index: int) -> ParsedLine | None:
+        while len(parsed_lines) <= index:
+            line = next(items, None)
+            if line is None:
+                return None
+            parsed_lines.append(line if isinstance(line, ParsedLine) else parse_line(line))
+        return parsed_lines[index]
+
+    found: tuple[int, str, str] | None = None
+    for profile in profiles:
+        current = ModalState(state.cartesian, state.relative, state.motion, state.chain)
+        first = None
+        index = 0
+        while (parsed := parsed_at(index)) is not None:
+            index += 1
+            chain = _follow(parsed, profile, current)
+            if chain is not None:
+                first = (index, parsed.source.strip() or parsed.text, chain)
+                break
+        if first is None:
+            return None  # a line counts only if it does on every profile
+        found = first if found is None else found
+    return found

@@ -19,6 +19,7 @@ import math
 import re
 from collections.abc import Iterable
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Final
 
 from mirobot_async._core.line import (
@@ -51,7 +52,6 @@ __all__ = [
     "ModalState",
     "check_line",
     "check_program",
-    "first_restart",
     "line_problems",
     "may_differ_by_profile",
     "parse_words",
@@ -225,10 +225,39 @@ def _code_problem(word: CodeWord, profile: str) -> str | None:
 
 
 def _check_gcode(parsed: ParsedLine, profile: str, state: ModalState, problems: list[str]) -> None:
+    found, motion, cartesian, relative = _gcode_verdict(
+        parsed.source, profile, state.cartesian, state.relative
+    )
+    problems.extend(found)
+    if motion is not None:
+        state.motion = motion
+    if cartesian is not None:
+        state.cartesian = cartesian
+    if relative is not None:
+        state.relative = relative
+
+
+@lru_cache(maxsize=1024)
+def _gcode_verdict(
+    source: str, profile: str, cartesian: bool | None, relative: bool | None
+) -> tuple[tuple[str, ...], int | None, bool | None, bool | None]:
+    """:func:`_judge_gcode` of the line ``source`` from a state with these modes: its problems
+    and the motion, Cartesian and relative modes it sets (``None``: unchanged). A function of
+    its arguments (a line is a function of its text), so a line judged again from the same
+    modes (a program repeats its lines) is judged once."""
+    state = ModalState(cartesian, relative, None)
+    problems: list[str] = []
+    _judge_gcode(parse_line(source), profile, state, problems)
+    new_cartesian = state.cartesian if state.cartesian is not cartesian else None
+    new_relative = state.relative if state.relative is not relative else None
+    return tuple(problems), state.motion, new_cartesian, new_relative
+
+
+def _judge_gcode(parsed: ParsedLine, profile: str, state: ModalState, problems: list[str]) -> None:
     if parsed.syntax_error is not None:
         problems.append(_syntax_text(parsed))
         return
-    groups: dict[str, str] = {}
+    groups: dict[str, CodeWord] = {}  # the first word of each modal group
     values: dict[str, float] = {}
     motion: int | None = None
     dwell_seen = False
@@ -245,14 +274,14 @@ def _check_gcode(parsed: ParsedLine, profile: str, state: ModalState, problems: 
                 continue
             code = word.code
             group = (_G_GROUPS if letter == "G" else _M_GROUPS)[code]
-            canonical = f"{letter}{code}"
             if group in groups:
+                first = groups[group]
                 problems.append(
-                    f"{groups[group]} and {canonical} are in the same modal group "
+                    f"{first.letter}{first.code} and {letter}{code} are in the same modal group "
                     "('Modal group violation')"
                 )
                 continue
-            groups[group] = canonical
+            groups[group] = word
             if letter == "G":
                 if group == "motion":
                     motion = code
@@ -296,7 +325,7 @@ def _check_gcode(parsed: ParsedLine, profile: str, state: ModalState, problems: 
     elif "R" in values:
         problems.append("R is only used by G2/G3 arcs (unused word)")
 
-    if cartesian is False and is_relative is False and not dwell_seen:
+    if cartesian is False and is_relative is False and not dwell_seen and parsed.axis_letters:
         for letter, joint in zip(_JOINT_LETTERS, JOINT_NAMES, strict=True):
             if letter in values:
                 low, high = JOINT_RANGES[joint]
@@ -317,22 +346,26 @@ def _check_gcode(parsed: ParsedLine, profile: str, state: ModalState, problems: 
         state.relative = new_relative
 
 
-def _check_combinations(parsed: ParsedLine, groups: dict[str, str], problems: list[str]) -> None:
+def _check_combinations(
+    parsed: ParsedLine, groups: dict[str, CodeWord], problems: list[str]
+) -> None:
     """Word orders the firmware refuses around ``M20``/``M21`` (seen on the firmware oracle)."""
-    if "coordinate mode" not in groups:
-        return
+    if "coordinate mode" not in groups or parsed.coordinate_conflict is None:
+        return  # (the parse found the first such word, if any)
+    mode = groups["coordinate mode"]
+    mode_word = f"{mode.letter}{mode.code}"
     seen_mode = False
     for word in parsed.codes:
         if word.letter == "M" and word.code in (20, 21):
             seen_mode = True
         elif word.letter == "G" and word.code in (20, 21) and not seen_mode:
             problems.append(
-                f"{word} before {groups['coordinate mode']}: the firmware refuses this order "
+                f"{word} before {mode_word}: the firmware refuses this order "
                 "('Modal group violation'); write the M word first"
             )
         elif word.letter == "M" and word.code not in (20, 21):
             problems.append(
-                f"{groups['coordinate mode']} and {word} in one line: the firmware refuses it "
+                f"{mode_word} and {word} in one line: the firmware refuses it "
                 "('Modal group violation'); use two lines"
             )
 
@@ -393,8 +426,9 @@ def _problems(parsed: ParsedLine, profile: str, state: ModalState) -> tuple[list
 
 def _follow(parsed: ParsedLine, profile: str, state: ModalState) -> str | None:
     """What :func:`_problems` does to ``state`` (and its chaining problem), without judging
-    the rest of the line: for :func:`first_restart`, which reports only chaining. Keep in step
-    with :func:`_check_dollar` and :func:`_check_gcode` (a unit test compares them)."""
+    the rest of the line: for :func:`~mirobot_async._core.stream_verdict.first_restart`, which
+    reports only chaining. Keep in step with :func:`_check_dollar` and :func:`_check_gcode` (a
+    unit test compares them)."""
     before = state.modes()
     chain = state.chain.problem(parsed, before, profile)
     if parsed.syntax_error is None:
@@ -539,42 +573,3 @@ def validate_line(
     if chain is not None:
         raise MotionChainError(shown, f"{chain} (validate=False sends it anyway)")
     return parsed
-
-
-def first_restart(
-    lines: Iterable[str | bytes | ParsedLine], *, firmware: str | None, state: ModalState
-) -> tuple[int, str, str] | None:
-    """The first of ``lines`` (1-based number, text, why and the fix) that, streamed from
-    ``state``, would end elsewhere than sent one at a time after the arm stopped (its
-    ``M20``/``M21`` restarts from where the moving arm is:
-    :class:`~mirobot_async._core.modal.Chaining`), or ``None``. Other problems are not judged here.
-    ``firmware=None``: a line counts only if it does on both profiles. ``state`` is not changed.
-    Lines already parsed (:class:`ParsedLine`) are not parsed again; each other line is parsed
-    once for both profiles."""
-    profiles = (check_firmware(firmware),) if firmware is not None else ("classic", "2021")
-    items = iter(lines)
-    parsed_lines: list[ParsedLine] = []  # parsed so far (the next profile reads them again)
-
-    def parsed_at(index: int) -> ParsedLine | None:
-        while len(parsed_lines) <= index:
-            line = next(items, None)
-            if line is None:
-                return None
-            parsed_lines.append(line if isinstance(line, ParsedLine) else parse_line(line))
-        return parsed_lines[index]
-
-    found: tuple[int, str, str] | None = None
-    for profile in profiles:
-        current = ModalState(state.cartesian, state.relative, state.motion, state.chain)
-        first = None
-        index = 0
-        while (parsed := parsed_at(index)) is not None:
-            index += 1
-            chain = _follow(parsed, profile, current)
-            if chain is not None:
-                first = (index, parsed.source.strip() or parsed.text, chain)
-                break
-        if first is None:
-            return None  # a line counts only if it does on every profile
-        found = first if found is None else found
-    return found

@@ -19,11 +19,10 @@ from mirobot_emulator.firmware import Firmware
 
 from mirobot_async._core.line import parse_line
 from mirobot_async._core.modal import Chaining, MotionModes
-from mirobot_async._core.stream_verdict import judge_stream
+from mirobot_async._core.stream_verdict import first_restart, judge_stream
 from mirobot_async._core.validation import (
     ModalState,
     check_program,
-    first_restart,
     validate_line,
 )
 from mirobot_async.kinematics import DH_2021, DH_CLASSIC, forward

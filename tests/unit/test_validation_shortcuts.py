@@ -5,7 +5,9 @@ shortcut gives the full judgement's answer on many lines:
   (the scheduler then does not judge the line twice to learn whether the profile matters);
 - :func:`_follow` (what :func:`first_restart` runs) leaves the modal state and chaining exactly
   as the full check does, with the same chaining problem;
-- the facts a :class:`ParsedLine` derives at parse time are those of its words.
+- the facts a :class:`ParsedLine` derives at parse time are those of its words;
+- a G-code line's verdict, remembered by its text and the modes it is judged from, is the one
+  judging it afresh gives.
 """
 
 from __future__ import annotations
@@ -17,7 +19,9 @@ from mirobot_async._core.line import AXIS_LETTERS, CodeWord, parse_line
 from mirobot_async._core.modal import Chaining
 from mirobot_async._core.validation import (
     ModalState,
+    _check_gcode,
     _follow,
+    _judge_gcode,
     _problems,
     line_problems,
     may_differ_by_profile,
@@ -198,3 +202,20 @@ def test_a_word_in_a_line_is_read_as_read_number_reads_it(letter: str, number: s
         word.value != word.value and expected.value != expected.value
     )
     assert str(word.value) == str(expected.value)  # the sign of a zero too
+
+
+@settings(max_examples=1000, deadline=None)
+@given(line=lines, state=states, profile=st.sampled_from(("classic", "2021")))
+def test_a_remembered_gcode_verdict_is_the_fresh_one(
+    line: str, state: ModalState, profile: str
+) -> None:
+    parsed = parse_line(line)
+    if parsed.kind != "gcode":
+        return
+    fresh, fresh_problems = _copy(state), []
+    _judge_gcode(parsed, profile, fresh, fresh_problems)
+    for _ in range(2):  # computed, then remembered
+        remembered, problems = _copy(state), []
+        _check_gcode(parsed, profile, remembered, problems)
+        assert problems == fresh_problems
+        assert remembered == fresh
