@@ -82,7 +82,8 @@ def pytest_configure(config: pytest.Config) -> None:
     import mirobot_async
 
     for package in (mirobot_async, mirobot_emulator):
-        compileall.compile_dir(Path(package.__file__).parent, quiet=2)
+        if package.__file__ is not None:
+            compileall.compile_dir(Path(package.__file__).parent, quiet=2)
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:

@@ -67,7 +67,11 @@ def test_quantise_of_a_grid_point_is_that_point_and_of_others_their_rounding() -
     assert limits.quantise(q) is q
     other = (1.23456, -2.5, 0.0, 3.3, 4.4, 5.5, 6.6)
     assert limits.quantise(other) == limits.from_steps(limits.to_steps(other))
-    assert limits.quantise(tuple(q)) == q
+    assert limits.quantise(_vec7(list(q))) == q  # equal, not the same object
+
+
+def _vec7(values: list[float]) -> tuple[float, float, float, float, float, float, float]:
+    return (values[0], values[1], values[2], values[3], values[4], values[5], values[6])
 
 
 def _block_fields(block: Block) -> tuple[object, ...]:
@@ -81,8 +85,8 @@ def test_a_joint_block_from_whole_steps_is_the_block_from_its_ends() -> None:
     for profile in ("classic", "2021"):
         limits = _limits(profile)
         for _ in range(300):
-            a = tuple(rng.uniform(-120.0, 120.0) for _ in range(7))
-            b = tuple(x + rng.choice((0.0, rng.uniform(-30.0, 30.0))) for x in a)
+            a = _vec7([rng.uniform(-120.0, 120.0) for _ in range(7)])
+            b = _vec7([x + rng.choice((0.0, rng.uniform(-30.0, 30.0))) for x in a])
             feed = rng.choice((None, 2000.0, 1e-9, 5e5))
             general = joint_block(a, b, feed, limits)
             fast = joint_block_in_steps(limits.to_steps(a), limits.to_steps(b), feed, limits)

@@ -212,10 +212,10 @@ def test_a_remembered_gcode_verdict_is_the_fresh_one(
     parsed = parse_line(line)
     if parsed.kind != "gcode":
         return
-    fresh, fresh_problems = _copy(state), []
+    fresh, fresh_problems = _copy(state), list[str]()
     _judge_gcode(parsed, profile, fresh, fresh_problems)
     for _ in range(2):  # computed, then remembered
-        remembered, problems = _copy(state), []
+        remembered, problems = _copy(state), list[str]()
         _check_gcode(parsed, profile, remembered, problems)
         assert problems == fresh_problems
         assert remembered == fresh
