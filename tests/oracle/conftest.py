@@ -21,14 +21,15 @@ collect_ignore_glob = ["test_diff_*.py"] if MISSING else []
 
 HERE = Path(__file__).parent
 
-TORN_SWITCH_READ = pytest.mark.flaky(reruns=1, only_rerun=[r"Hard limit"])
+TORN_SWITCH_READ = pytest.mark.flaky(reruns=1, only_rerun=[r"Hard limit", r"Reset to continue"])
 """The simulator's switch model (../shared/firmware-oracle/fwsim.c) reads the firmware's 32-bit
 position between 100 us chunks of instructions, possibly between the stepper interrupt's byte
 stores: as a joint crosses zero it can read +-65535 steps, press a range switch and make the
 firmware print ``ALARM: Hard limit`` that no arm would (seen about once in four suite runs on a
 loaded machine). A failure whose text names a hard limit (the harness's transcript, or the
-client's ``MirobotAlarmError``) runs once more on a fresh oracle; a genuine difference fails
-both times."""
+client's ``MirobotAlarmError``), or the ``[Reset to continue]`` that follows it (when the alarm
+line was read with an earlier reply), runs once more on a fresh oracle; a genuine difference
+fails both times."""
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
