@@ -11,6 +11,7 @@ command involved and quotes the firmware's own words.
     │   ├── InvalidLineError                     a raw line the firmware would refuse or misread
     │   ├── MotionChainError                     a line streaming would make end elsewhere
     │   ├── PathRefused                          a path point refused (its index)
+    │   ├── TapeFormatError                      a tape file that cannot be read (file, line)
     │   └── Unreachable, OutOfLimits, BehindShoulder   kinematics: no (reachable) solution
     ├── MirobotConnectionError                   the serial link could not be opened or failed
     │   └── MirobotLinkLostError                 the link closed or broke while in use
@@ -55,6 +56,7 @@ __all__ = [
     "PathError",
     "PathRefused",
     "RefusalReason",
+    "TapeFormatError",
     "Unreachable",
 ]
 
@@ -257,6 +259,17 @@ class InvalidLineError(MirobotUsageError):
     def __init__(self, message: str, problems: tuple[str, ...]) -> None:
         super().__init__(message)
         self.problems = problems
+
+
+class TapeFormatError(MirobotUsageError):
+    """A tape file that cannot be read: truncated, invalid JSON, an unknown version or field
+    (:attr:`path` and :attr:`line`, 1-based; 0 when the file itself is missing)."""
+
+    def __init__(self, path: str, line: int, problem: str) -> None:
+        super().__init__(f"{path}:{line}: bad tape: {problem}")
+        self.path = path
+        self.line = line
+        self.problem = problem
 
 
 class PathError(MirobotError):
