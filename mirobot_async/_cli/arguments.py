@@ -178,6 +178,12 @@ def _version() -> str:
         return __version__
 
 
+def _replay_handler(args: argparse.Namespace) -> int:
+    from mirobot_async._cli.tapes import cmd_replay  # the emulator loads only when replaying
+
+    return cmd_replay(args)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``mirobot`` (each subcommand sets ``handler``)."""
     robot = _robot_options()
@@ -420,6 +426,24 @@ def build_parser() -> argparse.ArgumentParser:
     )
     add_envelope_option(mcp)
     # --- end of mcp ------------------------------------------------------------------------
+
+    # --- replay: tapes against the emulator ----------------------------------------------
+    replay = add(
+        "replay",
+        _replay_handler,
+        "replay tapes (recordings of what an arm received and printed: the firmware's tapes, "
+        "--record, mirobot doctor) against the emulator and say per tape: equal, or the first "
+        "difference (bytes and instants); exit 0 all equal, 1 a difference, 2 a bad tape",
+        talks=False,
+    )
+    replay.add_argument("tapes", nargs="+", metavar="TAPE", help="tape files (.jsonl or .jsonl.gz)")
+    replay.add_argument(
+        "--firmware",
+        choices=gcode.FIRMWARE_PROFILES,
+        help="the emulator profile to replay against (default: the family the tape names)",
+    )
+    replay.add_argument("--json", action="store_true", help="one JSON object per tape")
+    # --- end of replay ----------------------------------------------------------------------
 
     emulator = commands_parser.add_parser(
         "emulator",

@@ -188,47 +188,87 @@ def _open_text(path: Path) -> IO[str]:
     return path.open("r", encoding="utf-8")
 
 
-def read_tapes(path: str | Path) -> Iterator[Tape]:
-    """Every tape in a file (``.jsonl`` or gzip-compressed), in order.
+@dataclass
+class TapeText:
+    """One tape's lines as read from its file, parsed only when asked (:meth:`parse`): a suite
+    that replays one tape of a large file need not parse the others' events."""
 
-    Raises :class:`~mirobot_async.errors.TapeFormatError` naming the file and line for invalid
-    JSON, an unknown version or field, an event before any header, a truncated gzip stream or a
-    file with no tape. A last line without its newline (a recording cut off) is ignored.
-    """
+    path: str
+    line: int
+    """The header's line number (1-based)."""
+    header: dict[str, Any]
+    lines: list[str]
+
+    @property
+    def id(self) -> str:
+        return str(self.header.get("id", f"{self.path}:{self.line}"))
+
+    def parse(self) -> Tape:
+        """The tape with its events (:class:`~mirobot_async.errors.TapeFormatError` naming the
+        file and line of the first bad event)."""
+        tape = Tape(self.header, path=self.path, line=self.line)
+        append = tape.events.append
+        for number, raw in enumerate(self.lines, start=self.line + 1):
+            if not raw.strip():
+                continue
+            try:
+                record = json.loads(raw)
+            except ValueError as exc:
+                raise TapeFormatError(self.path, number, f"invalid JSON ({exc.args[0]})") from None
+            try:
+                if not isinstance(record, dict):
+                    raise ValueError("a line must be a JSON object")
+                append(parse_event(record))
+            except ValueError as exc:
+                raise TapeFormatError(self.path, number, str(exc)) from None
+        return tape
+
+
+def split_tapes(path: str | Path) -> list[TapeText]:
+    """The tapes of a file (``.jsonl`` or gzip-compressed) with their headers checked and their
+    events unparsed. Raises :class:`~mirobot_async.errors.TapeFormatError` naming the file and
+    line for a bad header, an event before any header, a truncated gzip stream or a file with no
+    tape. A last line without its newline (a recording cut off) is left out."""
     path = Path(path)
-    tape: Tape | None = None
-    count = 0
+    name = str(path)
+    texts: list[TapeText] = []
     number = 0
     try:
         with _open_text(path) as stream:
             for number, raw in enumerate(stream, start=1):
                 if not raw.endswith("\n"):
                     break  # the last line of a tape whose writer was killed: not whole
-                if not raw.strip():
-                    continue
-                try:
-                    record = json.loads(raw)
-                    if not isinstance(record, dict):
-                        raise ValueError("a line must be a JSON object")
-                    if "tape" in record:
-                        if tape is not None:
-                            yield tape
-                        tape = Tape(parse_header(record), path=str(path), line=number)
-                        count += 1
-                    elif tape is None:
-                        raise ValueError("an event before the first header")
-                    else:
-                        tape.events.append(parse_event(record))
-                except ValueError as exc:  # json.JSONDecodeError is a ValueError
-                    raise TapeFormatError(str(path), number, str(exc)) from None
+                if '"tape"' in raw and raw.lstrip().startswith("{"):
+                    try:
+                        record = json.loads(raw)
+                        if isinstance(record, dict) and "tape" in record:
+                            texts.append(TapeText(name, number, parse_header(record), []))
+                            continue
+                    except ValueError as exc:
+                        raise TapeFormatError(name, number, str(exc)) from None
+                if not texts:
+                    if not raw.strip():
+                        continue
+                    raise TapeFormatError(name, number, "an event before the first header")
+                texts[-1].lines.append(raw)
+    except FileNotFoundError:
+        raise TapeFormatError(name, 0, "no such file") from None
     except (EOFError, OSError, UnicodeDecodeError) as exc:
-        if isinstance(exc, FileNotFoundError):
-            raise TapeFormatError(str(path), 0, "no such file") from None
-        raise TapeFormatError(str(path), number + 1, f"unreadable: {exc}") from None
-    if tape is not None:
-        yield tape
-    if count == 0:
-        raise TapeFormatError(str(path), number, "no tape header in the file")
+        raise TapeFormatError(name, number + 1, f"unreadable: {exc}") from None
+    if not texts:
+        raise TapeFormatError(name, number, "no tape header in the file")
+    return texts
+
+
+def read_tapes(path: str | Path) -> Iterator[Tape]:
+    """Every tape in a file (``.jsonl`` or gzip-compressed), in order, with its events.
+
+    Raises :class:`~mirobot_async.errors.TapeFormatError` naming the file and line for invalid
+    JSON, an unknown version or field, an event before any header, a truncated gzip stream or a
+    file with no tape. A last line without its newline (a recording cut off) is ignored.
+    """
+    for text in split_tapes(path):
+        yield text.parse()
 
 
 def bytes_text(data: bytes) -> str:
