@@ -89,6 +89,9 @@ class ReplayReport:
     instants: str = "exact"
     """``exact`` (firmware tapes: simulated instants) or ``loose`` (wall-clock instants)."""
     shifts: list[float] = field(default_factory=list)
+    pairs: list[tuple[int, float, float | None]] = field(default_factory=list)
+    """Per line compared equal in bytes: its event, the firmware's and the emulator's first-byte
+    instants (the comparison goes on past a difference of instants alone, to the first of bytes)."""
 
 
 def is_status(line: bytes) -> bool:
@@ -253,7 +256,8 @@ def _compare(
         theirs = line.data
         if n >= len(ours):
             report.equal = False
-            report.difference = Difference(report.tape, k, theirs, line.start, None, None)
+            if report.difference is None:
+                report.difference = Difference(report.tape, k, theirs, line.start, None, None)
             return
         at, mine = ours[n]
         if line.partial:
@@ -273,18 +277,22 @@ def _compare(
                 why = "bytes"
         elif theirs != mine:
             why = "bytes"
-        if not why and at is not None:
+        if why:
+            report.equal = False
+            if report.difference is None:
+                report.difference = Difference(report.tape, k, theirs, line.start, mine, at, why)
+            return
+        report.pairs.append((k, line.start, at))
+        if at is not None:
             shift = at - line.start
             report.shifts.append(shift)
             if abs(shift) > abs(report.largest_shift):
                 report.largest_shift = shift
-            if abs(shift) > tolerance:
+            if abs(shift) > tolerance and report.difference is None:
+                report.equal = False
                 why = f"{shift * 1000:+.1f} ms"
-        if why:
-            report.equal = False
-            report.difference = Difference(report.tape, k, theirs, line.start, mine, at, why)
-            return
-    if len(ours) > len(expected):
+                report.difference = Difference(report.tape, k, theirs, line.start, mine, at, why)
+    if len(ours) > len(expected) and report.difference is None:
         at, mine = ours[len(expected)]
         report.equal = False
         report.difference = Difference(
