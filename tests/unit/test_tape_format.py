@@ -59,7 +59,7 @@ def test_every_byte_and_instant_reads_back(
     assert len(tape.events) == len(events)
     for got, sent in zip(tape.events, events, strict=True):
         assert type(got) is type(sent)
-        assert got.data == sent.data  # type: ignore[union-attr]
+        assert got.data == sent.data
         assert got.t == pytest.approx(sent.t, abs=1e-7)
 
 
