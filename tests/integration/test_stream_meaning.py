@@ -43,12 +43,6 @@ async def _run(url: str, run: Callable[[Mirobot], Awaitable[_T]]) -> _T:
         return await run(arm)
 
 
-@pytest.mark.oracle_differs(
-    "the pool's oracle runs at time scale 4 here, which a loaded host cannot keep up (the "
-    "simulator's clock slips: replies late, a FlakyFailure in CI); the same property on a fresh "
-    "oracle per test is tests/oracle/test_diff_chaining.py",
-    strict=False,
-)
 @pytest.mark.parametrize("firmware", ["2021", "classic"])
 def test_streamed_programs_end_where_stepped_ones_do(
     lend_emulator: EmulatorLender, firmware: str
@@ -111,12 +105,6 @@ async def _client_moves(
         return joints_of(await arm.wait_idle())
 
 
-@pytest.mark.oracle_differs(
-    "the pool's oracle runs at time scale 4 here, which a loaded host cannot keep up (the "
-    "simulator's clock slips: replies late, a FlakyFailure in CI); the same property on a fresh "
-    "oracle per test is tests/oracle/test_diff_chaining.py",
-    strict=False,
-)
 @pytest.mark.parametrize("firmware", ["2021", "classic"])
 def test_the_clients_own_moves_chain_without_waiting(
     lend_emulator: EmulatorLender, firmware: str
