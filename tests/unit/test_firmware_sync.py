@@ -85,7 +85,7 @@ def test_check_mode_never_waits() -> None:
     ("line", "count", "j1"),
     [("M21 G91 X1 F3000", 25, 1.040), ("M21 G91 X5 F3000", 25, 5.041)],
 )
-def test_resynchronising_burst_ends_where_the_oracles_does(
+def test_resynchronising_burst_ends_where_the_firmwares_does(
     line: str, count: int, j1: float
 ) -> None:
     """A line whose target rounds to the planned steps makes no block, so the 25 lines never
