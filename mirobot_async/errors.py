@@ -22,7 +22,6 @@ command involved and quotes the firmware's own words.
     ├── MirobotOutcomeUnknownError               a reset cut a line: whether it ran is unknown
     ├── PathError                                a path failed at one point (index, point, cause)
     ├── EmulatorError                            the emulator process failed or refused a command
-    │   └── OracleUnsupportedError               the firmware oracle cannot do what was asked
     └── MirobotCommandError                      the firmware refused a line (error: / Error, Ennn)
         ├── MotionRefusedError                   "ok but dropped": locked, soft limit, unreachable
         ├── MirobotAlarmError                    the robot is in Alarm (hard limit, abort, ...)
@@ -51,7 +50,6 @@ __all__ = [
     "MotionChainError",
     "MotionRefusedError",
     "NodeSilentError",
-    "OracleUnsupportedError",
     "OutOfLimits",
     "PathError",
     "PathRefused",
@@ -315,9 +313,3 @@ class ControllerCommandError(MirobotCommandError):
 
 class EmulatorError(MirobotError):
     """The emulator process could not be started, died, or refused a control command."""
-
-
-class OracleUnsupportedError(EmulatorError):
-    """The firmware oracle cannot be what was asked of an emulator (the 2021 profile, emulator
-    options, the control channel): the pytest plugin skips the test that asked, with this
-    message as the reason."""

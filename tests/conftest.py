@@ -19,16 +19,6 @@ import pytest
 from hypothesis import HealthCheck, settings
 
 SCALE = float(os.environ.get("MIROBOT_TEST_SCALE", "0.3"))
-
-# The firmware oracle (MIROBOT_TEST_LINK=oracle, tests/realtime) sits next to the repository
-# (../shared), or next to the folder of a worktree one level deeper.
-_ORACLE_SOURCES = [
-    parent / "shared" / "firmware-oracle" for parent in Path(__file__).resolve().parents[2:4]
-]
-os.environ.setdefault(
-    "MIROBOT_ORACLE_SOURCE",
-    str(next((path for path in _ORACLE_SOURCES if path.is_dir()), _ORACLE_SOURCES[0])),
-)
 FLOOR = 25
 
 

@@ -2,7 +2,8 @@
 
 :class:`Firmware` behaves like the arm's GRBL 0.9j based firmware. Evidence, strongest first
 (classic profile): the device logs in ``vectors.json`` (banner and homing texts), the oracle (the
-vendor's open firmware 20191228_2 run unmodified in an AVR simulator, used as a black box),
+vendor's open firmware 20191228_2 as it ran unmodified in an AVR simulator, a black box; what it
+did is kept as the firmware tapes, ``../shared/firmware-tapes``, replayed by ``tests/tapes``),
 PROTOCOL.md, the manuals. The 2021 profile keeps the 2021 manual's texts and otherwise behaves
 as the classic oracle does. No asyncio, no OS calls: the host feeds bytes with
 :meth:`Firmware.receive`, runs the simulated clock with :meth:`Firmware.advance` and collects

@@ -134,7 +134,7 @@ plans one or not (oracle: ``X0.1`` increments 1.26-1.43 ms in joint mode, ``X0``
 ASSUMED: a joint line's ``M21`` reads the position at the end of its parse; the oracle's own
 instants vary more (the first segments of a move starting, the stepper interrupt: ``X0``
 lines take 0.75-0.84 ms while the arm moves), and this is the calibration its bursts of
-``M21 G91`` lines agree with (tests/oracle ``m21-resync-25-two-axes``)."""
+``M21 G91`` lines agree with (the firmware tape ``test_burst[m21-resync-25-two-axes]``)."""
 
 BLOCK_SECONDS: Final = 0.40e-3
 """Planning the block of a Cartesian line into an empty planner (oracle: the first of a burst

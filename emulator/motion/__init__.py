@@ -9,8 +9,8 @@ Modules: :mod:`.axes` (vectors, limits from the ``$`` settings, motor steps), :m
 (trapezoids), :mod:`.blocks` (what a block is), :mod:`.builders` (blocks from G-code
 intentions), :mod:`.planner` (the 18-block look-ahead planner; its docstring has the rules).
 
-The model, checked against the classic firmware running in an AVR simulator (the oracle)
----------------------------------------------------------------------------------------------
+The model, checked against the classic firmware (the oracle; its recorded firmware tapes)
+-----------------------------------------------------------------------------------------
 * Joint moves (``M21``, ``M20 G0``, classic ``M20 G1``): one block, a straight line in joint
   space. Its length is the Euclidean norm of the displacement **in whole motor steps** converted
   back to degrees (``$100..$106`` steps per degree; ``X90`` on J1 is 5106 steps = 90.005 deg);

@@ -51,8 +51,8 @@ HOLD_LATENCY: Final = 0.0403
 """Seconds a feed hold keeps the planned motion at least before it decelerates: GRBL's stepper
 has already prepared that much (its segment buffer); the braking then starts at the next
 boundary of its ``HOLD_SEGMENT_SECONDS`` segments, counted from the start of the motion.
-Oracle, replayed at its own simulated instants (tests/oracle/test_replay_motion.py): in four
-recordings the held position is matched exactly by braking 40.9-49.8 ms after the ``!``, and
+Oracle, replayed at its own simulated instants (the firmware tapes of ``test_replay_motion``): in
+four recordings the held position is matched exactly by braking 40.9-49.8 ms after the ``!``, and
 each time at a multiple of 10 ms since the motion started (the fits allow 39.8-40.9 ms here)."""
 
 HOLD_SEGMENT_SECONDS: Final = 0.010

@@ -45,15 +45,9 @@ extra_args=..., listen=..., fresh=...)`` marker, else from the command line opti
 ``--mirobot-firmware`` (default ``2021``), ``--mirobot-time-scale`` (default ``0``: every
 motion completes at once) and ``--mirobot-link`` (``pty``, ``tcp`` or ``both``: every test
 using the fixtures runs once per link; default ``$MIROBOT_TEST_LINK``, else ``pty`` where ptys
-exist). The ``mirobot_link`` fixture names the test's link. ``--mirobot-link oracle`` (or
-``MIROBOT_TEST_LINK=oracle``) lends the vendor's own firmware in an AVR simulator instead of
-an emulator (classic profile; ``$MIROBOT_ORACLE_SOURCE`` names its folder: see
-:mod:`mirobot_async.testing._oracle`); a time scale of 0 runs it as fast as the host can,
-others at that many simulated seconds per second. A test that asks of it what only the emulator
-has (the 2021 profile, emulator options, the control channel) is skipped, with the reason.
-The fixtures are
-synchronous (the emulator is a separate process), so they work in any test style: plain,
-pytest-asyncio (any mode), anyio or trio.
+exist). The ``mirobot_link`` fixture names the test's link. The fixtures are synchronous (the
+emulator is a separate process), so they work in any test style: plain, pytest-asyncio (any
+mode), anyio or trio.
 
 This module imports only the standard library at import time, so loading the plugin is cheap.
 """
@@ -78,7 +72,6 @@ from mirobot_async.testing._control import (
     STARTUP_TIMEOUT,
     STOP_TIMEOUT,
     EmulatorError,
-    OracleUnsupportedError,
     control_reply,
     control_result,
     control_text,
@@ -409,7 +402,7 @@ _MARKER_HELP = (
     "not one renewed from the pool)"
 )
 _MARKER_KEYS = frozenset({"firmware", "time_scale", "extra_args", "listen", "fresh"})
-LINK_CHOICES = ("pty", "tcp", "oracle", "both")
+LINK_CHOICES = ("pty", "tcp", "both")
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
@@ -432,8 +425,7 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         choices=LINK_CHOICES,
         default=None,
         help="link of the mirobot_emulator fixture: pty, tcp or both (each test runs once per "
-        "link), or oracle (the vendor's firmware in a simulator, $MIROBOT_ORACLE_SOURCE); "
-        "default $MIROBOT_TEST_LINK, else pty where ptys exist",
+        "link); default $MIROBOT_TEST_LINK, else pty where ptys exist",
     )
     group.addoption(
         "--mirobot-pool-size",
@@ -452,7 +444,7 @@ def pytest_configure(config: pytest.Config) -> None:
 
 def session_link(config: pytest.Config) -> str | None:
     """The link chosen for the whole session (``--mirobot-link``, else ``$MIROBOT_TEST_LINK``):
-    ``pty``, ``tcp``, ``oracle``, or ``None`` for ``both`` or no choice."""
+    ``pty``, ``tcp``, or ``None`` for ``both`` or no choice."""
     chosen: str | None = config.getoption("--mirobot-link", None)
     if chosen is None:
         chosen = default_link() if os.environ.get(LINK_ENV, "").strip() else None
@@ -513,7 +505,7 @@ def _define_fixtures() -> None:
 
     @pytest.fixture
     def mirobot_link(request: Any) -> str:
-        """The arm's link for this test: ``pty``, ``tcp`` or ``oracle`` (``--mirobot-link``)."""
+        """The arm's link for this test: ``pty`` or ``tcp`` (``--mirobot-link``)."""
         link: str = getattr(request, "param", None) or default_link()
         return link
 
@@ -561,24 +553,6 @@ def _define_fixtures() -> None:
         with InProcessArm(firmware, time_scale) as arm:
             yield arm.url
 
-    @pytest.hookimpl(wrapper=True)
-    def pytest_runtest_setup(item: pytest.Item) -> Iterator[None]:
-        """A fixture that asked the firmware oracle for what only the emulator has skips."""
-        return (yield from _skip_unsupported())
-
-    @pytest.hookimpl(wrapper=True)
-    def pytest_runtest_call(item: pytest.Item) -> Iterator[None]:
-        """A test that asked the firmware oracle for what only the emulator has skips."""
-        return (yield from _skip_unsupported())
-
-    def _skip_unsupported() -> Iterator[None]:
-        try:
-            return (yield)
-        except OracleUnsupportedError as exc:
-            pytest.skip(f"emulator only: {exc}")
-
-    globals()["pytest_runtest_setup"] = pytest_runtest_setup
-    globals()["pytest_runtest_call"] = pytest_runtest_call
     globals()["mirobot_link"] = mirobot_link
     globals()["mirobot_emulator_pool"] = mirobot_emulator_pool
     globals()["mirobot_emulator_process"] = mirobot_emulator_process

@@ -12,7 +12,6 @@ from collections.abc import Sequence
 from mirobot_async.errors import (
     EmulatorError,  # defined with the error tree
     MirobotUsageError,
-    OracleUnsupportedError,
 )
 
 __all__ = [
@@ -24,7 +23,6 @@ __all__ = [
     "STARTUP_TIMEOUT",
     "STOP_TIMEOUT",
     "EmulatorError",
-    "OracleUnsupportedError",
     "control_reply",
     "control_result",
     "control_text",
@@ -53,12 +51,9 @@ EXIT_ON_EOF = "--exit-on-stdin-eof"
 """The emulator's option that stops it when its stdin ends: the process that started it is gone."""
 
 LINK_ENV = "MIROBOT_TEST_LINK"
-"""Environment variable choosing the emulator's link when a caller names none: ``pty``,
-``tcp`` or ``oracle`` (so a whole test suite can be run once over each without changing a
-test). ``oracle``: the arms lent by :class:`~mirobot_async.testing.EmulatorPool` (so the
-plugin's fixtures) are the vendor's firmware in a simulator (see
-:mod:`mirobot_async.testing._oracle`); an emulator started directly then serves a pty."""
-LINKS = ("pty", "tcp", "oracle")
+"""Environment variable choosing the emulator's link when a caller names none: ``pty`` or
+``tcp`` (so a whole test suite can be run once over each without changing a test)."""
+LINKS = ("pty", "tcp")
 
 
 def default_link() -> str:
@@ -67,19 +62,18 @@ def default_link() -> str:
     chosen = os.environ.get(LINK_ENV, "").strip().lower()
     if chosen:
         if chosen not in LINKS:
-            raise MirobotUsageError(f"{LINK_ENV}={chosen!r} must be 'pty', 'tcp' or 'oracle'")
+            raise MirobotUsageError(f"{LINK_ENV}={chosen!r} must be 'pty' or 'tcp'")
         return chosen
     return "pty" if os.name == "posix" else "tcp"
 
 
 def link_args(listen: str | None) -> list[str]:
     """The emulator's command-line arguments for ``listen``: ``None`` (:func:`default_link`),
-    ``"pty"``, ``"tcp"`` (a free loopback port) or ``"HOST:PORT"`` (an emulator asked for on
-    the ``oracle`` link of :func:`default_link` serves a pty)."""
+    ``"pty"``, ``"tcp"`` (a free loopback port) or ``"HOST:PORT"``."""
     link = default_link() if listen is None else listen
     if not isinstance(link, str) or not link:
         raise MirobotUsageError(f"listen={listen!r} must be 'pty', 'tcp' or 'HOST:PORT'")
-    if link == "pty" or (link == "oracle" and listen is None):
+    if link == "pty":
         return []
     if link == "tcp":
         return ["--listen", "127.0.0.1:0"]

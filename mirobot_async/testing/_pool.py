@@ -106,14 +106,10 @@ class EmulatorPool:
 
         Renewing an idle one takes milliseconds (at most :data:`CONTROL_TIMEOUT` s before it
         is given up for a new process); starting one waits up to ``startup_timeout`` s
-        (:class:`EmulatorError`). ``fresh``: a new process, never pooled. On the ``oracle``
-        link the process is a new firmware oracle (:class:`SyncOracleProcess`, never pooled);
-        :class:`OracleUnsupportedError` if these settings ask for what it cannot be.
+        (:class:`EmulatorError`). ``fresh``: a new process, never pooled.
         """
         emulator_args(firmware, time_scale, extra_args)  # bad settings: MirobotUsageError now
         link = listen or self.link or default_link()
-        if link == "oracle":
-            return self._start_oracle(firmware, time_scale, extra_args)
         pooled = self._pooled(link, extra_args) and not fresh
         try:
             while pooled:
@@ -168,22 +164,6 @@ class EmulatorPool:
             self._stop(emulator)
             raise EmulatorError("the emulator pool is closed")
         return emulator
-
-    def _start_oracle(
-        self, firmware: str, time_scale: float, extra_args: Sequence[str]
-    ) -> SyncEmulatorProcess:
-        from mirobot_async.testing._oracle import SyncOracleProcess, check_oracle_settings
-
-        check_oracle_settings(firmware, time_scale, extra_args)  # before any process starts
-        oracle = SyncOracleProcess(firmware, time_scale, extra_args=extra_args)
-        with self._lock:
-            self.started += 1
-            self._links[oracle] = None  # stopped on its return
-            closed = self._closed
-        if closed:
-            self._stop(oracle)
-            raise EmulatorError("the emulator pool is closed")
-        return oracle
 
     def _start_spare(self, link: str) -> None:
         """Start a process for the next borrower in the background (while this one's test

@@ -18,16 +18,6 @@
 
 Every test module of the client also checks that no task is left behind (``no_leftover_tasks``,
 in tests/conftest.py).
-
-``MIROBOT_TEST_LINK=oracle`` (or ``--mirobot-link oracle``) runs the suite against the vendor's
-firmware in a simulator (classic): every arm the pool lends is then a firmware oracle, at full
-speed for time scale 0, else at the marker's time scale (1: real time). A test that borrows no
-arm from the pool (it starts emulators itself) is skipped on that link; one that asks the pool
-for what only the emulator has (the 2021 profile, emulator options, the control channel) is
-skipped by the plugin when it asks, each with the reason. A test marked
-``@pytest.mark.oracle_differs("why")`` is a strict expected failure there: the real firmware
-does otherwise than the test expects, and the reason says what (a finding to fix, not to hide);
-``strict=False`` where it happens only with some timings of the host.
 """
 
 from __future__ import annotations
@@ -65,31 +55,13 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     """README's test command (no link chosen) runs the client's tests on in-process arms and
     leaves the tests of the emulator as a process (marked ``emulator_process``: faults on its
     wire, its control channel, its port) to the link lanes (``MIROBOT_TEST_LINK=pty|tcp``, as
-    CI runs them). On the oracle link, skip the tests that borrow no arm from the session's
-    pool: what they drive is an emulator they start themselves, never the firmware."""
-    link = session_link(config)
-    if link is None:
-        process = [item for item in items if item.get_closest_marker("emulator_process")]
-        if process:
-            config.hook.pytest_deselected(items=process)
-            items[:] = [item for item in items if not item.get_closest_marker("emulator_process")]
+    CI runs them)."""
+    if session_link(config) is not None:
         return
-    if link != "oracle":
-        return
-    for item in items:
-        # the simulator's torn switch reads (tests/oracle/conftest.py: TORN_SWITCH_READ)
-        item.add_marker(pytest.mark.flaky(reruns=1, only_rerun=[r"Hard limit"]))
-        for mark in item.iter_markers("oracle_differs"):
-            strict = bool(mark.kwargs.get("strict", True))
-            run = bool(mark.kwargs.get("run", True))
-            item.add_marker(pytest.mark.xfail(reason=mark.args[0], strict=strict, run=run))
-    skip = pytest.mark.skip(
-        reason="emulator only: starts its own emulator (borrows no arm from the pool, so "
-        "nothing of it would run on the firmware oracle)"
-    )
-    for item in items:
-        if "mirobot_emulator_pool" not in getattr(item, "fixturenames", ()):
-            item.add_marker(skip)
+    process = [item for item in items if item.get_closest_marker("emulator_process")]
+    if process:
+        config.hook.pytest_deselected(items=process)
+        items[:] = [item for item in items if not item.get_closest_marker("emulator_process")]
 
 
 def emulator_options(request: pytest.FixtureRequest, profile: str) -> dict[str, Any]:
@@ -148,7 +120,7 @@ class InProcessEmulator(EmulatorProcess):
 def runs_in_process(request: pytest.FixtureRequest, options: dict[str, Any]) -> bool:
     """Whether this test's ``emu`` is an in-process arm: README's test command (no link
     chosen) runs every client test on one, except those that need a process (marked
-    ``emulator_process``, or asking for process options). ``--mirobot-link pty|tcp|oracle``
+    ``emulator_process``, or asking for process options). ``--mirobot-link pty|tcp``
     (or ``$MIROBOT_TEST_LINK``) runs them all over that link instead."""
     if session_link(request.config) is not None:
         return False
@@ -206,14 +178,6 @@ async def emu(
         fresh=bool(options.get("fresh", False)),
     ) as emulator:
         yield emulator
-
-
-@pytest.fixture
-def on_the_oracle(request: pytest.FixtureRequest) -> bool:
-    """True when the arms of this session are the firmware oracle. Its simulated clock slips
-    behind the wall clock on a loaded host, so a wall-clock bound on the firmware's own timing
-    can be checked only against the emulator (whose clock is the wall clock)."""
-    return session_link(request.config) == "oracle"
 
 
 @pytest.fixture

@@ -2,8 +2,8 @@
 time (each after the arm stopped) end, or is refused before its first byte
 (:class:`~mirobot_async.MotionChainError`). The firmware restarts a line that carries
 ``M20``/``M21`` from where the arm is (see :class:`~mirobot_async._core.modal.Chaining`); the
-emulator models it. The same property on the vendor's firmware:
-tests/oracle/test_diff_chaining.py."""
+emulator models it. The vendor's firmware showed the same property (the firmware tapes of
+``test_diff_chaining``)."""
 
 from __future__ import annotations
 
@@ -31,8 +31,8 @@ IN_PROCESS_TIME_SCALE = 100.0
 the lines after it are parsed at this speed too (a move of a few degrees lasts milliseconds;
 with the client's restart checks disabled the properties fail at 200 already)."""
 STATUS_TIMEOUT = 10.0
-"""On the oracle link the simulator's clock slips behind the wall clock on a loaded host (a CI
-run timed out at the client's 2 s); the replies' timing is not what these tests judge."""
+"""Generous (the client's default is 2 s): these tests judge where the arm ends, not how fast its
+replies come on a loaded host."""
 STEP = 0.06
 """Two whole motor steps of the coarsest joint, in degrees (J3: 64 steps/degree)."""
 
@@ -43,12 +43,6 @@ async def _run(url: str, run: Callable[[Mirobot], Awaitable[_T]]) -> _T:
         return await run(arm)
 
 
-@pytest.mark.oracle_differs(
-    "the pool's oracle runs at time scale 4 here, which a loaded host cannot keep up (the "
-    "simulator's clock slips: replies late, a FlakyFailure in CI); the same property on a fresh "
-    "oracle per test is tests/oracle/test_diff_chaining.py",
-    strict=False,
-)
 @pytest.mark.parametrize("firmware", ["2021", "classic"])
 def test_streamed_programs_end_where_stepped_ones_do(
     lend_emulator: EmulatorLender, firmware: str
@@ -111,12 +105,6 @@ async def _client_moves(
         return joints_of(await arm.wait_idle())
 
 
-@pytest.mark.oracle_differs(
-    "the pool's oracle runs at time scale 4 here, which a loaded host cannot keep up (the "
-    "simulator's clock slips: replies late, a FlakyFailure in CI); the same property on a fresh "
-    "oracle per test is tests/oracle/test_diff_chaining.py",
-    strict=False,
-)
 @pytest.mark.parametrize("firmware", ["2021", "classic"])
 def test_the_clients_own_moves_chain_without_waiting(
     lend_emulator: EmulatorLender, firmware: str

@@ -2,7 +2,7 @@
 terminal runs it: every command that moves the arm, one after another on a port; the
 pick-and-place example as its own comment says to run it; Ctrl-C while homing and while a program
 runs, with what the arm does afterwards read back over the port. Each on both emulator profiles
-at ``--time-scale 1`` and on the vendor's firmware at real time."""
+at ``--time-scale 1``."""
 
 from __future__ import annotations
 
@@ -73,17 +73,11 @@ def test_every_moving_command_on_a_port(mirobot_emulator_pool: EmulatorPool, arm
 
 
 @pytest.mark.parametrize("arm", ARMS)
-def test_pick_and_place_as_its_comment_says(mirobot_emulator_pool: EmulatorPool, arm: str) -> None:
-    """``mirobot run examples/pick_and_place.gcode --home``: embedded at ``--time-scale 1`` for
-    the emulator profiles, ``--port`` for the firmware; homing, then the whole program."""
+def test_pick_and_place_as_its_comment_says(arm: str) -> None:
+    """``mirobot run examples/pick_and_place.gcode --home``: embedded at ``--time-scale 1``;
+    homing, then the whole program."""
     program = str(EXAMPLES / "pick_and_place.gcode")
-    if arm == "oracle":
-        with arm_at_real_speed(mirobot_emulator_pool, arm) as url:
-            done = mirobot("run", program, "--home", "--port", url, timeout=150)
-    else:
-        done = mirobot(
-            "run", program, "--home", "--time-scale", "1", "--firmware", arm, timeout=150
-        )
+    done = mirobot("run", program, "--home", "--time-scale", "1", "--firmware", arm, timeout=150)
     assert done.returncode == 0, done.stderr
     assert "Traceback" not in done.stderr, done.stderr
     assert "Idle" in done.stdout, done.stdout  # the final status table

@@ -1,7 +1,7 @@
 """The library's user flows at the arm's own speed: README's two examples as written (the
 asyncio one on an emulator at ``time_scale=1``, the blocking one on a port, as a user with an arm
 runs it), a monitor thread running through homing, and a move that lasts 20 s. Each on both
-emulator profiles at ``--time-scale 1`` and on the vendor's firmware at real time."""
+emulator profiles at ``--time-scale 1``."""
 
 from __future__ import annotations
 

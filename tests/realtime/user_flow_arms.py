@@ -1,10 +1,7 @@
 """What the user-flow tests of this directory share: an arm at its own speed, lent by the
 session's pool (the plugin's ``mirobot_emulator_pool``), and the CLI as a child process.
 
-``ARMS``: the emulator at ``--time-scale 1`` in both profiles, and ``oracle``, the vendor's
-classic firmware in its simulator at real time (``run.sh -s 1``, the pool's ``oracle`` link).
-Without the oracle built, its cases skip, unless ``MIROBOT_REQUIRE_ORACLE=1`` (CI) makes that a
-failure.
+``ARMS``: the emulator at ``--time-scale 1`` in both profiles.
 """
 
 from __future__ import annotations
@@ -18,29 +15,17 @@ import threading
 from collections.abc import Iterator
 from pathlib import Path
 
-import pytest
 import waiting
 
-from mirobot_async.testing import EmulatorError, EmulatorPool
-from mirobot_async.testing._oracle import oracle_command
+from mirobot_async.testing import EmulatorPool
 
-ARMS = ("2021", "classic", "oracle")
+ARMS = ("2021", "classic")
 ROOT = Path(__file__).resolve().parents[2]
 
 
 @contextlib.contextmanager
 def arm_at_real_speed(pool: EmulatorPool, arm: str) -> Iterator[str]:
-    """The port of ``arm`` (a profile, or ``oracle``) running at real speed, powered on."""
-    if arm == "oracle":
-        try:
-            oracle_command(1.0)
-        except EmulatorError as missing:
-            if os.environ.get("MIROBOT_REQUIRE_ORACLE") == "1":
-                raise
-            pytest.skip(str(missing))
-        with pool.lend("classic", 1.0, listen="oracle") as oracle:
-            yield oracle.url
-        return
+    """The port of an emulator of profile ``arm`` running at real speed, powered on."""
     with pool.lend(arm, 1.0) as emulator:
         yield emulator.url
 

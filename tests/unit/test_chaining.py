@@ -60,7 +60,7 @@ ORACLE_CASES: list[tuple[list[str], bool]] = [
 
 
 @pytest.mark.parametrize(("program", "differs"), ORACLE_CASES)
-def test_the_oracles_cases(program: list[str], differs: bool) -> None:
+def test_the_firmwares_measured_cases(program: list[str], differs: bool) -> None:
     assert bool(check_program(program, firmware="classic")) == differs
 
 

@@ -1,6 +1,6 @@
 """Unit tests of mirobot_async._safety.envelope: construction, target and path checks, raw lines.
 
-The oracles are independent of the module under test: forward kinematics is a plain product of
+The references are independent of the module under test: forward kinematics is a plain product of
 modified-DH matrices written here, boxes are compared by hand, and paths are sampled here at a much
 finer step than the envelope's own ``path_step_mm``.
 """
@@ -35,7 +35,7 @@ HOME_POSE = (198.67, 0.0, 230.72, 0.0, 0.0, 0.0)
 SETTINGS = settings(max_examples=60, deadline=None)
 
 # --------------------------------------------------------------------------------------------
-# Independent oracle: forward kinematics as a product of Craig's modified DH matrices
+# Independent reference: forward kinematics as a product of Craig's modified DH matrices
 
 
 def _mdh(alpha: float, a: float, theta: Array, d: float) -> Array:
@@ -97,7 +97,7 @@ def bound_name(side: int, box: Sequence[tuple[float | None, float | None] | None
     return f"{word} {axis}={'0' if text == '-0' else text}"
 
 
-def test_oracle_matches_protocol_vectors() -> None:
+def test_the_reference_fk_matches_protocol_vectors() -> None:
     """The test's own FK reproduces PROTOCOL 8.4 (so it can judge the module)."""
     got = tool_points([HOME, (90.005, 30.001, -20, 10, 19.982, 45.005)])
     assert np.allclose(got[0], (198.67, 0.0, 230.72), atol=1e-3)
@@ -248,7 +248,7 @@ def _near(value: float, bounds: Sequence[float | None], tol: float) -> bool:
 
 @SETTINGS
 @given(box=boxes(), joints=narrowed(), target=joints_in(JOINT_LIMITS, slack=20.0))
-def test_joint_targets_against_the_oracle(
+def test_joint_targets_against_the_reference(
     box: tuple[tuple[float | None, float | None] | None, ...],
     joints: dict[int, tuple[float, float]],
     target: tuple[float, ...],
@@ -280,7 +280,7 @@ def test_joint_targets_against_the_oracle(
 
 @SETTINGS
 @given(box=boxes(), joints=narrowed(), start=joints_in(JOINT_LIMITS))
-def test_pose_targets_against_the_oracle(
+def test_pose_targets_against_the_reference(
     box: tuple[tuple[float | None, float | None] | None, ...],
     joints: dict[int, tuple[float, float]],
     start: tuple[float, ...],
@@ -335,7 +335,9 @@ def box_around(
 
 @SETTINGS
 @given(data=st.data(), start=joints_in(JOINT_LIMITS))
-def test_joint_paths_against_a_fine_oracle(data: st.DataObject, start: tuple[float, ...]) -> None:
+def test_joint_paths_against_a_fine_reference(
+    data: st.DataObject, start: tuple[float, ...]
+) -> None:
     """Start inside the box; the joint-space path is refused when it leaves the box by more than
     half a sample step, and passes when a 0.1 mm sampling keeps it inside with a margin."""
     box = data.draw(box_around(tool_points([start])[0]))
@@ -416,7 +418,7 @@ def fine_line(a: Sequence[float], b: Sequence[float], step: float) -> Array:
     start=joints_in(((-60, 60), (-20, 50), (-60, 40), (-90, 90), (-90, 20), (-90, 90))),
     end=joints_in(((-60, 60), (-20, 50), (-60, 40), (-90, 90), (-90, 20), (-90, 90))),
 )
-def test_linear_paths_against_a_fine_oracle(
+def test_linear_paths_against_a_fine_reference(
     data: st.DataObject, start: tuple[float, ...], end: tuple[float, ...]
 ) -> None:
     """The box is exact for lines; joint limits are judged on the firmware IK of samples."""
@@ -527,7 +529,7 @@ def test_linear_path_through_an_unreachable_region() -> None:
     clockwise=st.booleans(),
     data=st.data(),
 )
-def test_arcs_against_a_fine_oracle(
+def test_arcs_against_a_fine_reference(
     cx: float,
     cy: float,
     radius: float,

@@ -1,5 +1,5 @@
-"""Behaviours of the firmware model fixed against the oracle (the classic firmware 20191228_2 run
-in an AVR simulator); each test quotes what the oracle printed."""
+"""Behaviours of the firmware model fixed against the oracle (the classic firmware 20191228_2 as
+recorded in the firmware tapes); each test quotes what the oracle printed."""
 
 from __future__ import annotations
 

@@ -51,7 +51,7 @@ def _gaps_ms(replies: list[tuple[float, bytes]]) -> list[float]:
         ("M21 G90 G0 X10 Y10 Z10 A10 B10 C10", "M20", 8.051),
     ],
 )
-def test_a_cartesian_line_parses_as_long_as_on_the_oracle(
+def test_a_cartesian_line_parses_as_long_as_on_the_firmware(
     before: str, line: str, oracle_ms: float
 ) -> None:
     """Steady ``ok`` to ``ok`` gaps of identical lines once no more bytes arrive (each plans no
@@ -93,7 +93,7 @@ def test_bytes_arriving_during_a_parse_delay_it(spaces: int, oracle_ms: float) -
         ),
     ],
 )
-def test_an_overflowing_burst_loses_the_oracle_s_bytes(line: str, replies: list[bytes]) -> None:
+def test_an_overflowing_burst_loses_the_firmwares_bytes(line: str, replies: list[bytes]) -> None:
     """20 lines written at once: the ring fills during the slow parses and the lines that
     remain are the oracle's; the start of a last line stays in the ring, the next line end
     completes it (a ``G4 P0`` with its motion: answered as the motion starts, then J2 1.059)."""

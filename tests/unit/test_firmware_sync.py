@@ -1,6 +1,6 @@
 """Lines the firmware holds until queued motion ends, and bursts of resynchronising lines: the
-pure firmware model against what the oracle printed (tests/oracle/test_diff_outputs.py and
-test_diff_motion.py compare the same cases byte for byte)."""
+pure firmware model against what the oracle printed (the firmware tapes of
+``test_diff_outputs`` and ``test_diff_motion`` hold the same cases byte for byte)."""
 
 from __future__ import annotations
 
@@ -85,7 +85,7 @@ def test_check_mode_never_waits() -> None:
     ("line", "count", "j1"),
     [("M21 G91 X1 F3000", 25, 1.040), ("M21 G91 X5 F3000", 25, 5.041)],
 )
-def test_resynchronising_burst_ends_where_the_oracles_does(
+def test_resynchronising_burst_ends_where_the_firmwares_does(
     line: str, count: int, j1: float
 ) -> None:
     """A line whose target rounds to the planned steps makes no block, so the 25 lines never
@@ -142,7 +142,7 @@ def test_a_status_before_the_held_line_waits_finds_the_move_not_started(
     """The move and the held line written at once, then ``pad`` filtered bytes and ``?``: the
     oracle answers ``Idle`` at the start pose while the held line is parsed (GRBL reports before
     it starts the cycle at the line's wait), ``Run`` once it waits (its last ``Idle`` and
-    first ``Run`` in 0.1 ms steps: pads 4/5, 8/9, 7/8, 11/12; tests/oracle/test_diff_outputs.py)."""
+    first ``Run`` in 0.1 ms steps: pads 4/5, 8/9, 7/8, 11/12; firmware tapes, test_diff_outputs)."""
     fw = unlocked("M3 S1000")
     fw.receive(f"{SLOW_MOVE}{line}\n".encode() + b" " * pad + b"?")
     fw.advance(0.05)

@@ -29,7 +29,7 @@ def reports(fw: Firmware, data: bytes, paced: bool = True) -> int:
 
 
 @pytest.mark.parametrize(("gap", "expected"), [(0, 1), (60, 1), (124, 1), (125, 2), (200, 2)])
-def test_a_status_request_during_a_175_byte_report_is_merged_as_on_the_oracle(
+def test_a_status_request_during_a_175_byte_report_is_merged_as_on_the_firmware(
     gap: int, expected: int
 ) -> None:
     """Oracle: ``?`` + 124 filtered bytes + ``?`` one report, + 125 two (0.1 ms a byte)."""
@@ -37,7 +37,7 @@ def test_a_status_request_during_a_175_byte_report_is_merged_as_on_the_oracle(
 
 
 @pytest.mark.parametrize(("gap", "expected"), [(150, 1), (151, 2)])
-def test_a_longer_report_merges_longer_as_on_the_oracle(gap: int, expected: int) -> None:
+def test_a_longer_report_merges_longer_as_on_the_firmware(gap: int, expected: int) -> None:
     """Oracle: a 193-byte report (non-zero angles) merges a ``?`` up to 15.1 ms after."""
     fw = powered_on()
     fw.receive(b"M50\nM21 G90 X-50.5 Y-10.25 Z-5 A-50 B-10 C-50 F3000\n")

@@ -1,6 +1,6 @@
 """Unreachable Cartesian targets and the 2021 profile's composition with classic behaviour: the
-pure firmware model against what the oracle printed (tests/oracle/test_diff_workspace.py
-compares the classic cases byte for byte)."""
+pure firmware model against what the oracle printed (the firmware tapes of
+``test_diff_workspace`` hold the classic cases byte for byte)."""
 
 from __future__ import annotations
 
