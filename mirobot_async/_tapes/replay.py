@@ -89,6 +89,10 @@ class ReplayReport:
     instants: str = "exact"
     """``exact`` (firmware tapes: simulated instants) or ``loose`` (wall-clock instants)."""
     shifts: list[float] = field(default_factory=list)
+    transcript: tuple[list[tuple[int, bytes]], list[bytes]] = field(
+        default_factory=lambda: ([], [])
+    )
+    """The tape's lines (with their events) and the emulator's, normalised, as compared."""
     pairs: list[tuple[int, float, float | None]] = field(default_factory=list)
     """Per line compared equal in bytes: its event, the firmware's and the emulator's first-byte
     instants (the comparison goes on past a difference of instants alone, to the first of bytes)."""
@@ -241,6 +245,7 @@ def replay(tape: Tape, firmware: str = "classic", *, stop_at: float | None = Non
             ours = [(None, line) for line in model.banner]
     ours += [(at, line) for at, line in model.printed if at <= end + 1e-9]
     ours = normalise_emulator(ours)
+    report.transcript = ([(k, e.data) for k, e in expected], [line for _at, line in ours])
     # without a power-on on the tape the model cannot know where the arm stood: shapes only
     _compare(report, expected, ours, tolerance, by_shape=found is None)
     return report
@@ -302,3 +307,33 @@ def _compare(
         report.difference = Difference(
             report.tape, len(expected), None, None, mine, at, "extra line"
         )
+
+
+def transcript_differences(report: ReplayReport) -> list[str]:
+    """Every place the emulator's lines differ from the tape's, not only the first: the two
+    transcripts aligned line by line (status reports by their shape), each differing run said
+    once. For a probe that waits for each reply (``mirobot doctor``), where a reply that differs
+    does not change what follows."""
+    import difflib
+
+    theirs, ours = report.transcript
+
+    def key(line: bytes) -> bytes:
+        return _NUMBER.sub(b"#", line) if is_status(line) else line
+
+    matcher = difflib.SequenceMatcher(
+        None, [key(line) for _k, line in theirs], [key(line) for line in ours], autojunk=False
+    )
+    found = []
+    for tag, i1, i2, j1, j2 in matcher.get_opcodes():
+        if tag == "equal":
+            continue
+        where = f"event {theirs[i1][0]}" if i1 < len(theirs) else "at the end"
+        firmware = b"".join(line for _k, line in theirs[i1:i2]) or None
+        emulator = b"".join(ours[j1:j2]) or None
+        found.append(
+            f"{report.tape} {where}: arm {firmware!r}; emulator {emulator!r}"
+            if firmware is not None or emulator is not None
+            else f"{report.tape} {where}: {tag}"
+        )
+    return found
