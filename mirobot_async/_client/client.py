@@ -328,10 +328,7 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
         if self._opened:
             raise MirobotUsageError("this Mirobot was already connected; create a new one")
         check_timeout(timeout)
-        if record is not None:  # imported only when recording
-            from mirobot_async._tapes.recorder import record_arm
-
-            self._wire.tap = record_arm(record, self)
+        self._record_to(record)
         self._opened = True
         loop = self._loop = asyncio.get_running_loop()
         self._poller.start(loop)
@@ -358,8 +355,7 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
             if refusal is not None and isinstance(err, MirobotConnectionError):
                 raise refusal from err
             raise
-        if self._wire.tap is not None:
-            self._wire.tap.begin()  # the tape's header: the banner and family are known now
+        self._wire.begin_tap()  # a tape's header: the banner and family are known now
         _log.debug("connected to %s", url)
         return self
 

@@ -284,6 +284,11 @@ class Wire:
         """Wait for the next :meth:`notify` without a limit (cancel to stop waiting)."""
         await self._progress.wait()
 
+    def begin_tap(self) -> None:
+        """The connect succeeded: the tap may write what it held (a tape's header first)."""
+        if self.tap is not None:
+            self.tap.begin()
+
     def end_tap(self, end: str) -> None:
         """The connection ended (``closed``, ``lost``): the tap writes its end and stops."""
         tap, self.tap = self.tap, None

@@ -28,15 +28,19 @@ import platform
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import IO, TYPE_CHECKING, Any, Final
+from typing import IO, Any, Final, Protocol
 
 from mirobot_async._tapes.format import Marker, Printed, Written, event_line, header_line
 from mirobot_async.errors import MirobotUsageError
 
-if TYPE_CHECKING:
-    from mirobot_async._client.client import Mirobot
-
-__all__ = ["HEADER_WAIT_BYTES", "LONGEST_LINE", "TapeRecorder", "link_kind", "record_arm"]
+__all__ = [
+    "HEADER_WAIT_BYTES",
+    "LONGEST_LINE",
+    "ArmFacts",
+    "TapeRecorder",
+    "link_kind",
+    "record_arm",
+]
 
 HEADER_WAIT_BYTES: Final = 64 * 1024
 """Event lines held (bytes of JSON) while the header waits for the connect to end."""
@@ -210,9 +214,22 @@ def link_kind(url: str, transport: object) -> str:
     return _SCHEMES.get(scheme, scheme if scheme.isalnum() else "other")
 
 
-def record_arm(path: str | os.PathLike[str], arm: Mirobot) -> TapeRecorder:
-    """A recorder for ``arm``'s connection (before it opens); its header's facts come from
-    ``arm`` when written. The caller then :meth:`~TapeRecorder.attach` es it to the open link."""
+class ArmFacts(Protocol):
+    """What the client knows of the arm (its ``RobotCondition``), read for the header."""
+
+    @property
+    def firmware(self) -> str | None: ...
+
+    @property
+    def firmware_version(self) -> str | None: ...
+
+    @property
+    def banner(self) -> tuple[str, ...] | None: ...
+
+
+def record_arm(path: str | os.PathLike[str], arm: ArmFacts) -> TapeRecorder:
+    """A recorder for a connection (before it opens); its header's facts come from ``arm``
+    when written. The wire then :meth:`~TapeRecorder.attach` es it to the open link."""
     from mirobot_async import __version__
 
     given = arm.firmware
