@@ -1,8 +1,8 @@
 """The arguments of ``mirobot``: KEY=VALUE targets, number types, and the argparse parser.
 
 Subcommands that talk to an arm take the robot connection options (``--port``, ``--firmware``,
-``--time-scale``, ``-v``); the offline ones (``check``, ``plot``) take none of them. Commands
-that move the arm take ``--on-interrupt hold|reset``.
+``--time-scale``, ``--record``, ``-v``); the offline ones (``check``, ``plot``) take none of them.
+Commands that move the arm take ``--on-interrupt hold|reset``.
 """
 
 from __future__ import annotations
@@ -95,6 +95,13 @@ def _robot_options() -> _Parser:
         metavar="X",
         help="speed of the embedded virtual Mirobot in simulated seconds per wall second "
         f"(default: {_DEFAULT_TIME_SCALE_TEXT}; 0: every move ends at once)",
+    )
+    group.add_argument(
+        "--record",
+        metavar="FILE",
+        help="append a tape of this session to FILE (JSON Lines: a header naming the link kind, "
+        "banner and firmware family, then every byte sent and every line received, with their "
+        "instants; written as it goes, closed when the command ends; see docs/tapes.md)",
     )
     group.add_argument(
         "-v",
@@ -197,7 +204,8 @@ def build_parser() -> argparse.ArgumentParser:
         "  mirobot run examples/pick_and_place.gcode      (on an embedded virtual Mirobot)\n"
         "  mirobot status --port /dev/ttyUSB0\n"
         "  mirobot run examples/square.gcode --trace square.csv && mirobot plot square.csv\n"
-        "  cat program.gcode | mirobot run -\n\n"
+        "  cat program.gcode | mirobot run -\n"
+        "  mirobot home --port /dev/ttyUSB0 --record session.jsonl  (a tape of the session)\n\n"
         "Ctrl-C (or SIGTERM) while the arm moves sends feed hold (!) at once, says what was\n"
         "still queued and exits 130 (--on-interrupt reset sends soft reset instead).\n\n"
         "exit status: 0 done; 1 the robot refused or failed, the arm is locked, or 'check'\n"

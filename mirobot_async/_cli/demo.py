@@ -101,6 +101,8 @@ async def cmd_demo(args: argparse.Namespace) -> int:
         note(f"demo: running the example program {path.name} ({path})")
         args.file = str(path)
         return await cmd_run(args)
+    if getattr(args, "record", None) is not None:
+        raise CliError(f"--record applies to the G-code examples; {path.name} is a script")
     return await _run_script(path, args.port)
 
 

@@ -95,6 +95,12 @@ def envelope_of(args: argparse.Namespace) -> Envelope | None:
     return load_envelope(path, firmware=firmware_of(args))
 
 
+def record_of(args: argparse.Namespace) -> str | None:
+    """``--record FILE``: where the session's tape is appended (None: not recorded)."""
+    record = getattr(args, "record", None)
+    return None if record is None else str(record)
+
+
 def _check_port(port: str) -> None:
     """Fail early, in plain words, for a device path that does not exist or is locked.
 
@@ -137,13 +143,18 @@ async def _connect_port(
     from mirobot_async._client.client import Mirobot
     from mirobot_async.errors import MirobotConnectionError
 
+    record = record_of(args)
     try:
-        return await Mirobot.connect(args.port, firmware=args.firmware, envelope=envelope)
+        return await Mirobot.connect(
+            args.port, firmware=args.firmware, envelope=envelope, record=record
+        )
     except MirobotConnectionError as err:
         if not watch_silent or not isinstance(err.__cause__, TimeoutError):
             raise
         note(f"{err}; {HOMING_SILENCE_NOTE}: watching anyway")
-    return await Mirobot.connect(args.port, firmware=args.firmware, envelope=envelope, probe=False)
+    return await Mirobot.connect(  # with --record: a second tape in the file
+        args.port, firmware=args.firmware, envelope=envelope, probe=False, record=record
+    )
 
 
 @contextlib.asynccontextmanager
@@ -184,7 +195,10 @@ async def open_robot(
     async with (
         start_emulator(firmware=firmware, time_scale=scale, in_process=True) as url,
         Mirobot.connect(
-            url, firmware="classic" if firmware == "classic" else "2021", envelope=envelope
+            url,
+            firmware="classic" if firmware == "classic" else "2021",
+            envelope=envelope,
+            record=record_of(args),
         ) as arm,
     ):
         yield arm

@@ -124,6 +124,7 @@ from __future__ import annotations
 import asyncio
 import logging
 from collections.abc import AsyncIterable, Callable, Generator, Iterable
+from os import PathLike
 from typing import TYPE_CHECKING, Any, overload
 
 from mirobot_async._client.accessories import AccessoryCommands
@@ -179,11 +180,9 @@ class Connector:
     """What :meth:`Mirobot.connect` returns: ``await`` it (then close the arm) or use it with
     ``async with`` (closed at the end of the block)."""
 
-    def __init__(
-        self, arm: Mirobot, url: str, timeout: float | None, probe: bool, opener: TransportOpener
-    ) -> None:
+    def __init__(self, arm: Mirobot, *args: Any) -> None:
         self._arm = arm
-        self._args = (url, timeout, probe, opener)
+        self._args = args  # those of Mirobot._open
 
     def __await__(self) -> Generator[Any, None, Mirobot]:
         return self._arm._open(*self._args).__await__()
@@ -225,6 +224,7 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
         exclusive: bool = True,
         open_transport: TransportOpener | None = None,
         address: None = None,
+        record: str | PathLike[str] | None = None,
     ) -> Connector: ...
 
     @overload
@@ -242,6 +242,7 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
         exclusive: bool = True,
         open_transport: TransportOpener | None = None,
         address: int,
+        record: str | PathLike[str] | None = None,
     ) -> SingleArmConnector: ...
 
     @classmethod
@@ -258,6 +259,7 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
         exclusive: bool = True,
         open_transport: TransportOpener | None = None,
         address: int | None = None,
+        record: str | PathLike[str] | None = None,
     ) -> Connector | SingleArmConnector:
         """Open ``url`` (device, pty path, ``socket://host:port``, ``loop://``) at 115200 8N1.
 
@@ -291,6 +293,11 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
         is closed with the arm); ``implementation``, ``exclusive`` and ``open_transport`` are
         then not used. Raises :class:`~mirobot_async.bus.NodeSilentError` when no node answers
         there.
+
+        ``record`` (a file name): a tape of the connection is appended to it as it goes (JSON
+        Lines, ``docs/tapes.md``): every byte written and line received, with their instants,
+        after a header naming the link kind (no host or path), the banner and the firmware
+        family. The file is closed with the connection (also when the connect fails).
         """
         if address is not None:
             from mirobot_async.bus import connect as connect_on_bus
@@ -303,6 +310,7 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
                 envelope=envelope,
                 status_timeout=status_timeout,
                 probe=probe,
+                record=record,
             )
         arm = cls(
             firmware=firmware,
@@ -312,14 +320,15 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
         )
         arm._exclusive = exclusive
         opener = open_transport or serial_opener(implementation, exclusive)
-        return Connector(arm, url, timeout, probe, opener)
+        return Connector(arm, url, timeout, probe, opener, record)
 
     async def _open(
-        self, url: str, timeout: float | None, probe: bool, opener: TransportOpener
+        self, url: str, timeout: float | None, probe: bool, opener: TransportOpener, record: Any
     ) -> Mirobot:
         if self._opened:
             raise MirobotUsageError("this Mirobot was already connected; create a new one")
         check_timeout(timeout)
+        self._record_to(record)
         self._opened = True
         loop = self._loop = asyncio.get_running_loop()
         self._poller.start(loop)
@@ -346,6 +355,7 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
             if refusal is not None and isinstance(err, MirobotConnectionError):
                 raise refusal from err
             raise
+        self._wire.begin_tap()  # a tape's header: the banner and family are known now
         _log.debug("connected to %s", url)
         return self
 

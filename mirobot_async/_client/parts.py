@@ -13,6 +13,7 @@ share: sending one line and awaiting its reply, the firmware profile, the timing
 from __future__ import annotations
 
 import asyncio
+from os import PathLike
 from typing import TYPE_CHECKING, Final
 
 from mirobot_async._client.completion import MotionCompletion
@@ -124,6 +125,13 @@ class ClientParts:
             self._wire, self._condition, self._poller, self._guard, self._lines, lambda: self.url
         )
         self.status_timeout = status_timeout
+
+    def _record_to(self, record: str | PathLike[str] | None) -> None:
+        """``connect(record=FILE)``: a tape of this connection, appended to ``FILE``."""
+        if record is not None:  # imported only when recording
+            from mirobot_async._tapes.recorder import record_arm
+
+            self._wire.tap = record_arm(record, self._condition)
 
     # ---- timing knobs ----
 

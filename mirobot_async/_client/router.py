@@ -158,6 +158,7 @@ class EventRouter:
         told = told or condition.banner_waiters_waiting
         if not condition.set_fatal(message):
             return
+        self._wire.end_tap("closed" if condition.closing else "lost")
         # The waiting calls raise MirobotLinkLostError with this message (and so does every later
         # call): log it loudly only when no call is waiting to show it.
         (_log.debug if condition.closing else _log.info if told else _log.warning)("%s", message)

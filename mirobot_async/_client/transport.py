@@ -392,6 +392,7 @@ class SerialLink:
         self._protocol = protocol
         self._closed = False
         self.bytes_written = 0
+        self.baudrate = DEFAULT_BAUDRATE
 
     @classmethod
     async def open(
@@ -480,7 +481,9 @@ class SerialLink:
         except (serial.SerialException, OSError, ValueError) as err:
             raise MirobotConnectionError(_open_error_text(url, err)) from err
         _log.debug("opened %s with %s", url, implementation)
-        return cls(url, transport, protocol, implementation)
+        link = cls(url, transport, protocol, implementation)
+        link.baudrate = baudrate
+        return link
 
     @property
     def is_closing(self) -> bool:

@@ -35,6 +35,7 @@ __all__ = [
     "Transport",
     "TransportOpener",
     "Wire",
+    "WireTap",
     "register_in_process",
     "serial_opener",
     "unregister_in_process",
@@ -74,6 +75,23 @@ class TransportOpener(Protocol):
     async def __call__(
         self, url: str, *, on_data: DataCallback, on_lost: LostCallback, timeout: float
     ) -> Transport: ...
+
+
+class WireTap(Protocol):
+    """What watches every byte the wire writes and receives (the tape recorder,
+    ``connect(record=...)``): each write once, after the transport took it; each received chunk
+    once, before the state machine sees it. ``attach`` once the link is open, ``begin`` once
+    the connect succeeded, ``close`` when the connection ends (or the link did not open)."""
+
+    def written(self, data: bytes) -> None: ...
+
+    def received(self, data: bytes) -> None: ...
+
+    def attach(self, url: str, transport: Transport) -> None: ...
+
+    def begin(self) -> None: ...
+
+    def close(self, end: str = "closed") -> None: ...
 
 
 IN_PROCESS_SCHEME = "virtual://"
@@ -162,6 +180,8 @@ class Wire:
         self.transport: Transport | None = None
         self._progress = asyncio.Event()
         self._rx_log = bytearray()
+        self.tap: WireTap | None = None
+        """Sees every byte written and received (``connect(record=...)``), once."""
         self.refusal: MirobotConnectionError | None = None
         """Why the link ended, when the transport says the open failed after all (a network
         server that accepted the connection, then said it is busy): the error to raise for
@@ -188,11 +208,19 @@ class Wire:
                 self.refusal = exc
             on_lost(exc)
 
-        self.transport = await opener(url, on_data=on_data, on_lost=lost, timeout=timeout)
+        try:
+            self.transport = await opener(url, on_data=on_data, on_lost=lost, timeout=timeout)
+        except BaseException:
+            self.end_tap("closed")  # the link did not open
+            raise
+        if self.tap is not None:
+            self.tap.attach(url, self.transport)
 
     def receive(self, data: bytes) -> Iterator[Event]:
         """Count and log ``data``, feed it to the state machine and yield its events."""
         self.stats.bytes_received += len(data)
+        if self.tap is not None:
+            self.tap.received(data)
         if _wire_log.isEnabledFor(logging.DEBUG):
             self._log_received(data)
         self.conn.receive_data(data)
@@ -213,6 +241,8 @@ class Wire:
         assert transport is not None
         pending = self.conn.send_line(data)
         transport.write(pending.wire)
+        if self.tap is not None:
+            self.tap.written(pending.wire)
         self.stats.lines_sent += 1
         self.stats.bytes_sent += len(pending.wire)
         if _wire_log.isEnabledFor(logging.DEBUG):
@@ -224,6 +254,8 @@ class Wire:
         transport = self.transport
         assert transport is not None
         transport.write(data)
+        if self.tap is not None:
+            self.tap.written(data)
         self.stats.bytes_sent += len(data)
         if _wire_log.isEnabledFor(logging.DEBUG):
             _wire_log.debug("-> %s", data.decode("ascii"))
@@ -251,6 +283,17 @@ class Wire:
     async def next_progress(self) -> None:
         """Wait for the next :meth:`notify` without a limit (cancel to stop waiting)."""
         await self._progress.wait()
+
+    def begin_tap(self) -> None:
+        """The connect succeeded: the tap may write what it held (a tape's header first)."""
+        if self.tap is not None:
+            self.tap.begin()
+
+    def end_tap(self, end: str) -> None:
+        """The connection ended (``closed``, ``lost``): the tap writes its end and stops."""
+        tap, self.tap = self.tap, None
+        if tap is not None:
+            tap.close(end)
 
     def abort(self) -> None:
         """Drop the link at once (unsent output is discarded)."""

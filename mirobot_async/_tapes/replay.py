@@ -9,6 +9,10 @@ motor steps per axis while the arm moves, every line's first byte within
 :data:`INSTANT_TOLERANCE` (firmware tapes) of the tape's. The comparison stops at the first
 difference: a tape is open-loop (the host chose when to write by reading the firmware's
 replies), so after one difference what follows no longer means anything.
+
+A recorded tape (``source`` ``device`` or ``virtual``) holds the field texts as printed (they are
+not mapped to the source revision's), and a ``virtual`` one is replayed as the in-process arm
+runs: the model's own wire and an unpaced transmitter (that arm does not pace its output).
 """
 
 from __future__ import annotations
@@ -157,13 +161,18 @@ class _Firmware(Protocol):
 class _Model:
     """The firmware model with the tape's clock and a paced transmitter."""
 
-    def __init__(self, firmware: str, offset: float) -> None:
+    def __init__(self, firmware: str, offset: float, paced: bool = True) -> None:
         # imported when a tape is replayed: the CLI that offers replay stays cheap to import
         model = importlib.import_module("mirobot_emulator.firmware")
         uart = importlib.import_module("mirobot_emulator.firmware.uart")
         self.compute: Callable[[int], float] = uart.report_compute_seconds
-        self.fw: _Firmware = model.Firmware(firmware, byte_seconds=UART_BYTE_SECONDS)
-        self.fw.uart.byte_seconds = UART_BYTE_SECONDS
+        self.byte_seconds = UART_BYTE_SECONDS if paced else 0.0
+        if paced:
+            self.fw: _Firmware = model.Firmware(firmware, byte_seconds=UART_BYTE_SECONDS)
+        else:  # the in-process virtual arm: the model's own wire, an unpaced transmitter
+            self.fw = model.Firmware(firmware)
+            self.compute = lambda length: 0.0
+        self.fw.uart.byte_seconds = self.byte_seconds
         self.offset = offset
         self.banner = _lines(self.fw.read_output())
         self.printed: list[tuple[float, bytes]] = []  # (first byte, tape clock), line
@@ -196,7 +205,7 @@ class _Model:
         for line in _lines(out):
             at = now + self.compute(len(line)) if is_status(line) else now
             start = max(at, self._free)
-            self._free = start + len(line) * UART_BYTE_SECONDS
+            self._free = start + len(line) * self.byte_seconds
             self.printed.append((start + self.offset, line))
 
 
@@ -224,7 +233,7 @@ def replay(tape: Tape, firmware: str = "classic", *, stop_at: float | None = Non
     report.instants = "exact" if exact else "loose"
     tolerance = INSTANT_TOLERANCE if exact else DEVICE_INSTANT_TOLERANCE
     offset, banner_at = found if found is not None else (0.0, -1)
-    model = _Model(firmware, offset)
+    model = _Model(firmware, offset, paced=tape.source != "virtual")
     expected: list[tuple[int, Printed]] = []
     end = tape.end_t if stop_at is None else min(stop_at, tape.end_t)
     for k, event in enumerate(tape.events):
@@ -244,7 +253,8 @@ def replay(tape: Tape, firmware: str = "classic", *, stop_at: float | None = Non
         if len(model.banner) != len(expected_banner):
             ours = [(None, line) for line in model.banner]
     ours += [(at, line) for at, line in model.printed if at <= end + 1e-9]
-    ours = normalise_emulator(ours)
+    if tape.source == "firmware":  # recorded tapes hold field texts as the emulator prints them
+        ours = normalise_emulator(ours)
     report.transcript = ([(k, e.data) for k, e in expected], [line for _at, line in ours])
     # without a power-on on the tape the model cannot know where the arm stood: shapes only
     _compare(report, expected, ours, tolerance, by_shape=found is None)

@@ -60,7 +60,9 @@ async def _open_arm(args: argparse.Namespace, envelope: Envelope | None) -> Asyn
 
     firmware: Literal["2021", "classic"] = "classic" if args.firmware == "classic" else "2021"
     if args.port is not None:
-        async with Mirobot.connect(args.port, firmware=args.firmware, envelope=envelope) as arm:
+        async with Mirobot.connect(
+            args.port, firmware=args.firmware, envelope=envelope, record=args.record
+        ) as arm:
             yield arm
         return
     from mirobot_async._cli.session import DEFAULT_TIME_SCALE
@@ -73,7 +75,7 @@ async def _open_arm(args: argparse.Namespace, envelope: Envelope | None) -> Asyn
     )
     async with (
         start_emulator(firmware=firmware, time_scale=scale) as url,
-        Mirobot.connect(url, firmware=firmware, envelope=envelope) as arm,
+        Mirobot.connect(url, firmware=firmware, envelope=envelope, record=args.record) as arm,
     ):
         note("homing the virtual Mirobot first")
         await arm.home()

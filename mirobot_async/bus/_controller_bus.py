@@ -13,6 +13,7 @@ See :mod:`mirobot_async.bus._link` for how requests share the bus.
 from __future__ import annotations
 
 from collections.abc import Generator
+from os import PathLike
 from typing import TYPE_CHECKING, Any
 
 from mirobot_async._client.client import CONNECT_TIMEOUT, STATUS_TIMEOUT, Connector, Mirobot
@@ -44,6 +45,9 @@ def _check_address(address: int) -> int:
 class ArmTransport:
     """One arm's virtual link (a :class:`~mirobot_async._client.wire.Transport`): lines and realtime
     bytes become requests to its node; the node's replies reach the arm's client."""
+
+    link_kind = "bus"
+    """What a recorded tape's header calls this link (``connect(record=...)``)."""
 
     def __init__(self, side: LinkSide, address: int) -> None:
         self._side = side
@@ -188,9 +192,11 @@ class ControllerBus:
         envelope: Envelope | None = None,
         status_timeout: float = STATUS_TIMEOUT,
         probe: bool = True,
+        record: str | PathLike[str] | None = None,
     ) -> ArmConnector:
         """``Mirobot.connect(...)``-like connector for the arm at ``address``: ``await`` it or
-        use ``async with``. The options are those of :meth:`Mirobot.connect`."""
+        use ``async with``. The options are those of :meth:`Mirobot.connect` (``record``: a
+        tape of this arm's lines and replies, without the bus's address prefixes)."""
         _check_address(address)
         side = self._link()
         if address in self._arms and not self._arms[address].closed:
@@ -210,6 +216,7 @@ class ControllerBus:
             envelope=envelope,
             status_timeout=status_timeout,
             probe=probe,
+            record=record,
         )
         return ArmConnector(self, address, connector)
 
@@ -222,6 +229,7 @@ class ControllerBus:
         envelope: Envelope | None = None,
         status_timeout: float = STATUS_TIMEOUT,
         probe: bool = True,
+        record: str | PathLike[str] | None = None,
     ) -> Mirobot:
         """Connect to the arm at ``address`` (its first status proves it answers).
 
@@ -235,6 +243,7 @@ class ControllerBus:
             envelope=envelope,
             status_timeout=status_timeout,
             probe=probe,
+            record=record,
         )
         return arm
 
@@ -307,6 +316,7 @@ def connect(
     envelope: Envelope | None = None,
     status_timeout: float = STATUS_TIMEOUT,
     probe: bool = True,
+    record: str | PathLike[str] | None = None,
 ) -> SingleArmConnector:
     """One arm behind a controller at ``address`` on the bus at ``url``, as
     ``Mirobot.connect(url, address=N)`` would be: ``async with connect(url, address=3) as arm``.
@@ -322,5 +332,6 @@ def connect(
         "envelope": envelope,
         "status_timeout": status_timeout,
         "probe": probe,
+        "record": record,
     }
     return SingleArmConnector(url, address, baud, options)

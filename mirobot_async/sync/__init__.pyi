@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from mirobot_async._client.client import Mirobot as AsyncMirobot
 from collections.abc import AsyncIterable, Callable, Iterable, Sequence
+from os import PathLike
 from typing import Any, Self
 from mirobot_async import Firmware, Implementation, Point
 from mirobot_async._client.condition import HomingCycle
@@ -54,7 +55,7 @@ class Mirobot(BlockingFacade, wraps=AsyncMirobot):
     def closed(self) -> bool: ...
 
     @classmethod
-    def connect(cls, url: str, *, firmware: Firmware | None = ..., timeout: float | None = ..., envelope: Envelope | None = ..., implementation: Implementation = ..., status_timeout: float = ..., probe: bool = ..., exclusive: bool = ..., open_transport: TransportOpener | None = ..., address: int | None = ...) -> Mirobot: ...
+    def connect(cls, url: str, *, firmware: Firmware | None = ..., timeout: float | None = ..., envelope: Envelope | None = ..., implementation: Implementation = ..., status_timeout: float = ..., probe: bool = ..., exclusive: bool = ..., open_transport: TransportOpener | None = ..., address: int | None = ..., record: str | PathLike[str] | None = ...) -> Mirobot: ...
 
     @property
     def corrupted_status_count(self) -> int: ...

@@ -22,15 +22,19 @@ if TYPE_CHECKING:
 __all__ = ["WireSpy"]
 
 _REALTIME = frozenset({b"?", b"!", b"~", b"%"})
+_DESCRIBED = ("link_kind", "baudrate", "time_scale", "firmware_profile", "clock")
 
 
 class _SpiedTransport:
     def __init__(self, inner: Transport, spy: WireSpy) -> None:
         self._inner = inner
         self._spy = spy
-        gap = getattr(inner, "status_min_gap", None)  # (the link's own, if it says one)
-        if gap is not None:
-            self.status_min_gap = gap
+        # what the link says of itself, if it says it: the ? spacing, and a recorded tape's
+        # header and clock (connect(record=...))
+        for name in ("status_min_gap", *_DESCRIBED):
+            value = getattr(inner, name, None)
+            if value is not None:
+                setattr(self, name, value)
 
     def write(self, data: bytes) -> None:
         chunk = bytes(data)

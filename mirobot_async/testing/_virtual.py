@@ -53,6 +53,7 @@ class _FirmwareModel(Protocol):
 
     state: str
     joints: tuple[float, ...]
+    now: float
 
     def read_output(self) -> bytes: ...
 
@@ -62,7 +63,7 @@ class _Clock(Protocol):
 
     def sync(self, wall: float) -> None: ...
 
-    def deliver(self, data: bytes, crossed: float | None, wall: float) -> None: ...
+    def feed(self, data: bytes) -> None: ...
 
     def next_wall_deadline(self) -> float | None: ...
 
@@ -191,6 +192,9 @@ class _InProcessLink:
     """The client's end of an :class:`InProcessArm`: a
     :class:`~mirobot_async._client.wire.Transport`."""
 
+    link_kind = "virtual"
+    """What a recorded tape's header calls this link (``connect(record=...)``)."""
+
     def __init__(
         self,
         arm: InProcessArm,
@@ -210,7 +214,10 @@ class _InProcessLink:
         self._timer: asyncio.TimerHandle | None = None
         self._wake_at = 0.0
         self._delivery: asyncio.Handle | None = None
-        self._output = bytearray()
+        self._output: list[tuple[float, bytes]] = []  # (simulated instant printed, bytes)
+        self._instant = arm._firmware.now
+        self.time_scale = arm.time_scale
+        self.firmware_profile = arm.firmware_name  # a recorded tape's family, if not detected
         self.closed = False
 
     # Transport protocol
@@ -219,8 +226,17 @@ class _InProcessLink:
         """Hand ``data`` to the firmware now; its answer arrives on a later loop turn."""
         if self.closed or not data:
             return
-        self._arm._sim.deliver(bytes(data), None, _now())
+        sim = self._arm._sim
+        sim.sync(_now())
+        self._instant = self._arm._firmware.now
+        sim.feed(bytes(data))
         self._collect()
+
+    def clock(self) -> float:
+        """The arm's simulated clock (seconds since its power-on) at the bytes being written or
+        delivered now: a recorded tape's instants (``connect(record=...)``), so that a replay
+        into the firmware model feeds each byte when this arm took it."""
+        return self._instant
 
     def abort(self) -> None:
         """Drop the link at once (the client closes it: no ``on_lost``)."""
@@ -253,18 +269,19 @@ class _InProcessLink:
         """Take the firmware's output, deliver it soon, and wake at its next change."""
         out = self._arm._firmware.read_output()
         if out:
-            self._output += out
+            self._output.append((self._arm._firmware.now, out))
             if self._delivery is None:
                 self._delivery = self._loop.call_soon(self._deliver)
         self._schedule()
 
     def _deliver(self) -> None:
         self._delivery = None
-        if self.closed or not self._output:
-            return
-        data = bytes(self._output)
-        self._output.clear()
-        self._on_data(data)
+        chunks, self._output = self._output, []
+        for instant, data in chunks:
+            if self.closed:
+                return
+            self._instant = instant
+            self._on_data(data)
 
     def _schedule(self) -> None:
         if self._timer is not None:

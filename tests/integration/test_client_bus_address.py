@@ -72,3 +72,18 @@ async def test_connect_to_a_missing_address_names_it(bus_path: str) -> None:
     with pytest.raises(NodeSilentError):
         async with Mirobot.connect(bus_path, address=7, timeout=2):
             pass
+
+
+async def test_connect_with_an_address_records_that_arms_tape(
+    bus_path: str, tmp_path: Path
+) -> None:
+    from mirobot_async._tapes.format import Written, read_tapes
+
+    path = tmp_path / "bus.jsonl"
+    async with Mirobot.connect(bus_path, address=2, record=path) as arm:
+        await arm.unlock()
+    [tape] = read_tapes(path)
+    assert tape.header["link"] == "bus" and tape.header["source"] == "device"
+    written = b"".join(e.data for e in tape.events if isinstance(e, Written))
+    assert b"M50\n" in written and b"@" not in written  # the arm's lines, not the bus's frames
+    assert bus_path not in path.read_text()

@@ -30,6 +30,7 @@ LAYERS = {  # a directory -> the mirobot_async modules and packages it may impor
     "_core": {"errors", "_core"},
     "_safety": {"errors", "kinematics", "_core", "_safety"},
     "_client": {"errors", "kinematics", "_core", "_safety", "_client"},
+    "_tapes": {"errors", "_tapes"},  # the client only under TYPE_CHECKING or when recording
 }
 IMPURE_MODULES = {
     "asyncio",
