@@ -191,6 +191,12 @@ def _replay_handler(args: argparse.Namespace) -> int:
     return cmd_replay(args)
 
 
+async def _doctor_handler(args: argparse.Namespace) -> int:
+    from mirobot_async._cli.doctor import cmd_doctor  # the emulator loads only for the replay
+
+    return await cmd_doctor(args)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``mirobot`` (each subcommand sets ``handler``)."""
     robot = _robot_options()
@@ -452,6 +458,28 @@ def build_parser() -> argparse.ArgumentParser:
     )
     replay.add_argument("--json", action="store_true", help="one JSON object per tape")
     # --- end of replay ----------------------------------------------------------------------
+
+    # --- doctor: the first thing to run on an arm we have never seen ------------------------
+    doctor = add(
+        "doctor",
+        _doctor_handler,
+        "probe the arm without moving it (banner, ?, $$, $I, lines every firmware refuses, a "
+        "zero-length move when the axes are locked), record the probe as a tape (--record FILE, "
+        "default mirobot-doctor-<time>.jsonl) and say where the arm answers otherwise than the "
+        "emulator's profile for its family; exit 0 no difference, 1 differences",
+    )
+    doctor.add_argument(
+        "--motion",
+        action="store_true",
+        help="also home and move J1 by 10 and J2 by 5 degrees (asks first on a terminal)",
+    )
+    doctor.add_argument("--yes", action="store_true", help="with --motion: do not ask")
+    doctor.add_argument(
+        "--against",
+        choices=gcode.FIRMWARE_PROFILES,
+        help="compare with this emulator profile (default: the family the arm shows)",
+    )
+    # --- end of doctor ----------------------------------------------------------------------
 
     emulator = commands_parser.add_parser(
         "emulator",

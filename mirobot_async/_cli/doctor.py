@@ -44,8 +44,14 @@ MOTION_WARNING: Final = (
 
 
 def _default_tape() -> Path:
+    """``mirobot-doctor-<UTC time>.jsonl`` in the current folder, never one that exists."""
     stamp = datetime.datetime.now(datetime.UTC).strftime("%Y%m%d-%H%M%S")
-    return Path(f"mirobot-doctor-{stamp}.jsonl")
+    path = Path(f"mirobot-doctor-{stamp}.jsonl")
+    count = 1
+    while path.exists():
+        count += 1
+        path = Path(f"mirobot-doctor-{stamp}-{count}.jsonl")
+    return path
 
 
 def _confirm_motion(args: argparse.Namespace) -> None:
@@ -111,8 +117,8 @@ async def cmd_doctor(args: argparse.Namespace) -> int:
     differences = transcript_differences(report)
     print(f"firmware family: {detected or 'unknown'} ({tape.header.get('family_evidence', '-')})")
     print(f"tape: {path} ({len(tape.events)} events)")
-    if report.instants == "loose":
-        print("instants compared loosely (wall clock: the USB latency is unknown)")
+    if report.instants != "exact":
+        print("instants compared loosely: a recorded tape's carry the USB latency")
     if not differences:
         print(f"no difference from the emulator's {against} profile")
         return EXIT_OK

@@ -30,7 +30,11 @@ def family_of(tape: Tape) -> str:
 def _describe(report: ReplayReport, stop_at: float | None) -> str:
     scope = "" if stop_at is None else f" (compared up to its artefact at {stop_at:.4f})"
     counts = f"{report.lines} lines, {report.statuses} statuses"
-    loose = "; instants compared loosely (wall clock)" if report.instants == "loose" else ""
+    loose = {
+        "exact": "",
+        "loose": "; instants compared loosely (a recorded tape)",
+        "none": "; instants not compared (a virtual arm at time scale 0)",
+    }[report.instants]
     if report.equal:
         return f"equal: {report.tape} [{report.firmware}] {counts}{scope}{loose}"
     return f"DIFFERS: {report.difference} [{report.firmware}] after {counts}{scope}{loose}"
