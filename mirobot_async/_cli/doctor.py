@@ -3,8 +3,9 @@ arm answers otherwise than the emulator's profile for its family.
 
 The probe: the banner (seen when opening the port resets the arm), ``?``, ``$$``, ``$I``, lines
 every firmware refuses without effect, and, when the arm has just powered on (its axes are then
-locked), a zero-length relative joint move that a locked arm refuses and an unlocked one would not
-move for. ``--motion`` adds homing and small joint moves, after a prompt on a terminal.
+locked) or in an alarm, a zero-length relative joint move that a locked arm refuses and an
+unlocked one would not move for. ``--motion`` adds homing and small joint moves, after a prompt
+on a terminal.
 """
 
 from __future__ import annotations
@@ -78,14 +79,14 @@ async def _ask(arm: Mirobot, line: str, out: list[str]) -> None:
 
 
 async def _probe(arm: Mirobot, args: argparse.Namespace, out: list[str]) -> str | None:
-    powered_on = arm.banner is not None
     for line in PROBE:
         await _ask(arm, line, out)
-    if powered_on:
+    alarm = arm.last_status is not None and arm.last_status.state.value == "Alarm"
+    if arm.banner is not None or alarm:  # just powered on, or locked by an alarm
         for line in LOCKED_PROBE:
             await _ask(arm, line, out)
     else:
-        out.append("no power-on banner seen: the locked-move probe was not sent")
+        out.append("no power-on banner, no alarm: the locked-move probe was not sent")
     if args.motion:
         for line in MOTION:
             await _ask(arm, line, out)
@@ -118,7 +119,7 @@ async def cmd_doctor(args: argparse.Namespace) -> int:
     print(f"firmware family: {detected or 'unknown'} ({tape.header.get('family_evidence', '-')})")
     print(f"tape: {path} ({len(tape.events)} events)")
     if report.instants != "exact":
-        print("instants compared loosely: a recorded tape's carry the USB latency")
+        print("instants compared loosely (USB latency, or the virtual arm's clock steps)")
     if not differences:
         print(f"no difference from the emulator's {against} profile")
         return EXIT_OK
