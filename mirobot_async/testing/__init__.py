@@ -56,6 +56,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import inspect
 import logging
 import os
 import signal
@@ -440,6 +441,27 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 def pytest_configure(config: pytest.Config) -> None:
     """Register the ``mirobot_emulator`` marker (works with ``--strict-markers``)."""
     config.addinivalue_line("markers", _MARKER_HELP)
+
+
+_PLUGIN_FIXTURES = frozenset({"mirobot_emulator", "mirobot_virtual_arm"})
+
+
+def pytest_pycollect_makeitem(collector: Any, name: str, obj: object) -> None:
+    """An ``async def`` test that takes this plugin's fixtures or wears its marker runs on
+    pytest-asyncio even where the project has not set ``asyncio_mode = "auto"`` (README's example
+    as written). Marked here, before pytest (its own hook runs last) builds the test item."""
+    if not inspect.iscoroutinefunction(obj):
+        return
+    config = collector.config
+    if not config.pluginmanager.hasplugin("asyncio"):
+        return
+    marks = {mark.name for mark in getattr(obj, "pytestmark", [])}
+    if "asyncio" in marks:
+        return
+    if "mirobot_emulator" in marks or _PLUGIN_FIXTURES & set(inspect.signature(obj).parameters):
+        import pytest
+
+        pytest.mark.asyncio(obj)
 
 
 def session_link(config: pytest.Config) -> str | None:

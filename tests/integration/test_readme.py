@@ -33,3 +33,18 @@ def test_readme_test_command_is_the_one_ci_runs() -> None:
     shown = re.search(pattern, README.read_text())
     assert shown is not None
     assert shown.group(1).strip() in ci
+
+
+def test_the_plugin_example_runs_as_written_in_a_fresh_folder(tmp_path: Path) -> None:
+    """README's pytest example in a project with no asyncio configuration of its own."""
+    example = next(block for block in _python_blocks() if "mirobot_emulator(firmware" in block)
+    (tmp_path / "test_app.py").write_text(
+        "import pytest\nfrom mirobot_async import Mirobot\n\n" + example
+    )
+    done = subprocess.run(
+        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-p", "no:xdist",
+         "-W", "ignore::DeprecationWarning", "test_app.py"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=120, check=False,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "1 passed" in done.stdout
