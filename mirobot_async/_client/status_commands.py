@@ -13,6 +13,11 @@ from mirobot_async._client.scheduler import QUIET
 from mirobot_async._core.replies import State, StatusReport
 from mirobot_async.errors import MirobotAlarmError, MirobotError, MirobotUsageError
 
+STANDING_SECONDS = 0.25
+"""A held arm stands once its reports show the same motor steps for this long: braking at the
+factory acceleration (``$120..$126`` = 50 deg/s^2) its last motor step takes at most 60 ms (J6,
+0.09 degrees a step)."""
+
 __all__ = ["StatusCommands"]
 
 
@@ -88,7 +93,10 @@ class StatusCommands(ClientParts):
                     return report
 
     async def hold(self, *, timeout: float | None = STATUS_TIMEOUT) -> StatusReport:
-        """Feed hold (``!``): decelerate to a stop; returns the first status no longer ``Run``.
+        """Feed hold (``!``): decelerate to a stop; returns once the arm stands: in ``Hold`` at the
+        same motor steps for :data:`STANDING_SECONDS` (``Hold`` is reported from the moment the
+        firmware starts braking, and the arm moves on while it brakes, its last steps slowest),
+        or in a quiet state.
 
         ``!`` is a realtime byte: it acts at once, ahead of queued lines. Not sent after a hard
         limit (the arm is already stopped; :meth:`reset` first). Raises
@@ -102,9 +110,18 @@ class StatusCommands(ClientParts):
         if self._condition.homing is not None:
             what += f"; {self._condition.homing.describe()}, and only reset() stops homing"
         async with within(deadline, what, timeout, command="!"):
+            loop = self._running_loop()
+            still: tuple[StatusReport, float] | None = None  # first report at these steps
             while True:
                 report, _ = await self._poller.fetch(fresh=True, timeout=None)
-                if report.state is not State.RUN:
+                if report.state is State.RUN:
+                    continue
+                if report.state is not State.HOLD:
+                    return report  # quiet (Idle, Alarm): nothing was moving
+                now = loop.time()
+                if still is None or report.joints != still[0].joints:
+                    still = (report, now)
+                elif now - still[1] >= STANDING_SECONDS:
                     return report
 
     async def resume(self, *, timeout: float | None = STATUS_TIMEOUT) -> StatusReport:

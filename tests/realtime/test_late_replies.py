@@ -64,6 +64,22 @@ async def test_a_line_sent_to_a_held_arm_waits(ready: Mirobot, profile: str) -> 
     assert ready.stats.replies_lost == 0
 
 
+async def test_hold_returns_once_the_arm_stands(ready: Mirobot, profile: str) -> None:
+    """``Hold`` is reported from the first moment of braking; hold() waits for the stop."""
+    await ready.move_joints(j1=60, speed=2400, wait=False)  # 40 deg/s: braking takes a while
+    async with contextlib.aclosing(ready.statuses(interval=0.05)) as reports:
+        async for report in reports:
+            if report.joints[0] > 10:  # at full speed
+                break
+    held = await ready.hold()
+    assert held.state is State.HOLD
+    after = await ready.status(fresh=True)
+    assert after.state is State.HOLD
+    assert after.joints == held.joints, (held.joints, after.joints)  # it had stopped
+    await ready.resume()
+    assert (await ready.wait_idle()).joints[0] == pytest.approx(60, abs=0.05)
+
+
 @pytest.mark.parametrize("profile", ["2021"])
 async def test_the_2021_zero_move_behind_a_long_move(ready: Mirobot, profile: str) -> None:
     await ready.move_joints(j1=40, j2=20, speed=1000, wait=False)
