@@ -261,7 +261,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--sequential", action="store_true", help="home the axes one after another ($HH)"
     )
     add("unlock", commands.cmd_unlock, "unlock the axes without homing (clears an alarm)")
-    add("reset", commands.cmd_reset, "soft-reset the controller (the arm is locked afterwards)")
+    add(
+        "reset",
+        commands.cmd_reset,
+        "soft-reset the controller (%%): stops at once and clears the queue; a reset that stops "
+        "motion leaves the arm in Alarm (home or unlock), one at rest does not lock it",
+    )
 
     move = add("move", None, "move the arm: 'move joints ...' or 'move pose ...'")
     move_kinds = move.add_subparsers(dest="kind", metavar="KIND", required=True)

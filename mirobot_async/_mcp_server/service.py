@@ -449,15 +449,20 @@ class ArmService:
         }
 
     async def reset(self) -> dict[str, Any]:
-        """Soft reset (``%``): stops at once, clears the queue, locks the axes."""
+        """Soft reset (``%``): stops at once and clears the queue (a reset that stops motion
+        leaves the arm in Alarm)."""
         banner = await self.arm.reset()
         if self.twin is not None:
             with contextlib.suppress(MirobotError):
                 await self.twin.reset()
         report = await self.arm.status()
+        locked = (
+            "the reset stopped motion, so the arm is in Alarm (home or unlock)"
+            if report.state is State.ALARM
+            else f"the arm is {report.state.value}"
+        )
         return {
-            "outcome": "soft reset sent (%): the arm stopped and its queue was cleared; the axes "
-            "are locked (home or unlock)",
+            "outcome": f"soft reset sent (%): the arm stopped and its queue was cleared; {locked}",
             "banner": list(banner),
             "status": status_dict(report),
         }

@@ -121,3 +121,27 @@ async def test_check_program_reports_problems_and_run_program_refuses_them(
     ):
         await service.run_program(program)
     assert await lines_received(arm_emulator) == sent
+
+
+async def test_reset_says_the_arm_is_locked_only_when_it_is(
+    arm_and_twin: tuple[ArmService, EmulatorProcess, EmulatorProcess],
+) -> None:
+    service, _, _ = arm_and_twin
+    await service.home()
+    at_rest = await service.reset()
+    assert at_rest["status"]["state"] != "Alarm", at_rest
+    assert "Alarm" not in at_rest["outcome"]
+    assert at_rest["outcome"].endswith(f"the arm is {at_rest['status']['state']}")
+
+
+def test_reset_help_does_not_promise_a_lock() -> None:
+    from mirobot_async._cli.arguments import build_parser
+
+    parser = build_parser()
+    text = next(
+        action.choices["reset"].format_help()  # type: ignore[index]
+        for action in parser._actions
+        if getattr(action, "choices", None) and "reset" in action.choices  # type: ignore[operator]
+    )
+    assert "locked afterwards" not in text
+    assert "one at rest does not lock it" in " ".join(text.split())
