@@ -48,3 +48,15 @@ def test_the_plugin_example_runs_as_written_in_a_fresh_folder(tmp_path: Path) ->
     )  # fmt: skip
     assert done.returncode == 0, done.stdout + done.stderr
     assert "1 passed" in done.stdout
+
+
+def test_every_install_command_works_from_a_clone() -> None:
+    """The package is not on an index: README installs it (and its extras) from the clone."""
+    text = README.read_text()
+    assert "pip install 'mirobot-async" not in text
+    assert "pip install mirobot-async" not in text
+    extras = re.findall(r"pip install (?:-e )?'\.\[(\w+)\]'", text)
+    pyproject = (README.parent / "pyproject.toml").read_text()
+    for extra in extras:
+        assert re.search(rf"^{extra} = \[", pyproject, flags=re.M), extra
+    assert {"view", "mcp", "test"} <= set(extras)
