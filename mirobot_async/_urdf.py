@@ -3,11 +3,15 @@
 The chain is the modified DH table of PROTOCOL 8.1 for a firmware profile
 (:data:`~mirobot_async.kinematics.DH_2021` or :data:`~mirobot_async.kinematics.DH_CLASSIC`): joint
 ``i``'s origin is ``RotX(alpha) TransX(a) RotZ(offset) TransZ(d)`` and it turns about its z axis,
-so the fixed frame ``tool0`` is frame 6, the flange point that :func:`~mirobot_async.kinematics.
-forward` reports (tests check it through yourdfpy to 0.05 mm). The limits are the firmware's
-joint ranges, the velocities its default max rates. The geometry is our own: cylinders for the
-joint housings and the links between the frames, a box for the base, a short cylinder for the
-tool; no vendor meshes. Lengths in metres, angles in radians (ROS conventions). Pure module.
+so the fixed frame ``flange`` is frame 6, the point and orientation that
+:func:`~mirobot_async.kinematics.forward` reports (tests check it through yourdfpy to 0.05 mm):
+its z axis is J6's, pointing into the wrist. ``tool0`` is the ROS-Industrial tool frame: at the
+same point, turned half a turn about x, so that its z axis points out of the flange (the
+approach direction) and its x axis is the flange's. The limits are the firmware's joint ranges,
+the velocities its default max rates. The geometry is our own: cylinders for the joint housings
+and the links between the frames, a box for the base, a short cylinder for the tool; no vendor
+meshes. Each shape is both a visual and a collision element (primitives, as planners want
+them). Lengths in metres, angles in radians (ROS conventions). Pure module.
 """
 
 from __future__ import annotations
@@ -20,12 +24,14 @@ from typing import Final
 from mirobot_async.errors import MirobotUsageError
 from mirobot_async.kinematics import DH, DH_2021, DH_CLASSIC, JOINT_LIMITS
 
-__all__ = ["JOINT_NAMES", "TOOL_LINK", "build_urdf", "dh_of"]
+__all__ = ["FLANGE_LINK", "JOINT_NAMES", "TOOL_LINK", "build_urdf", "dh_of"]
 
 JOINT_NAMES: Final = ("joint1", "joint2", "joint3", "joint4", "joint5", "joint6")
 """The revolute joints J1..J6, in order (a configuration vector follows this order)."""
+FLANGE_LINK: Final = "flange"
+"""The flange frame: the point and orientation ``kinematics.forward`` reports (z into the wrist)."""
 TOOL_LINK: Final = "tool0"
-"""The flange frame: the point and orientation ``kinematics.forward`` reports."""
+"""The ROS-Industrial tool frame: the flange point, z out of the flange, x the flange's x."""
 
 _MAX_RATES: Final = {  # deg/min, J1..J6: the profiles' $110..$116 defaults in joint order
     "classic": (2000.0, 2000.0, 2000.0, 1800.0, 1500.0, 2500.0),
@@ -131,15 +137,24 @@ def _rot_y(deg: float) -> Matrix:
     return ((c, 0.0, s), (0.0, 1.0, 0.0), (-s, 0.0, c))
 
 
+def _shape(origin: str, geometry: str, material: str) -> str:
+    """One shape as a visual (with its material) and as a collision element."""
+    return (
+        f"    <visual>\n      {origin}\n      {geometry}\n"
+        f'      <material name="{material}"/>\n    </visual>\n'
+        f"    <collision>\n      {origin}\n      {geometry}\n    </collision>\n"
+    )
+
+
 def _cylinder(start: Sequence[float], end: Sequence[float], radius: float, material: str) -> str:
-    """A visual cylinder from ``start`` to ``end`` (metres, in the link's frame)."""
+    """A cylinder from ``start`` to ``end`` (metres, in the link's frame)."""
     delta = [b - a for a, b in zip(start, end, strict=True)]
     length = math.sqrt(sum(v * v for v in delta))
     centre = [(a + b) / 2 for a, b in zip(start, end, strict=True)]
-    return (
-        f'    <visual>\n      <origin xyz="{_vec(centre)}" rpy="{_vec(_align_z(delta))}"/>\n'
-        f'      <geometry><cylinder radius="{_num(radius)}" length="{_num(length)}"/></geometry>\n'
-        f'      <material name="{material}"/>\n    </visual>\n'
+    return _shape(
+        f'<origin xyz="{_vec(centre)}" rpy="{_vec(_align_z(delta))}"/>',
+        f'<geometry><cylinder radius="{_num(radius)}" length="{_num(length)}"/></geometry>',
+        material,
     )
 
 
@@ -177,12 +192,12 @@ def build_urdf(firmware: str = "2021", *, name: str = "mirobot") -> str:
     for material, rgba in _MATERIALS.items():
         out.append(f'  <material name="{material}"><color rgba="{_vec(rgba)}"/></material>\n')
     base_height = dh.d1 * _MM - _HOUSING_LENGTH / 2
-    out.append(
-        '  <link name="base_link">\n    <visual>\n'
-        f'      <origin xyz="0 0 {_num(base_height / 2)}" rpy="0 0 0"/>\n'
-        f'      <geometry><box size="{_vec((_BASE_SIDE, _BASE_SIDE, base_height))}"/></geometry>\n'
-        '      <material name="body"/>\n    </visual>\n  </link>\n'
+    base = _shape(
+        f'<origin xyz="0 0 {_num(base_height / 2)}" rpy="0 0 0"/>',
+        f'<geometry><box size="{_vec((_BASE_SIDE, _BASE_SIDE, base_height))}"/></geometry>',
+        "body",
     )
+    out.append(f'  <link name="base_link">\n{base}  </link>\n')
     for index in range(1, len(rows) + 1):
         out.append(f'  <link name="link{index}">\n{_link_visuals(index, rows)}  </link>\n')
     parent = "base_link"
@@ -201,9 +216,13 @@ def build_urdf(firmware: str = "2021", *, name: str = "mirobot") -> str:
         )
         parent = f"link{index}"
     out.append(
+        f'  <link name="{FLANGE_LINK}"/>\n'
+        f'  <joint name="link6-{FLANGE_LINK}" type="fixed">\n    <parent link="link6"/>\n'
+        f'    <child link="{FLANGE_LINK}"/>\n    <origin xyz="0 0 0" rpy="0 0 0"/>\n  </joint>\n'
         f'  <link name="{TOOL_LINK}"/>\n'
-        f'  <joint name="flange" type="fixed">\n    <parent link="link6"/>\n'
-        f'    <child link="{TOOL_LINK}"/>\n    <origin xyz="0 0 0" rpy="0 0 0"/>\n  </joint>\n'
+        f'  <joint name="{FLANGE_LINK}-{TOOL_LINK}" type="fixed">\n'
+        f'    <parent link="{FLANGE_LINK}"/>\n    <child link="{TOOL_LINK}"/>\n'
+        f'    <origin xyz="0 0 0" rpy="{_num(math.pi)} 0 0"/>\n  </joint>\n'
         "</robot>\n"
     )
     return "".join(out)

@@ -15,7 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mirobot_async import kinematics
-from mirobot_async._urdf import JOINT_NAMES, TOOL_LINK, build_urdf, dh_of
+from mirobot_async._urdf import FLANGE_LINK, JOINT_NAMES, TOOL_LINK, build_urdf, dh_of
 from mirobot_async.errors import MirobotUsageError
 
 if TYPE_CHECKING:
@@ -45,12 +45,12 @@ joints = st.tuples(
 @pytest.mark.parametrize("firmware", PROFILES)
 @settings(max_examples=300)
 @given(q=joints)
-def test_tool_frame_matches_forward_kinematics(
+def test_flange_frame_matches_forward_kinematics(
     models: dict[str, yourdfpy.URDF], firmware: str, q: tuple[float, ...]
 ) -> None:
     model = models[firmware]
     model.update_cfg(np.radians(q))
-    frame = model.get_transform(TOOL_LINK, "base_link")
+    frame = model.get_transform(FLANGE_LINK, "base_link")
     pose = kinematics.forward(q, dh_of(firmware))
     position_mm = frame[:3, 3] * 1000.0
     assert np.abs(position_mm - np.asarray(pose[:3])).max() < 0.05
@@ -65,7 +65,7 @@ def test_zero_pose_is_the_protocol_s(models: dict[str, yourdfpy.URDF], firmware:
     dh = dh_of(firmware)
     model = models[firmware]
     model.update_cfg(np.zeros(6))
-    frame = model.get_transform(TOOL_LINK, "base_link")
+    frame = model.get_transform(FLANGE_LINK, "base_link")
     expected = (dh.a1 + dh.d4, 0.0, dh.d1 + dh.a2 + dh.a3 + dh.l)
     # a nanometre: the model is shared by the module's tests, and reaching q = 0 from another
     # configuration leaves float noise (4e-7 mm seen)
@@ -113,3 +113,29 @@ def test_cli_prints_the_urdf_without_viser() -> None:
     )
     assert done.returncode == 0, done.stderr
     assert done.stdout == build_urdf("classic")
+
+
+@pytest.mark.parametrize("firmware", PROFILES)
+def test_tool0_points_out_of_the_flange(models: dict[str, yourdfpy.URDF], firmware: str) -> None:
+    """ROS-Industrial: tool0's z is the approach direction, out of the flange (at the zero pose
+    the tool hangs down), at the flange's point; x is the flange's x."""
+    model = models[firmware]
+    model.update_cfg(np.zeros(6))
+    flange = model.get_transform(FLANGE_LINK, "base_link")
+    tool = model.get_transform(TOOL_LINK, "base_link")
+    assert np.allclose(tool[:3, 3], flange[:3, 3], atol=1e-12)
+    assert np.allclose(tool[:3, 2], (0.0, 0.0, -1.0), atol=1e-9)  # down, out of the flange
+    assert np.allclose(tool[:3, 0], flange[:3, 0], atol=1e-9)
+    assert np.allclose(tool[:3, 2], -flange[:3, 2], atol=1e-9)
+
+
+@pytest.mark.parametrize("firmware", PROFILES)
+def test_every_link_with_a_shape_can_collide(
+    models: dict[str, yourdfpy.URDF], firmware: str
+) -> None:
+    """Planners (MoveIt) check collisions on collision elements: every drawn link has them."""
+    model = models[firmware]
+    drawn = [link for link in model.robot.links if link.visuals]
+    assert len(drawn) == 7  # the base and the six links
+    for link in drawn:
+        assert len(link.collisions) == len(link.visuals), link.name
