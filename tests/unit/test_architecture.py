@@ -164,3 +164,18 @@ def test_emulator_imports_only_the_kinematics_of_the_client(path: Path) -> None:
     # ... and never climbs out of its own package with a relative import
     depth = len(path.relative_to(ROOT / "emulator").parts)
     assert all(level < depth + 1 for level, _ in _relative_imports(path))
+
+
+def test_pre_commit_runs_the_ruff_of_the_dev_extra() -> None:
+    """One ruff: the hook a contributor runs on commit and the one CI runs agree."""
+    import re
+    import tomllib
+
+    root = Path(__file__).resolve().parents[2]
+    dev = tomllib.loads((root / "pyproject.toml").read_text())["project"]["optional-dependencies"]
+    (pin,) = [spec for spec in dev["dev"] if spec.startswith("ruff")]
+    hook = re.search(
+        r"ruff-pre-commit\n\s+rev: v([\d.]+)", (root / ".pre-commit-config.yaml").read_text()
+    )
+    assert hook is not None
+    assert pin == f"ruff=={hook.group(1)}"
