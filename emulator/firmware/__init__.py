@@ -141,14 +141,15 @@ ASSUMED points implemented (each in one constant or function, named here)
   way across.
 * ``$M`` (2021): rapid joint move of J1..J6 to 0 (rail unchanged), needs Idle (``Not idle``),
   refuses in ``Alarm`` (``Alarm lock``) and prints ``Locked status`` while locked.
-* Homing: ``homing_seconds`` (default ``CLASSIC_HOMING_SECONDS`` = 8.17 s on classic, oracle;
+* Homing: ``homing_seconds`` (default ``CLASSIC_HOMING_SECONDS`` = 8.1534 s on classic, tapes;
   ``DEFAULT_HOMING_SECONDS`` = 10 s on 2021, PROTOCOL) is the switch search of ``$H``;
   ``$HH`` and ``$HE`` are sequential (:mod:`mirobot_emulator.motion`; classic ``$HH``
-  searches ``CLASSIC_SEQUENTIAL_HOMING_FACTOR`` times as long, oracle 29.11 s); ``$H0`` (arm + rail)
+  searches ``CLASSIC_SEQUENTIAL_HOMING_FACTOR`` times as long, tapes 29.07 s); ``$H0`` (arm + rail)
   searches ``HOMING_RAIL_FACTOR`` times as long, ``$H1..$H7`` (one axis; 7 = rail) for
   ``HOMING_SINGLE_AXIS_FACTOR`` of it. During the search ``?`` is not answered; one deferred
   ``?`` is answered (state ``Home``) when it ends (oracle). Then the homed axes read zero, the
-  lock is cleared and the parser re-initialised (feed 0, ``M21``, PWM 0), the homed text is
+  lock is cleared and the parser re-initialised (feed 0, ``M21``, PWM 0), the return move is
+  planned (``HOMED_PLANNING_SECONDS``, after that status is produced), the homed text is
   printed (device logs: classic ``""``, ``Free memory: 2036`` before and ``in homeing
   moving...ok`` after, where the oracle prints ``ok``), and ``SystemCommands._return_to_zero``
   moves each homed axis its reset distance ``$150..$156`` (away from its switch: negative where
