@@ -34,6 +34,10 @@ What is modelled (checked against the oracle where it says so)
 * After a soft reset the banner takes ``BOOT_SECONDS`` (30 ms, oracle): lines received meanwhile
   wait, a ``?`` received meanwhile is answered first when it ends (before those lines), one
   within ``RESET_DEAF_SECONDS`` of the ``%`` is lost (oracle: the reset clears its flags).
+* After printing an alarm (``Abort during cycle``, ``Homing fail``, ``Hard limit``) the firmware
+  stalls ``ALARM_STALL_SECONDS`` (500 ms, tapes) with the motion stopped: then the ``ok`` of a
+  line in progress and the reset's banner, or ``[Reset to continue]``. Realtime bytes meanwhile
+  (``%`` too) are lost; other bytes enter the receive ring, which the reset empties.
 * A ``?`` that arrives while the previous report is still being printed gets none of its own
   (oracle: 12.5 ms after a 175-byte report's ``?``, 15.1 ms for 193 bytes, ~45 ms after a
   ``%`` whose banner goes first); modelled by :mod:`.uart` when the server paces the link at
@@ -127,7 +131,8 @@ ASSUMED points implemented (each in one constant or function, named here)
   event), e.g. J1 at 160.515 (oracle, any feed); joint moves are exact, Cartesian paths (2021)
   stop within a step or two. A switch that is already closed when a move starts is passed
   (no edge). Then ``<8 binary digits>ALARM: Hard limit`` (the closed switches, bit 4 = J1:
-  oracle ``00010000ALARM: Hard limit``) and ``[Reset to continue]`` are printed; nothing but
+  oracle ``00010000ALARM: Hard limit``) and, after the stall, ``[Reset to continue]`` are
+  printed; nothing but
   ``%`` is processed until reset, not even ``?`` (``STATUS_DURING_CRITICAL_ALARM``); after the
   reset the arm is in Alarm where it stopped. The oracle's harness turns its range switches off
   once homing has completed; ours stay (a real arm's switches do not go away).

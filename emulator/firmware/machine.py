@@ -213,8 +213,7 @@ class Machine:
 
         ``pins``: the closed switches by firmware axis bit (a..g = bits 0..6); the oracle prints
         them as 8 binary digits right before the text (``00010000ALARM: Hard limit``: J1)."""
-        self.emit(f"{pins:08b}ALARM: Hard limit")
-        self.emit(c.FEEDBACK_RESET_TO_CONTINUE)
+        self.emit(f"{pins:08b}ALARM: Hard limit")  # [Reset to continue] after the stall
         self.planner.abort()
         self.limit_blocks.clear()
         self.line_cut_short = self.line_cut_short or self.pending is not None
@@ -222,6 +221,24 @@ class Machine:
         self.hold = False
         self.alarm = True
         self.critical = True
+
+    def reset_to_continue(self) -> None:
+        """The hard-limit alarm's second line (after the firmware's stall)."""
+        self.emit(c.FEEDBACK_RESET_TO_CONTINUE)
+
+    def reset_alarm(self) -> tuple[bool, bool]:
+        """A soft reset arrived: the alarm it prints if it interrupts homing or motion, then
+        (printed, interrupted); a hard-limit alarm is interrupted, and survives the reset."""
+        if self.critical:
+            return False, True
+        running = self.planner.running
+        if running is not None and running.kind == "home_search":
+            self.emit("ALARM: Homing fail")
+        elif self.moving():
+            self.emit("ALARM: Abort during cycle")
+        else:
+            return False, False
+        return True, True
 
     def switch_reached(self) -> bool:
         """After blocks finished: if one that ran into a limit switch (``limit_blocks``) is done,
