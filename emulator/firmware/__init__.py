@@ -161,6 +161,8 @@ ASSUMED points implemented (each in one constant or function, named here)
   ``$28`` has its bit) at the homing feed ``$24`` in ``Run`` while the parser is free; the
   position reads zero again when the planner is next idle (oracle: ~2.3 s on classic).
   The classic profile accepts any ``$H...`` as ``$H`` except ``$HH`` (open firmware).
+  ``M95`` homes as ``$H`` does, with its replies (tapes: classic, a bare ``M95``; ASSUMED: the
+  rest of its line acts first, and 2021 does the same, its manual being silent).
 * ``G4`` waits for the planner to empty, then dwells (state ``Idle``, oracle); its ``ok`` comes
   after the dwell, and after the motion of its line is queued, not run (oracle: ``M21 G91 G0
   X30 G4 P0.2``). ``M2``/``M30`` wait for the planner, reset the modal state as GRBL does and

@@ -154,6 +154,7 @@ class Firmware(_MachineViews):
         self.settings: dict[int, float] = self._m.settings
         self._gcode = GcodeExecutor(self._m)
         self._system = SystemCommands(self._m, self.reset, self._gcode.execute)
+        self._gcode.home = lambda: self._system.execute("$H")  # M95
         self._m.reset_condition(interrupted=False, power_on=True)
         self._m.parser_init(feed=200.0)
         self._m.emit_lines(banner(self._m))

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from .. import motion
 from ..motion import Block, Vec7
 from . import codes as c
@@ -43,6 +45,8 @@ class GcodeExecutor:
 
     def __init__(self, machine: Machine) -> None:
         self.m = machine
+        self.home: Callable[[], None] = lambda: None
+        """``M95``: the homing cycle of ``$H`` (the facade sets it; it prints the reply)."""
 
     def execute(self, line: str) -> int:
         """Run ``line`` and print its replies; its GRBL status (0 when accepted)."""
@@ -248,6 +252,9 @@ class GcodeExecutor:
                     m.modal.cart = pose6(line.target[:6])
         if out:
             m.emit_lines(out)
+        if g.home and not m.check:
+            self.home()  # tapes: a bare M95 homes as $H does (the rest of the line ASSUMED first)
+            return
 
         flow = g.flow
         if flow in (0, 2, 30) and not m.check:
