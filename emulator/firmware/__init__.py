@@ -166,8 +166,8 @@ ASSUMED points implemented (each in one constant or function, named here)
 * ``G4`` waits for the planner to empty, then dwells (state ``Idle``, oracle); its ``ok`` comes
   after the dwell, and after the motion of its line is queued, not run (oracle: ``M21 G91 G0
   X30 G4 P0.2``); it lasts :func:`.gcode.dwell_seconds` (GRBL's 50 ms steps counted in 16 bits:
-  ``G4 P3277`` waits 0.2 s, tapes). ``M2``/``M30`` wait for the planner, reset the modal state as GRBL does and
-  print ``[Pgm End]``; ``M0`` waits, then holds; its ``ok`` follows the ``~``.
+  ``G4 P3277`` waits 0.2 s, tapes). ``M2``/``M30`` wait for the planner, reset the modal state
+  as GRBL does and print ``[Pgm End]``; ``M0`` waits, then holds; its ``ok`` follows the ``~``.
 * A soft reset during a dwell or a completed feed hold is not "during motion" (no alarm), as in
   GRBL; during homing it is ``ALARM: Homing fail``.
 * The banner's last line is followed by ``['$H'|'$X' to unlock]`` whenever the state is Alarm,
