@@ -14,6 +14,7 @@ from . import codes as c
 from .geometry import vec7
 from .machine import N_STARTUP_LINE, Machine, Pending
 from .moves import MIN_FEED
+from .offsets import WorkOffsets
 from .scanner import read_float, uint8
 
 HOMING_RAIL_FACTOR: Final = 1.5
@@ -152,6 +153,8 @@ class SystemCommands:
             m.settings.clear()  # in place: holders of ``settings`` see the change
             m.settings.update(cfg.default_settings(m.profile))
             m.regrid(before)
+        if line[5] in "#*":  # GRBL: the coordinate data G54..G59, G28, G30 (tape
+            m.work = WorkOffsets()  # scenarios-s4/restore_variants: $# after $RST=# reads 0)
         if line[5] == "*":
             m.startup_lines = [""] * N_STARTUP_LINE
             m.build_info = ""
