@@ -35,6 +35,10 @@ What is modelled (checked against the oracle where it says so)
 * After a soft reset the banner takes ``BOOT_SECONDS`` (30 ms, oracle): lines received meanwhile
   wait, a ``?`` received meanwhile is answered first when it ends (before those lines), one
   within ``RESET_DEAF_SECONDS`` of the ``%`` is lost (oracle: the reset clears its flags).
+* After printing an alarm (``Abort during cycle``, ``Homing fail``, ``Hard limit``) the firmware
+  stalls ``ALARM_STALL_SECONDS`` (500 ms, tapes) with the motion stopped: then the ``ok`` of a
+  line in progress and the reset's banner, or ``[Reset to continue]``. Realtime bytes meanwhile
+  (``%`` too) are lost; other bytes enter the receive ring, which the reset empties.
 * A ``?`` that arrives while the previous report is still being printed gets none of its own
   (oracle: 12.5 ms after a 175-byte report's ``?``, 15.1 ms for 193 bytes, ~45 ms after a
   ``%`` whose banner goes first); modelled by :mod:`.uart` when the server paces the link at
@@ -128,7 +132,8 @@ ASSUMED points implemented (each in one constant or function, named here)
   event), e.g. J1 at 160.515 (oracle, any feed); joint moves are exact, Cartesian paths (2021)
   stop within a step or two. A switch that is already closed when a move starts is passed
   (no edge). Then ``<8 binary digits>ALARM: Hard limit`` (the closed switches, bit 4 = J1:
-  oracle ``00010000ALARM: Hard limit``) and ``[Reset to continue]`` are printed; nothing but
+  oracle ``00010000ALARM: Hard limit``) and, after the stall, ``[Reset to continue]`` are
+  printed; nothing but
   ``%`` is processed until reset, not even ``?`` (``STATUS_DURING_CRITICAL_ALARM``); after the
   reset the arm is in Alarm where it stopped. The oracle's harness turns its range switches off
   once homing has completed; ours stay (a real arm's switches do not go away).
@@ -142,24 +147,28 @@ ASSUMED points implemented (each in one constant or function, named here)
   way across.
 * ``$M`` (2021): rapid joint move of J1..J6 to 0 (rail unchanged), needs Idle (``Not idle``),
   refuses in ``Alarm`` (``Alarm lock``) and prints ``Locked status`` while locked.
-* Homing: ``homing_seconds`` (default ``CLASSIC_HOMING_SECONDS`` = 8.17 s on classic, oracle;
+* Homing: ``homing_seconds`` (default ``CLASSIC_HOMING_SECONDS`` = 8.1534 s on classic, tapes;
   ``DEFAULT_HOMING_SECONDS`` = 10 s on 2021, PROTOCOL) is the switch search of ``$H``;
   ``$HH`` and ``$HE`` are sequential (:mod:`mirobot_emulator.motion`; classic ``$HH``
-  searches ``CLASSIC_SEQUENTIAL_HOMING_FACTOR`` times as long, oracle 29.11 s); ``$H0`` (arm + rail)
+  searches ``CLASSIC_SEQUENTIAL_HOMING_FACTOR`` times as long, tapes 29.07 s); ``$H0`` (arm + rail)
   searches ``HOMING_RAIL_FACTOR`` times as long, ``$H1..$H7`` (one axis; 7 = rail) for
   ``HOMING_SINGLE_AXIS_FACTOR`` of it. During the search ``?`` is not answered; one deferred
   ``?`` is answered (state ``Home``) when it ends (oracle). Then the homed axes read zero, the
-  lock is cleared and the parser re-initialised (feed 0, ``M21``, PWM 0), the homed text is
+  lock is cleared and the parser re-initialised (feed 0, ``M21``, PWM 0), the return move is
+  planned (``HOMED_PLANNING_SECONDS``, after that status is produced), the homed text is
   printed (device logs: classic ``""``, ``Free memory: 2036`` before and ``in homeing
   moving...ok`` after, where the oracle prints ``ok``), and ``SystemCommands._return_to_zero``
   moves each homed axis its reset distance ``$150..$156`` (away from its switch: negative where
   ``$28`` has its bit) at the homing feed ``$24`` in ``Run`` while the parser is free; the
   position reads zero again when the planner is next idle (oracle: ~2.3 s on classic).
   The classic profile accepts any ``$H...`` as ``$H`` except ``$HH`` (open firmware).
+  ``M95`` homes as ``$H`` does, with its replies (tapes: classic, a bare ``M95``; ASSUMED: the
+  rest of its line acts first, and 2021 does the same, its manual being silent).
 * ``G4`` waits for the planner to empty, then dwells (state ``Idle``, oracle); its ``ok`` comes
   after the dwell, and after the motion of its line is queued, not run (oracle: ``M21 G91 G0
-  X30 G4 P0.2``). ``M2``/``M30`` wait for the planner, reset the modal state as GRBL does and
-  print ``[Pgm End]``; ``M0`` waits, then holds; its ``ok`` follows the ``~``.
+  X30 G4 P0.2``); it lasts :func:`.gcode.dwell_seconds` (GRBL's 50 ms steps counted in 16 bits:
+  ``G4 P3277`` waits 0.2 s, tapes). ``M2``/``M30`` wait for the planner, reset the modal state
+  as GRBL does and print ``[Pgm End]``; ``M0`` waits, then holds; its ``ok`` follows the ``~``.
 * A soft reset during a dwell or a completed feed hold is not "during motion" (no alarm), as in
   GRBL; during homing it is ``ALARM: Homing fail``.
 * The banner's last line is followed by ``['$H'|'$X' to unlock]`` whenever the state is Alarm,

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Callable
 from typing import Final
 
 from .. import motion
@@ -24,9 +25,19 @@ from .wire import BYTE_SECONDS, Wire
 DEFAULT_HOMING_SECONDS: Final = 10.0
 """Switch search of ``$H`` on 2021 when the constructor is not told otherwise (PROTOCOL 9)."""
 
-CLASSIC_HOMING_SECONDS: Final = 8.17
-"""Switch search of ``$H`` on classic: the oracle's ``ok`` comes 8.17 s after ``$H`` (then its
-2.3 s return move), with its harness's switches (no device log gives a time)."""
+CLASSIC_HOMING_SECONDS: Final = 8.1534
+"""Switch search of ``$H`` on classic, from the zero pose: the firmware tapes' search ends
+8.1537 s after ``$H``'s line end was written (a ``Home`` status for a ``?`` meanwhile starts
+2.2 ms later, the reply 5.6 ms later: :data:`.system.HOMED_PLANNING_SECONDS`; then the 2.3 s
+return move), less this model's 0.3 ms from that byte to the search's start; with the
+simulator's assumed switches (no device log gives a time)."""
+
+ALARM_STALL_SECONDS: Final = 0.5003
+"""After printing an alarm the firmware stalls before it goes on (tapes: the next line, ``ok``
+of a line in progress or ``[Reset to continue]``, starts 500.6 ms after the alarm's first
+byte, the reset's banner 500.9-501.0 ms: ``test_reset_during_homing``, ``test_hard_limit``,
+``test_reset_during_motion``); realtime bytes meanwhile are lost (the restart clears GRBL's
+flags; no tape sends any), other bytes enter the ring, which the reset empties."""
 
 MOTION_END_HISTORY: Final = 64
 """How many ends of motion :attr:`Firmware.motion_end_times` keeps."""
@@ -48,7 +59,53 @@ firmware's realtime flags after the byte was flagged (oracle: lost 100-300 us af
 answered from 400 us; the bytes of lines are kept)."""
 
 
-class Firmware:
+class _MachineViews:
+    """The read-only views of the firmware's state that :class:`Firmware` offers."""
+
+    _m: Machine
+
+    def status_line(self) -> str:
+        """The status report at this instant, without its ``\\r\\n`` (PROTOCOL 5)."""
+        return status_line(self._m)
+
+    @property
+    def state(self) -> str:
+        """The state word of the status report (``Idle``, ``Run``, ``Hold``, ``Home``, ...)."""
+        return self._m.state
+
+    @property
+    def joints(self) -> Vec7:
+        """Current joint position: J1..J6 (degrees) and the rail (mm)."""
+        return self._m.planner.position
+
+    @property
+    def planner(self) -> motion.Planner:
+        """The look-ahead planner (read-only use: its ``starvations``, ``run_outs`` and
+        ``starved_seconds`` counters, ``state``, ``blocks``); the control channel reads it."""
+        return self._m.planner
+
+    @property
+    def rx_free(self) -> int:
+        """Free bytes in the receive ring (127 when empty)."""
+        return self._m.rx.free
+
+    @property
+    def rx_lost(self) -> int:
+        """Bytes lost so far because the receive ring was full."""
+        return self._m.rx.lost
+
+    @property
+    def locked(self) -> bool:
+        """True while the axes are locked (power-on / reset lock; ``M50`` or homing clears it)."""
+        return self._m.locked
+
+    @property
+    def parser_blocked(self) -> bool:
+        """True while received lines wait (planner full, homing search, dwell, hold, alarm)."""
+        return self._m.blocked()
+
+
+class Firmware(_MachineViews):
     """A virtual Mirobot controller: call :meth:`receive`, :meth:`advance`, :meth:`read_output`.
 
     ``profile`` is ``"classic"`` (20191228_2) or ``"2021"`` (20210516); ``homing_seconds`` the
@@ -90,11 +147,14 @@ class Firmware:
         self._reset_at = -math.inf
         self._status_after_boot = False
         """``?`` arrived during the boot: answered when it ends, before any line."""
+        self._after_stall: Callable[[], None] | None = None
+        """What follows the stall after an alarm (:meth:`_stall`; None: no stall)."""
         self.uart = Transmitter()
         """The firmware's transmitter; the server sets its ``byte_seconds`` (:mod:`.uart`)."""
         self.settings: dict[int, float] = self._m.settings
         self._gcode = GcodeExecutor(self._m)
         self._system = SystemCommands(self._m, self.reset, self._gcode.execute)
+        self._gcode.home = lambda: self._system.execute("$H")  # M95
         self._m.reset_condition(interrupted=False, power_on=True)
         self._m.parser_init(feed=200.0)
         self._m.emit_lines(banner(self._m))
@@ -213,6 +273,7 @@ class Firmware:
                 m.planner.set_position(m.rezero)
                 m.rezero = None
         if m.limit_blocks and m.switch_reached():
+            self._stall(m.reset_to_continue)
             return False
         self._service()
         return True
@@ -236,25 +297,29 @@ class Firmware:
         return deadline
 
     def reset(self) -> None:
-        """Soft reset, exactly as if ``%`` had arrived."""
+        """Soft reset, exactly as if ``%`` had arrived (ignored while the firmware stalls after
+        an alarm, :data:`ALARM_STALL_SECONDS`)."""
         m = self._m
-        interrupted = False
-        if not m.critical:
-            running = m.planner.running
-            if running is not None and running.kind == "home_search":
-                m.emit("ALARM: Homing fail")
-                interrupted = True
-            elif m.moving():
-                m.emit("ALARM: Abort during cycle")
-                interrupted = True
-        else:
-            interrupted = True  # the hard-limit alarm survives the reset
-        if m.pending is not None or m.line_cut_short:
-            m.emit("ok")  # oracle: the line in progress (homing, a dwell, a wait) ends with ok
+        if self._after_stall is not None:
+            return
+        alarm, interrupted = m.reset_alarm()
+        owed_ok = m.pending is not None or m.line_cut_short  # printed with the banner
         m.clear_on_reset()
         self._parser.clear()  # the line being parsed is dropped
         self._status_after_parse = None
         m.reset_condition(interrupted=interrupted)
+        if alarm:  # motion stopped at once; the firmware restarts after its stall
+            self._stall(lambda: self._restart(owed_ok))
+        else:
+            self._restart(owed_ok)
+
+    def _restart(self, owed_ok: bool) -> None:
+        """The reset's restart: the line in progress (homing, a dwell, a wait) ends with ``ok``
+        (oracle), the receive ring is emptied, the banner printed; lines wait for the boot."""
+        m = self._m
+        if owed_ok:
+            m.emit("ok")
+        m.rx.clear()
         m.parser_init(feed=200.0)
         m.emit_lines(banner(m))
         self._system.run_startup_lines()
@@ -264,12 +329,23 @@ class Firmware:
         self._boot_until = self.now + BOOT_SECONDS
         m.booting = True
 
+    def _stall(self, after: Callable[[], None]) -> None:
+        """The firmware stalls :data:`ALARM_STALL_SECONDS` after printing an alarm (no line is
+        read, realtime bytes are lost, bytes still enter the ring); then ``after``."""
+        self._after_stall = after
+        self._boot_until = self.now + ALARM_STALL_SECONDS
+        self._m.booting = True
+
     def _finish_boot(self) -> None:
-        """The banner is out: a ``?`` received meanwhile is answered, then lines are read."""
+        """The banner is out: a ``?`` received meanwhile is answered, then lines are read (or
+        the stall after an alarm ended: what follows it)."""
         m = self._m
         self._boot_until = None
         m.booting = False
-        if self._status_after_boot:
+        after, self._after_stall = self._after_stall, None
+        if after is not None:
+            after()
+        elif self._status_after_boot:
             self._status_after_boot = False
             if not m.critical:
                 self.uart.print_report(m, self.now)
@@ -284,41 +360,7 @@ class Firmware:
         """
         if not self._m.critical:
             self._m.hard_limit_alarm(switch_pins(axis))
-
-    def status_line(self) -> str:
-        """The status report at this instant, without its ``\\r\\n`` (PROTOCOL 5)."""
-        return status_line(self._m)
-
-    @property
-    def state(self) -> str:
-        """The state word of the status report (``Idle``, ``Run``, ``Hold``, ``Home``, ...)."""
-        return self._m.state
-
-    @property
-    def joints(self) -> Vec7:
-        """Current joint position: J1..J6 (degrees) and the rail (mm)."""
-        return self._m.planner.position
-
-    @property
-    def planner(self) -> motion.Planner:
-        """The look-ahead planner (read-only use: its ``starvations``, ``run_outs`` and
-        ``starved_seconds`` counters, ``state``, ``blocks``); the control channel reads it."""
-        return self._m.planner
-
-    @property
-    def rx_free(self) -> int:
-        """Free bytes in the receive ring (127 when empty)."""
-        return self._m.rx.free
-
-    @property
-    def rx_lost(self) -> int:
-        """Bytes lost so far because the receive ring was full."""
-        return self._m.rx.lost
-
-    @property
-    def locked(self) -> bool:
-        """True while the axes are locked (power-on / reset lock; ``M50`` or homing clears it)."""
-        return self._m.locked
+            self._stall(self._m.reset_to_continue)
 
     @property
     def input_deadline(self) -> float | None:
@@ -328,16 +370,13 @@ class Firmware:
         times = [self._wire.next_event(), self._parser.until, self._boot_until]
         return min((t for t in times if t is not None), default=None)
 
-    @property
-    def parser_blocked(self) -> bool:
-        """True while received lines wait (planner full, homing search, dwell, hold, alarm)."""
-        return self._m.blocked()
-
     # ------------------------------------------------------------------------------------------
     # realtime bytes
 
     def _realtime(self, byte: int) -> None:
         m = self._m
+        if self._after_stall is not None:
+            return  # the stall after an alarm: the restart clears the realtime flags
         if byte == 0x25:  # %
             self.reset()
             self._service()
@@ -357,15 +396,7 @@ class Firmware:
             elif not self.uart.merges(self.now):  # else merged into the report being printed
                 self.uart.print_report(m, self.now)
         elif byte == 0x21:  # !
-            running = m.planner.running
-            if (
-                m.alarm
-                or m.check
-                or (running is not None and running.kind not in motion.HOLDABLE_KINDS)
-            ):
-                return  # GRBL ignores a feed hold in Alarm, check mode and homing
-            m.hold = True
-            m.planner.hold()
+            m.feed_hold()
         elif byte == 0x40:  # @ (oracle: lines wait until ~; motion and the state go on)
             m.suspended = True
         elif byte == 0x7E and (m.hold or m.suspended):  # ~
@@ -384,6 +415,10 @@ class Firmware:
         """Push waiting blocks, finish waiting lines, then start parsing a received line."""
         m = self._m
         if m.pending is not None and not m.progress_pending():
+            return
+        if m.held_reply is not None:  # its work runs as a parse (a deferred ? answered first)
+            self._parse_started = self.now
+            self._parser.hold(m, self.now, self.uart)
             return
         if m.parsing is not None or m.hold or m.suspended or m.critical or m.booting:
             return  # (m.blocked(): the waiting line is done)

@@ -2,9 +2,14 @@
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
+from typing import Final
+
 from .. import motion
 from ..motion import Block, Vec7
 from . import codes as c
+from .float32 import single
 from .geometry import Pose, Refusal, pose6
 from .machine import Machine, Pending
 from .modal import ModalState
@@ -38,11 +43,29 @@ def waits_for_motion(line: CheckedLine, modal: ModalState) -> bool:
     return modal.spindle != 5 and (line.pump != modal.pump_pwm or line.valve != modal.valve_pwm)
 
 
+DWELL_STEP_MS: Final = 50
+"""GRBL 0.9j's ``DWELL_TIME_STEP``: a dwell is counted in steps of this many milliseconds."""
+
+
+def dwell_seconds(p: float) -> float:
+    """How long GRBL 0.9j's ``mc_dwell`` waits for ``G4 P<p>`` (seconds): ``floor(20 p)``
+    steps of 50 ms, the count stored in a ``uint16_t``, after ``delay_ms`` of the remaining
+    whole milliseconds (a ``uint16_t`` too). So the count wraps (tape
+    ``scenarios-s4/dwell_overflow_edge``: ``G4 P3277`` is 65540 steps, waits 4 of them: ``ok``
+    after 0.201 s) and a fraction of a millisecond is dropped."""
+    count = math.floor(single(1000 // DWELL_STEP_MS * single(p)))
+    steps = count % 65536
+    remainder = math.floor(single(single(1000.0 * single(p)) - steps * DWELL_STEP_MS)) % 65536
+    return (remainder + steps * DWELL_STEP_MS) / 1000.0
+
+
 class GcodeExecutor:
     """Scans, checks and executes one G-code line (prints its replies)."""
 
     def __init__(self, machine: Machine) -> None:
         self.m = machine
+        self.home: Callable[[], None] = lambda: None
+        """``M95``: the homing cycle of ``$H`` (the facade sets it; it prints the reply)."""
 
     def execute(self, line: str) -> int:
         """Run ``line`` and print its replies; its GRBL status (0 when accepted)."""
@@ -209,7 +232,8 @@ class GcodeExecutor:
             # The dwell starts where the queued motion ends; the motion of this line is queued
             # after it, and the reply does not wait for that motion (oracle: ``M21 G91 G0 X30
             # G4 P0.2`` answers as its motion starts, like GRBL's dwell before step 19).
-            dwell.append(motion.dwell_block(g.words["P"], m.planner.planned_position))
+            seconds = dwell_seconds(g.words["P"])
+            dwell.append(motion.dwell_block(seconds, m.planner.planned_position))
             blocks = list(dwell)
         if g.nonmodal in (10, 92, 281, 301, 921):
             self._store_offsets(line)
@@ -248,6 +272,9 @@ class GcodeExecutor:
                     m.modal.cart = pose6(line.target[:6])
         if out:
             m.emit_lines(out)
+        if g.home and not m.check:
+            self.home()  # tapes: a bare M95 homes as $H does (the rest of the line ASSUMED first)
+            return
 
         flow = g.flow
         if flow in (0, 2, 30) and not m.check:

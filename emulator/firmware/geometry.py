@@ -16,6 +16,7 @@ from mirobot_async import kinematics as kin
 from .. import motion
 from ..motion import AxisLimits, Steps7, Vec7, axes
 from . import codes as c
+from .float32 import single
 
 Pose = tuple[float, float, float, float, float, float]
 
@@ -237,7 +238,11 @@ class Geometry:
         for letter, joint, high, low in _SOFT_LIMIT_AXES:
             value = q[joint]
             if value > settings[high] or value < -settings[low]:
-                return letter
+                # the firmware compares float32 numbers (tape scenarios-s4/limit_edges_numbers:
+                # X5.0000001 is 5.0 there, within $134=5)
+                value = single(value)
+                if value > single(settings[high]) or value < -single(settings[low]):
+                    return letter
         return None
 
     def switch_steps(self) -> list[tuple[int, int]]:

@@ -70,9 +70,11 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Final
 
+from .linebuffer import ReceivedLine
+
 if TYPE_CHECKING:
-    from .linebuffer import ReceivedLine
     from .machine import Machine
+    from .uart import Transmitter
     from .wire import Wire
 
 LINE_SECONDS: Final = 0.2e-3
@@ -144,6 +146,10 @@ F2000`` the same)."""
 QUEUED_BLOCK_SECONDS: Final = 1.05e-3
 """Planning the block of a Cartesian line behind queued blocks costs this much more (oracle:
 ``X0.1`` increments in Cartesian mode 6.92-7.21 ms, the more the more blocks are queued)."""
+
+HELD_REPLY_LINE: Final = ReceivedLine("")
+"""What ``Machine.parsing`` holds while the work before a held reply runs
+(:meth:`ParserWork.hold`)."""
 
 _M20: Final = re.compile(r"M0*20(?![0-9.])")
 _M21: Final = re.compile(r"M0*21(?![0-9.])")
@@ -331,6 +337,26 @@ class ParserWork:
         self.begin(m, now, block_seconds(planner.CAPACITY - free))
         m.parsing = line
         return True
+
+    def hold(self, m: Machine, now: float, uart: Transmitter) -> None:
+        """``m.held_reply`` (a finished :class:`~.machine.Pending`'s reply and its planning
+        seconds) becomes the reply of a line whose block is planned: printed when the work is
+        done; the next line and the queued blocks' start wait, a ``?`` meanwhile is answered
+        after the reply. A ``?`` deferred by a homing search is answered first (``Home``), and
+        the work starts once that report is produced (tapes: the report, then the return
+        move's planning, then ``ok``)."""
+        if m.held_reply is None:  # pragma: no cover - only called with a held reply
+            return
+        reply, seconds = m.held_reply
+        m.held_reply = None
+        if m.status_deferred:
+            m.status_deferred = False
+            uart.print_report(m, now, state="Home")
+            seconds += uart.production_left(now)
+        m.parsing = HELD_REPLY_LINE
+        self.work = None
+        self.reply = reply
+        self.begin(m, now, seconds)
 
     def done(self) -> bytes | None:
         """The work has ended; the reply held for the planned block, if any."""

@@ -19,6 +19,7 @@ from .moves import MoveBuilder
 from .offsets import WorkOffsets
 
 N_STARTUP_LINE = 2  # GRBL 0.9j config.h
+HOLDABLE = motion.HOLDABLE_KINDS
 
 
 @dataclass
@@ -36,6 +37,9 @@ class Pending:
     finish: Callable[[], list[str]]
     then: Pending | None = None
     hard_limit: Block | None = None
+    planning: float = 0.0
+    """Seconds of work after ``finish`` before its final reply is printed (planning the block
+    ``finish`` queued): the reply, the next line and the queued blocks' start wait for it."""
 
 
 class Machine:
@@ -71,6 +75,9 @@ class Machine:
         self.hold = False
         self.suspended = False
         self.status_deferred = False
+        self.held_reply: tuple[bytes, float] | None = None
+        """A finished :class:`Pending`'s reply and its ``planning`` seconds: the facade prints
+        it when that work is done (:meth:`progress_pending`)."""
         self.line_cut_short = False
         """A hard limit stopped a line in progress: the reset prints its ``ok``."""
         """``?`` arrived during a homing search: answered once when the search ends."""
@@ -188,6 +195,15 @@ class Machine:
             or self.booting
         )
 
+    def feed_hold(self) -> None:
+        """``!``: decelerate to a hold; lines wait until ``~`` (GRBL ignores it in Alarm, check
+        mode and homing)."""
+        running = self.planner.running
+        if self.alarm or self.check or (running is not None and running.kind not in HOLDABLE):
+            return
+        self.hold = True
+        self.planner.hold()
+
     def machine_position(self) -> Vec7:
         """Where the arm is now, in whole steps: what ``M20``/``M21`` resynchronise to."""
         return self.geometry.limits().quantise(self.planner.position)
@@ -197,8 +213,7 @@ class Machine:
 
         ``pins``: the closed switches by firmware axis bit (a..g = bits 0..6); the oracle prints
         them as 8 binary digits right before the text (``00010000ALARM: Hard limit``: J1)."""
-        self.emit(f"{pins:08b}ALARM: Hard limit")
-        self.emit(c.FEEDBACK_RESET_TO_CONTINUE)
+        self.emit(f"{pins:08b}ALARM: Hard limit")  # [Reset to continue] after the stall
         self.planner.abort()
         self.limit_blocks.clear()
         self.line_cut_short = self.line_cut_short or self.pending is not None
@@ -206,6 +221,24 @@ class Machine:
         self.hold = False
         self.alarm = True
         self.critical = True
+
+    def reset_to_continue(self) -> None:
+        """The hard-limit alarm's second line (after the firmware's stall)."""
+        self.emit(c.FEEDBACK_RESET_TO_CONTINUE)
+
+    def reset_alarm(self) -> tuple[bool, bool]:
+        """A soft reset arrived: the alarm it prints if it interrupts homing or motion, then
+        (printed, interrupted); a hard-limit alarm is interrupted, and survives the reset."""
+        if self.critical:
+            return False, True
+        running = self.planner.running
+        if running is not None and running.kind == "home_search":
+            self.emit("ALARM: Homing fail")
+        elif self.moving():
+            self.emit("ALARM: Abort during cycle")
+        else:
+            return False, False
+        return True, True
 
     def switch_reached(self) -> bool:
         """After blocks finished: if one that ran into a limit switch (``limit_blocks``) is done,
@@ -229,6 +262,7 @@ class Machine:
         self.hold = False
         self.suspended = False
         self.status_deferred = False
+        self.held_reply = None
         self.rezero = None
         self.check = False
         self.critical = False
@@ -274,7 +308,13 @@ class Machine:
             if p.until != "queued" and not self._pending_done(p.until):
                 return False
             self.pending = p.then
-            self.emit_lines(p.finish())
+            lines = p.finish()
+            if p.planning and lines:
+                self.emit_lines(lines[:-1])
+                reply = lines[-1].encode("latin-1", "replace") + b"\r\n"
+                self.held_reply = (reply, p.planning)
+                return True
+            self.emit_lines(lines)
         return True
 
     def _pending_done(self, until: str) -> bool:

@@ -9,7 +9,7 @@ from typing import Final
 from .. import motion
 from ..motion import Vec7
 from . import codes as c
-from .float32 import print_float, step_angle
+from .float32 import print_float, single, step_angle
 from .geometry import vec7
 from .machine import Machine
 from .scanner import c_round, uint8
@@ -23,6 +23,20 @@ def fmt(value: float) -> str:
     3 decimals, ``-0.000`` for a small negative value (oracle); values within
     ``NUMERIC_ZERO`` of 0 print ``0.000``."""
     return print_float(0.0 if abs(value) < NUMERIC_ZERO else value)
+
+
+INCH_PER_MM: Final = 0.0393701
+"""GRBL's ``INCH_PER_MM`` (float32 arithmetic)."""
+
+
+def fmt_inch(value: float) -> str:
+    """A status number with ``$13=1`` (GRBL's ``printFloat_CoordValue``): times
+    :data:`INCH_PER_MM` in float32, 4 decimals (tape ``scenarios-s4/status_mask_fields``: X 202
+    prints ``7.9528``, Z 181 ``7.1260``, zero angles ``0.0000``; ASSUMED that angles and
+    rotations go through the same conversion: the tape shows only zeros for them)."""
+    if abs(value) < NUMERIC_ZERO:
+        value = 0.0
+    return print_float(single(single(value) * INCH_PER_MM), 4)
 
 
 def step_position(q: Vec7, settings: Mapping[int, float]) -> Vec7:
@@ -48,11 +62,12 @@ def status_line(m: Machine, state: str | None = None) -> str:
     q = step_position(m.planner.position, m.settings)
     if mask & 1:
         wire = (q[3], q[4], q[5], q[6], q[0], q[1], q[2])
-        parts.append(",Angle(ABCDXYZ):")
-        parts.append(",".join(fmt(v) for v in wire))
         pose = m.geometry.fk(q)
+        number = fmt_inch if m.settings[13] else fmt  # $13: report inches
+        parts.append(",Angle(ABCDXYZ):")
+        parts.append(",".join(number(v) for v in wire))
         parts.append(",Cartesian coordinate(XYZ RxRyRz):")
-        parts.append(",".join(fmt(v) for v in pose))
+        parts.append(",".join(number(v) for v in pose))
     if mask & 32:
         pump = math.trunc(m.modal.pump_pwm) % 2**32
         valve = math.trunc(m.modal.valve_pwm) % 2**32

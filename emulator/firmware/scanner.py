@@ -118,6 +118,7 @@ class GBlock:
     tool_length: int | None = None  # 431 (G43.1), 49
     coord_mode: int | None = None  # M20, M21
     unlock: bool = False  # M50
+    home: bool = False  # M95
     words: dict[str, float] = field(default_factory=dict)
 
 
@@ -240,6 +241,9 @@ def _m_word(g: GBlock, code: int, mantissa: int, groups: _Groups) -> int:
     elif code == 50:
         group = groups.last
         g.unlock = True
+    elif code == 95:
+        group = "M95"
+        g.home = True
     else:
         return c.UNSUPPORTED_COMMAND
     return groups.claim(group)

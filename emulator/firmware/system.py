@@ -14,7 +14,7 @@ from . import codes as c
 from .geometry import vec7
 from .machine import N_STARTUP_LINE, Machine, Pending
 from .moves import MIN_FEED
-from .reports import status_line
+from .offsets import WorkOffsets
 from .scanner import read_float, uint8
 
 HOMING_RAIL_FACTOR: Final = 1.5
@@ -23,10 +23,17 @@ HOMING_RAIL_FACTOR: Final = 1.5
 HOMING_SINGLE_AXIS_FACTOR: Final = 0.4
 """ASSUMED: ``$H1..$H7`` (a single axis) search this fraction of ``homing_seconds``."""
 
-CLASSIC_SEQUENTIAL_HOMING_FACTOR: Final = 29.11 / 8.17
+CLASSIC_SEQUENTIAL_HOMING_FACTOR: Final = 29.0691 / 8.1534
 """Classic ``$HH`` (one axis after another) searches this many times ``homing_seconds``: the
-oracle's ``ok`` comes 29.11 s after ``$HH``, 8.17 s after ``$H`` (its harness's switches; both
-are followed by the same ~2.3 s return move)."""
+firmware tapes' ``$HH`` search ends 29.0694 s after its line end, ``$H``'s 8.1537 s (its
+harness's switches; both are followed by the same ~2.3 s return move)."""
+
+HOMED_PLANNING_SECONDS: Final = 5.6e-3
+"""After the switch search the firmware plans the return move, then prints its reply (tapes,
+``$H`` from the zero pose: the reply comes 5.6 ms after the search's end, a ``Home`` status
+for a ``?`` during the search 2.2 ms after it; with that status the reply waits until the
+report is produced, then 5.6 ms: ``tests/oracle/test_diff_homing.py::test_homing_phases``,
+``tests/integration/test_client.py::test_home_then_moves[classic]``)."""
 
 FREE_MEMORY: Final = 2036
 """The number of the classic ``Free memory:`` line (any number, PROTOCOL 4.3)."""
@@ -146,6 +153,8 @@ class SystemCommands:
             m.settings.clear()  # in place: holders of ``settings`` see the change
             m.settings.update(cfg.default_settings(m.profile))
             m.regrid(before)
+        if line[5] in "#*":  # GRBL: the coordinate data G54..G59, G28, G30 (tape
+            m.work = WorkOffsets()  # scenarios-s4/restore_variants: $# after $RST=# reads 0)
         if line[5] == "*":
             m.startup_lines = [""] * N_STARTUP_LINE
             m.build_info = ""
@@ -274,12 +283,12 @@ class SystemCommands:
             zero = vec7([0.0 if j in homed else start[j] for j in range(motion.AXES)])
             m.planner.set_position(zero)
             m.parser_init(feed=0.0)
-            lines = [status_line(m, state="Home")] if m.status_deferred else []
-            m.status_deferred = False
             self._return_to_zero(zero, homed)
-            return [*lines, c.TEXT_HOMED[m.profile]]
+            return [c.TEXT_HOMED[m.profile]]
 
-        m.wait(Pending(searches, "searched", finish))
+        # a ? during the search is answered when it ends (the facade, ``status_deferred``),
+        # before the return move is planned and the reply printed
+        m.wait(Pending(searches, "searched", finish, planning=HOMED_PLANNING_SECONDS))
 
     def _return_to_zero(self, zero: Vec7, homed: set[int]) -> None:
         """After the switch search (oracle): each homed axis moves its reset distance

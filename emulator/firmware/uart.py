@@ -69,10 +69,11 @@ class Transmitter:
             if self.byte_seconds:
                 self._free_at = max(self._free_at, now) + count * self.byte_seconds
 
-    def print_report(self, m: Machine, now: float) -> None:
-        """Print the status report of ``m`` sampled at ``now`` and time it."""
+    def print_report(self, m: Machine, now: float, state: str | None = None) -> None:
+        """Print the status report of ``m`` sampled at ``now`` (``state``: its state word, else
+        the machine's) and time it."""
         self.sync(m.printed, now)
-        line = status_line(m)
+        line = status_line(m, state)
         m.emit(line)
         self.seen = m.printed
         self.report(len(line) + 2, now)

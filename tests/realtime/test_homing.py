@@ -21,7 +21,7 @@ from mirobot_async import (
 )
 from mirobot_async.testing import EmulatorProcess
 
-SEARCH = {"2021": 10.0, "classic": 8.17}
+SEARCH = {"2021": 10.0, "classic": 8.15}
 """The emulator's homing search (seconds): the time the firmware answers nothing."""
 
 
