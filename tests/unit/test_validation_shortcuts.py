@@ -58,7 +58,7 @@ states = st.builds(ModalState, modes, modes, motions, chains)
 
 
 def _copy(state: ModalState) -> ModalState:
-    return ModalState(state.cartesian, state.relative, state.motion, state.chain)
+    return state.copy()
 
 
 @settings(max_examples=1000, deadline=None)
