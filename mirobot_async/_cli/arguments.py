@@ -200,8 +200,9 @@ def build_parser() -> argparse.ArgumentParser:
         "  cat program.gcode | mirobot run -\n\n"
         "Ctrl-C (or SIGTERM) while the arm moves sends feed hold (!) at once, says what was\n"
         "still queued and exits 130 (--on-interrupt reset sends soft reset instead).\n\n"
-        "exit status: 0 done; 1 the robot refused or failed, the arm is locked, or 'check'\n"
-        "found problems; 2 bad argument, file or port; 130 interrupted (Ctrl-C, SIGTERM)",
+        "exit status: 0 done; 1 the robot refused or failed, the arm is locked, the safety\n"
+        "envelope refused a line (move, run), or 'check' found problems; 2 bad argument, file\n"
+        "or port; 130 interrupted (Ctrl-C, SIGTERM)",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument(

@@ -38,6 +38,7 @@ from mirobot_async._safety.firmware_memory import (
     state_after_refusal,
 )
 from mirobot_async.errors import (
+    EnvelopeRefusedError,
     MirobotUsageError,
     MotionChainError,
     PathRefused,  # defined with the error tree
@@ -262,7 +263,7 @@ class EnvelopeGuard:
             return check
         except MirobotUsageError as err:
             self._stats.envelope_refusals += 1
-            raise MirobotUsageError(
+            raise EnvelopeRefusedError(
                 f"refused by the safety envelope: {err}; nothing was sent"
             ) from None
 

@@ -39,6 +39,7 @@ PUBLIC_MODULES = {
         "MirobotResetError",
         "MirobotTimeoutError",
         "MirobotUsageError",
+        "EnvelopeRefusedError",
         "MotionChainError",
         "MotionModes",
         "MotionRefusedError",
