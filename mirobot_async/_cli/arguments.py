@@ -315,8 +315,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument(
         "--no-check",
         action="store_true",
-        help="do not check the whole program before sending it (as 'mirobot check' does); "
-        "a line the check refuses then stops the run where it is",
+        help="send the program without the check 'mirobot check' does: the lines it flags are "
+        "listed as warnings and sent all the same (an --envelope still refuses the whole "
+        "program before its first byte)",
     )
     _add_prepare_options(run, "home")
     _add_interrupt_option(run)
