@@ -23,6 +23,7 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 from mirobot_async.errors import (
+    EnvelopeRefusedError,
     MirobotAlarmError,
     MirobotCommandError,
     MirobotConnectionError,
@@ -63,6 +64,7 @@ __all__ = [
     "Connector",
     "DataCallback",
     "Envelope",
+    "EnvelopeRefusedError",
     "Firmware",
     "Implementation",
     "InvalidLineError",

@@ -36,6 +36,7 @@ __all__ = [
     "BehindShoulder",
     "ControllerCommandError",
     "EmulatorError",
+    "EnvelopeRefusedError",
     "InvalidLineError",
     "MirobotAlarmError",
     "MirobotCommandError",
@@ -73,6 +74,12 @@ class MirobotError(Exception):
 
 class MirobotUsageError(MirobotError, ValueError):
     """A caller passed a bad argument; raised before anything is written to the robot."""
+
+
+class EnvelopeRefusedError(MirobotUsageError):
+    """The safety envelope refused a line before a byte of it was written: it leaves the
+    envelope, or its effect cannot be predicted (the message names the line and why). The
+    ``mirobot`` command exits 1 for it, as for any command the robot refuses."""
 
 
 class MotionChainError(MirobotUsageError):
@@ -282,7 +289,7 @@ class PathError(MirobotError):
         self.error = error
 
 
-class PathRefused(MirobotUsageError):
+class PathRefused(EnvelopeRefusedError):
     """:meth:`EnvelopeGuard.preview` refused the line at :attr:`index`."""
 
     def __init__(self, index: int, message: str) -> None:

@@ -12,6 +12,7 @@ from collections.abc import Mapping, Sequence
 from typing import Final
 
 from mirobot_async import kinematics as kin
+from mirobot_async.errors import MirobotUsageError
 
 from .. import motion
 from ..motion import AxisLimits, Steps7, Vec7, axes
@@ -189,8 +190,8 @@ class Geometry:
         checks no joint range here: the soft limits (``$20``) or the switches do; a wrist centre
         behind the shoulder is solved mirrored (:func:`shoulder_mirrored_pose`)."""
         dh = self.dh()
-        solved = shoulder_mirrored_pose(pose, dh, self.tool())
         try:
+            solved = shoulder_mirrored_pose(pose, dh, self.tool())
             q = tuple(
                 kin.inverse(
                     solved,
@@ -202,6 +203,8 @@ class Geometry:
             )
         except (kin.Unreachable, kin.OutOfLimits) as exc:
             raise kinematics_refusal(exc) from None
+        except MirobotUsageError:  # a geometry the IK cannot solve at all ($31=0: A2 = 0)
+            raise Refusal(c.TEXT_UNREACHABLE) from None  # ASSUMED: the firmware finds no THETA3
         if not _shoulder_front(solved, q[0], dh, self.tool()):
             # the firmware solves the shoulder-front branch only (oracle: X50 Y0 Z100 A0 B0 C0,
             # whose only solutions reach over the back with J1 = 180, has no THETA3)

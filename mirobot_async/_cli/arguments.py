@@ -214,8 +214,9 @@ def build_parser() -> argparse.ArgumentParser:
         "  mirobot home --port /dev/ttyUSB0 --record session.jsonl  (a tape of the session)\n\n"
         "Ctrl-C (or SIGTERM) while the arm moves sends feed hold (!) at once, says what was\n"
         "still queued and exits 130 (--on-interrupt reset sends soft reset instead).\n\n"
-        "exit status: 0 done; 1 the robot refused or failed, the arm is locked, or 'check'\n"
-        "found problems; 2 bad argument, file or port; 130 interrupted (Ctrl-C, SIGTERM)",
+        "exit status: 0 done; 1 the robot refused or failed, the arm is locked, the safety\n"
+        "envelope refused a line (move, run), or 'check' found problems; 2 bad argument, file\n"
+        "or port; 130 interrupted (Ctrl-C, SIGTERM)",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument(
@@ -333,8 +334,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument(
         "--no-check",
         action="store_true",
-        help="do not check the whole program before sending it (as 'mirobot check' does); "
-        "a line the check refuses then stops the run where it is",
+        help="send the program without the check 'mirobot check' does: the lines it flags are "
+        "listed as warnings and sent all the same (an --envelope still refuses the whole "
+        "program before its first byte)",
     )
     _add_prepare_options(run, "home")
     _add_interrupt_option(run)

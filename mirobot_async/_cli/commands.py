@@ -275,10 +275,13 @@ async def cmd_run(args: argparse.Namespace) -> int:
         async with open_robot(args) as arm:
             if not args.no_check:
                 await _check_before_running(arm, args, name, program)
+            else:
+                await _warn_unchecked(arm, args, name, program)
             await prepare(arm, args)
             before = await preflight(arm)
-            if not args.no_check:
-                await check_envelope_before_running(arm, name, program)
+            # the envelope is no part of check: with --no-check too, a program it refuses is
+            # refused whole before its first byte (never half run)
+            await check_envelope_before_running(arm, name, program)
             if trace is not None:
                 trace.write(before)  # the start of the path, before the first move
             result = await _stream_program(arm, args, name, program, trace, scale)
@@ -303,6 +306,16 @@ async def cmd_run(args: argparse.Namespace) -> int:
         )
         return EXIT_FAILED
     return EXIT_OK
+
+
+async def _warn_unchecked(
+    arm: Mirobot, args: argparse.Namespace, name: str, program: list[ProgramLine]
+) -> None:
+    """``--no-check``: the lines ``check`` flags are said on stderr and sent all the same (the
+    stream does not validate them either: the run never stops half-way at one)."""
+    firmware = args.firmware or arm.firmware or "2021"
+    for line, message in program_problems(program, firmware):
+        note(f"warning: {name}:{line.number}: {line.text}: {message} (sent anyway: --no-check)")
 
 
 async def _check_before_running(
@@ -373,6 +386,7 @@ async def _stream_program(
         [line.text for line in program],
         on_progress=lambda line: progress.update(line.number),
         continue_on_error=args.continue_on_error,
+        validate=not args.no_check,  # --no-check sends what check flags (said before)
     )
 
     def queued() -> list[str]:

@@ -1,7 +1,8 @@
 """Exit statuses of ``mirobot`` and the one place that maps an exception to one.
 
 0 success; 1 the robot refused or failed (a refused line, an alarm, a locked arm, a timeout, a
-lost link), or ``check`` found problems; 2 a usage problem (bad argument, missing file, port that
+lost link), the safety envelope refused a line (``move``, ``run``: the same status), or ``check``
+found problems; 2 a usage problem (bad argument, missing file, port that
 cannot be opened); 130 interrupted (Ctrl-C or SIGTERM; ``monitor`` exits 0: Ctrl-C is how it
 ends). Errors are one line on stderr, ``mirobot: error: ...``, never a traceback.
 """
@@ -14,6 +15,7 @@ from typing import Final
 
 from mirobot_async._cli.plotting import PlottingUnavailableError
 from mirobot_async.errors import (
+    EnvelopeRefusedError,
     MirobotConnectionError,
     MirobotError,
     MirobotLinkLostError,
@@ -60,6 +62,8 @@ def exit_status_for(exc: BaseException, verbose: int) -> tuple[int, str]:
 
     With ``verbose`` an unexpected exception's traceback is printed to stderr first.
     """
+    if isinstance(exc, EnvelopeRefusedError):  # a refused command, as run's check of it
+        return EXIT_FAILED, str(exc)
     if isinstance(exc, CliError | MirobotUsageError | PlottingUnavailableError):
         return EXIT_USAGE, str(exc)
     if isinstance(exc, RobotNotReadyError):

@@ -16,14 +16,16 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import TYPE_CHECKING, Final, Protocol
 
 from mirobot_async._client.condition import RobotCondition
+from mirobot_async._client.null_guard import QUIET, NullGuard, Tracked
 from mirobot_async._client.wire import ClientStats
+from mirobot_async._core.acceptance import line_fate, modes_after_refusal, update_modes
 from mirobot_async._core.line import ParsedLine
-from mirobot_async._core.modal import Chaining, LineCheck, MotionModes, update_modes
-from mirobot_async._core.replies import State, StatusReport
+from mirobot_async._core.modal import Chaining, LineCheck, MotionModes
+from mirobot_async._core.replies import StatusReport
 from mirobot_async._core.validation import ModalState
 from mirobot_async._safety.firmware_memory import (
     PARSER_UNKNOWN,
@@ -36,6 +38,7 @@ from mirobot_async._safety.firmware_memory import (
     state_after_refusal,
 )
 from mirobot_async.errors import (
+    EnvelopeRefusedError,
     MirobotUsageError,
     MotionChainError,
     PathRefused,  # defined with the error tree
@@ -59,7 +62,7 @@ __all__ = [
 
 _log = logging.getLogger("mirobot_async.client")
 
-_QUIET: Final = frozenset({State.IDLE, State.ALARM, State.CHECK})
+_QUIET: Final = QUIET
 
 
 class NeedPosition:
@@ -70,20 +73,6 @@ class NeedPosition:
 
 
 NEED_POSITION: Final = NeedPosition()
-
-
-@dataclass(frozen=True, slots=True)
-class Tracked:
-    """What the prediction assumed when a line was written (to undo it if the line fails)."""
-
-    line_id: int
-    check: LineCheck | None  # the envelope's verdict on the line (its target), if it had one
-    state_before: MachineState | None  # the predicted machine state before it (no envelope: None)
-    moved: bool
-    modes_changed: bool
-    epoch: int = 0  # the guard's epoch when it was written (a later change: do not undo)
-    coordinate: int | None = None  # the work coordinate system in effect before it
-    modes_before: MotionModes | None = None  # no envelope: the modes before the line
 
 
 class Guard(Protocol):
@@ -119,106 +108,15 @@ class Guard(Protocol):
         warn_unchecked: bool,
     ) -> Tracked | None: ...
     def line_failed(
-        self, tracked: Tracked, *, rejected: bool, reason: RefusalReason | None = None
+        self,
+        tracked: Tracked,
+        *,
+        rejected: bool,
+        reason: RefusalReason | None = None,
+        error: str | None = None,
     ) -> None: ...
     def forget(self, why: str) -> None: ...
     def warn_stream_unchecked(self) -> None: ...
-
-
-class NullGuard:
-    """No envelope: every line passes, no position is predicted; only the modal words
-    (``M20``/``M21``, ``G90``/``G91``) are followed, for the validation of raw lines."""
-
-    epoch = 0
-    parser_apart = False
-
-    def __init__(self) -> None:
-        self._modes = MotionModes.unknown()
-        self.chain = Chaining()  # which joints may still move, which a mode word re-read
-        self._last_line_id: int | None = None  # the last line written
-
-    @property
-    def envelope(self) -> Envelope | None:
-        """``None``: there is no envelope."""
-        return None
-
-    @property
-    def modes(self) -> MotionModes:
-        """The modal words stated by the lines written since connect (``None``: unknown)."""
-        return self._modes
-
-    wants_settings = False  # no settings are needed
-
-    def wanted_queries(self) -> tuple[str, ...]:
-        """None: nothing stored in the firmware is needed."""
-        return ()
-
-    def adopt_query(self, query: str, output: Sequence[str] | None) -> None:
-        """Nothing to learn."""
-
-    def modal_state(self) -> ModalState:
-        """The modal words stated by the lines written since connect (unknown before)."""
-        modes = self._modes
-        return ModalState(modes.cartesian, modes.relative, modes.motion, self.chain)
-
-    def needs_firmware(self, parsed: ParsedLine) -> bool:
-        """Never: no kinematic model is needed."""
-        return False
-
-    def verdict(self, parsed: ParsedLine, what: str | None) -> LineCheck | NeedPosition | None:
-        """Nothing to check."""
-        return None
-
-    def preview(self, lines: Sequence[ParsedLine]) -> list[LineCheck] | NeedPosition:
-        """Nothing to check."""
-        return []
-
-    def adopt_status(self, report: StatusReport) -> None:
-        """A status at rest with nothing in flight: no motion is queued."""
-        if report.state in _QUIET:
-            self.chain = self.chain.at_rest()
-
-    def adopt_settings(self, settings: Mapping[int, float]) -> None:
-        """Nothing to predict."""
-
-    def track_written(
-        self,
-        line_id: int,
-        command: str,
-        parsed: ParsedLine,
-        verdict: LineCheck | None,
-        *,
-        checked: bool,
-        what: str | None,
-        warn_unchecked: bool,
-    ) -> Tracked | None:
-        """Follow the line's modal words and chaining (tracked: a line that changed them)."""
-        self.chain = self.chain.after(parsed, self._modes)
-        self._last_line_id = line_id
-        if not (parsed.kind == "dollar" or parsed.codes):
-            return None
-        before, self._modes = self._modes, update_modes(parsed, self._modes)
-        changed = self._modes != before
-        return Tracked(line_id, None, None, False, True, 0, None, before) if changed else None
-
-    def line_failed(
-        self, tracked: Tracked, *, rejected: bool, reason: RefusalReason | None = None
-    ) -> None:
-        """A rejected line (nothing of it ran: ``M20 ...`` in Alarm) changed no mode: undone if
-        it was the last line written, else unknown. A refused move ran its modal words."""
-        if rejected:
-            last = tracked.line_id == self._last_line_id
-            self._modes = (tracked.modes_before if last else None) or MotionModes.unknown()
-
-    def forget(self, why: str) -> None:
-        """A reset restores the power-on modes; a lost reply makes them unknown."""
-        self._last_line_id = None
-        if why in ("reset", "lost"):
-            self._modes = MotionModes() if why == "reset" else MotionModes.unknown()
-            self.chain = Chaining() if why == "reset" else self.chain.moved_anything()
-
-    def warn_stream_unchecked(self) -> None:
-        """No envelope, nothing to warn about."""
 
 
 class EnvelopeGuard:
@@ -301,8 +199,7 @@ class EnvelopeGuard:
     def modal_state(self) -> ModalState:
         """The modal words :mod:`~mirobot_async._core.validation` needs, as predicted (a new
         object)."""
-        modes = self._state.modes
-        return ModalState(modes.cartesian, modes.relative, modes.motion, self.chain)
+        return ModalState.of(self._state.modes, self.chain)
 
     def needs_firmware(self, parsed: ParsedLine) -> bool:
         """True when the firmware (the kinematic model) or, for a line with axis words, what the
@@ -366,7 +263,7 @@ class EnvelopeGuard:
             return check
         except MirobotUsageError as err:
             self._stats.envelope_refusals += 1
-            raise MirobotUsageError(
+            raise EnvelopeRefusedError(
                 f"refused by the safety envelope: {err}; nothing was sent"
             ) from None
 
@@ -440,6 +337,14 @@ class EnvelopeGuard:
         firmware = self._condition.firmware
         restarts = self.chain.problem(parsed, before.modes, firmware) is not None
         self.chain = self.chain.after(parsed, before.modes, firmware)
+        fate = line_fate(parsed, before.modes, firmware)
+        if fate.accepted is False:  # unchecked: the firmware will refuse it; nothing moves
+            self._state = _after_refusal(before, fate.modes)
+            self._last_line_id = line_id
+            return Tracked(
+                line_id, None, before, False, True, self.epoch, self._work.coordinate,
+                parsed=parsed, refusal_expected=True,
+            )  # fmt: skip
         if restarts:  # unchecked: the firmware restarts it from where the arm is (unknown)
             pass
         elif checked and verdict is not None:
@@ -453,7 +358,7 @@ class EnvelopeGuard:
             moved = self._moves
             self._state = after
         else:
-            modes = update_modes(parsed, before.modes)
+            modes = update_modes(parsed, before.modes, firmware)
             self._state = replace(
                 before, modes=modes, joints=None, pose=None, rail=None, parser=PARSER_UNKNOWN
             )
@@ -464,7 +369,9 @@ class EnvelopeGuard:
         self._last_line_id = line_id
         check = None if after is None else _line_check(after, moved)
         changed = self._state.modes != before.modes
-        return Tracked(line_id, check, before, moved, changed, self.epoch, coordinate)
+        return Tracked(
+            line_id, check, before, moved, changed, self.epoch, coordinate, parsed=parsed
+        )
 
     def _track_coordinates(self, parsed: ParsedLine) -> None:
         """The work coordinate system in effect (``G54`` after homing, program end)."""
@@ -527,20 +434,33 @@ class EnvelopeGuard:
         return after
 
     def line_failed(
-        self, tracked: Tracked, *, rejected: bool, reason: RefusalReason | None = None
+        self,
+        tracked: Tracked,
+        *,
+        rejected: bool,
+        reason: RefusalReason | None = None,
+        error: str | None = None,
     ) -> None:
-        """A line was rejected (error: nothing of it ran) or its motion refused (modes ran).
+        """A line was rejected (error: nothing of it ran but, on classic, its M20/M21) or its
+        motion refused (modes ran); a rejection that was predicted was followed already.
 
         A refused move leaves the arm where it was, but not always the parser (oracle): locked,
         it moves the parser to the refused target (and so does an unreachable Cartesian
         target, for the commanded pose); a soft limit leaves it."""
+        if rejected and tracked.refusal_expected:
+            return
         if not tracked.moved and not (rejected and tracked.modes_changed):
             return
         before = tracked.state_before
         assert before is not None  # (the envelope's guard always predicts it)
         last = tracked.line_id == self._last_line_id and tracked.epoch == self.epoch
         if last and rejected:  # nothing was written after it: undo it
-            self._state, self._work.coordinate = before, tracked.coordinate
+            modes = before.modes
+            if tracked.parsed is not None:
+                firmware = self._condition.firmware
+                modes = modes_after_refusal(tracked.parsed, modes, firmware, error)
+            self._state = before if modes == before.modes else _after_refusal(before, modes)
+            self._work.coordinate = tracked.coordinate
         elif last:
             state = replace(self._state, joints=before.joints, pose=before.pose, rail=before.rail)
             self._state = state_after_refusal(state, before, tracked.check, reason)
@@ -586,6 +506,14 @@ class EnvelopeGuard:
         )
 
 
+def _after_refusal(before: MachineState, modes: MotionModes) -> MachineState:
+    """``before`` after a line the firmware refused that left ``modes``: the arm and the parser
+    stay, but a classic M20/M21 that still acted re-read the arm's position and pose."""
+    if modes.cartesian == before.modes.cartesian:
+        return replace(before, modes=modes)
+    return replace(before, modes=modes, pose=None, parser=None)
+
+
 def _line_check(state: MachineState, moves: bool) -> LineCheck:
     return LineCheck(state.modes, moves, state.joints, state.pose, state.rail, state.base_offset)
 
@@ -595,5 +523,5 @@ def make_guard(
 ) -> EnvelopeGuard | NullGuard:
     """The guard for ``envelope`` (a :class:`NullGuard` without one)."""
     if envelope is None:
-        return NullGuard()
+        return NullGuard(condition)
     return EnvelopeGuard(envelope, condition, stats)

@@ -20,8 +20,9 @@ from mirobot_async._client.deadline import deadline_after
 from mirobot_async._client.parts import DEFAULT_TIMEOUT, HOME_TIMEOUT, MOVE_TIMEOUT, ClientParts
 from mirobot_async._client.scheduler import Slot, StreamStopped
 from mirobot_async._core import gcode
+from mirobot_async._core.acceptance import update_modes
 from mirobot_async._core.line import ParsedLine, parse_line
-from mirobot_async._core.modal import Chaining, MotionModes, update_modes
+from mirobot_async._core.modal import Chaining, MotionModes
 from mirobot_async._core.replies import StatusReport
 from mirobot_async.errors import MirobotUsageError
 
@@ -388,7 +389,7 @@ def _needs_mode_word(
         if chain.needs_restart(parsed, modes, firmware):
             return True
         chain = chain.after(parsed, modes, firmware)
-        modes = update_modes(parsed, modes)
+        modes = update_modes(parsed, modes, firmware)
     return False
 
 
@@ -401,7 +402,7 @@ def _restarts(
         if chain.problem(parsed, modes, firmware) is not None:
             return True
         chain = chain.after(parsed, modes, firmware)
-        modes = update_modes(parsed, modes)
+        modes = update_modes(parsed, modes, firmware)
     return False
 
 

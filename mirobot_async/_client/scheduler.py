@@ -202,7 +202,7 @@ class LineScheduler:
             guard.chain = guard.chain.after_refusal(slot.parsed)
         if slot.tracked is not None:
             if isinstance(event, LineRejected):
-                self._guard.line_failed(slot.tracked, rejected=True)
+                self._guard.line_failed(slot.tracked, rejected=True, error=event.text)
             elif (refused := event.refusal) is not None:
                 self._guard.line_failed(slot.tracked, rejected=False, reason=refused.reason)
         if slot.fut.done():

@@ -200,18 +200,24 @@ class CodeWord(Word):
 
     code: int = 0
     """The firmware's command number: the value truncated to a byte (``M16404`` is 20)."""
-    fraction_error: bool = False
-    """The firmware refuses it: hundredths not zero (``Invalid gcode ID:23``, e.g. ``M20.5``)."""
+    mantissa: int = 0
+    """The hundredths the firmware reads (``G28.1``: 10); not zero, the firmware refuses every
+    command but a few ``.1`` forms (``Invalid gcode ID:23``, e.g. ``M20.5``)."""
     _canonical: bool = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(
             self,
             "_canonical",
-            not self.fraction_error
+            not self.mantissa
             and _INTEGER_TEXT.fullmatch(self.text) is not None
             and int(self.text.split(".")[0]) == self.code,
         )
+
+    @property
+    def fraction_error(self) -> bool:
+        """The word has hundredths (:attr:`mantissa`): refused by the client."""
+        return self.mantissa != 0
 
     @property
     def canonical(self) -> bool:
@@ -223,11 +229,11 @@ def _code_word(letter: str, text: str, number: FirmwareNumber) -> CodeWord:
     value = number.value
     single = number.single
     if not math.isfinite(single):
-        return CodeWord(letter, text, value, number.lossy, 0, True)
+        return CodeWord(letter, text, value, number.lossy, 0, 1)
     code = math.trunc(single) % 256
     mantissa = _c_round(_f32(_f32(single - code) * 100.0)) % 65536
     # G90.1/G91.x etc. take a fraction in GRBL; none is a Mirobot command, so any is an error here.
-    return CodeWord(letter, text, value, number.lossy, code, mantissa != 0)
+    return CodeWord(letter, text, value, number.lossy, code, mantissa)
 
 
 DollarKind = Literal[
@@ -308,8 +314,8 @@ class ParsedLine:
     """A raw line parsed once: what the firmware will read from it (immutable).
 
     Syntax the firmware refuses as a whole (``Bad number format``, ``Expected command letter``,
-    ``Line overflow``) is in :attr:`syntax_error`; deeper rules (modal groups, unused words) are
-    judged by the checker and the predictor from the words.
+    ``Line overflow``) is in :attr:`syntax_error`; deeper rules (modal groups, unused words, the
+    feed rate) are the firmware's verdict from the words: :mod:`mirobot_async._core.acceptance`.
     """
 
     source: str
@@ -337,8 +343,6 @@ class ParsedLine:
     _coordinate_mode: int | None = field(init=False, repr=False, compare=False)
     _odd_numbers: bool = field(init=False, repr=False, compare=False)
     _axis_letters: frozenset[str] = field(init=False, repr=False, compare=False)
-    _group_conflict: bool = field(init=False, repr=False, compare=False)
-    _coordinate_conflict: str | None = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         codes: list[CodeWord] = []
@@ -346,8 +350,8 @@ class ParsedLine:
         twice: list[str] = []
         g_codes: list[int] = []
         m_codes: list[int] = []
-        first: dict[str, int] = {}  # the first code of each modal group
-        odd = twice_in_group = False
+        first: dict[str, int] = {}  # the first code of each modal group (M20/M21: the last)
+        odd = False
         for w in self.words:
             odd = odd or w.lossy
             if isinstance(w, CodeWord):
@@ -356,8 +360,9 @@ class ParsedLine:
                 code = w.code
                 (g_codes if w.letter == "G" else m_codes).append(code)
                 group = (_G_GROUP if w.letter == "G" else _M_GROUP).get(code)
-                if group is not None:
-                    twice_in_group = twice_in_group or group in first
+                if group == "coordinate":  # the firmware keeps the last (oracle: M20 X1 M21)
+                    first[group] = code
+                elif group is not None:
                     first.setdefault(group, code)
             elif w.letter in values:
                 if w.letter not in twice:
@@ -379,9 +384,6 @@ class ParsedLine:
         setter(self, "_units", first.get("units"))
         setter(self, "_coordinate_mode", coordinate)
         setter(self, "_odd_numbers", odd)
-        setter(self, "_group_conflict", twice_in_group)
-        conflict = None if coordinate is None else _coordinate_conflict(codes)
-        setter(self, "_coordinate_conflict", conflict)
 
     # ---- the words -------------------------------------------------------------------------
 
@@ -441,7 +443,7 @@ class ParsedLine:
 
     @property
     def coordinate_mode(self) -> int | None:
-        """20 (Cartesian, ``M20``) or 21 (joints, ``M21``) when stated."""
+        """20 (Cartesian, ``M20``) or 21 (joints, ``M21``) when stated (the last one written)."""
         return self._coordinate_mode
 
     @property
@@ -494,21 +496,6 @@ class ParsedLine:
         return self._odd_numbers
 
     @property
-    def coordinate_conflict(self) -> str | None:
-        """Why the firmware refuses this line's ``M20``/``M21`` word by its neighbours, or None.
-
-        Seen on the firmware oracle: ``G21 M21`` (a units word before it) and ``M21 M3`` (another
-        M word in the line) give ``Modal group violation``, yet the M20/M21 takes effect.
-        """
-        return self._coordinate_conflict
-
-    @property
-    def group_conflict(self) -> bool:
-        """Two words of one modal group in the line (motion, distance, units: ``G``; coordinate
-        mode: ``M20``/``M21``): the firmware refuses it (``Modal group violation``)."""
-        return self._group_conflict
-
-    @property
     def may_move(self) -> bool:
         """True unless the line certainly does not move the arm (conservative)."""
         if self.kind == "empty":
@@ -521,19 +508,6 @@ class ParsedLine:
 
     def __str__(self) -> str:
         return self.text
-
-
-def _coordinate_conflict(codes: list[CodeWord]) -> str | None:
-    """:attr:`ParsedLine.coordinate_conflict` of a line with an ``M20``/``M21`` word."""
-    seen = False
-    for word in codes:
-        if word.letter == "M" and word.code in (20, 21):
-            seen = True
-        elif word.letter == "G" and word.code in (20, 21) and not seen:
-            return f"{word} before the M20/M21 word"
-        elif word.letter == "M" and word.code not in (20, 21):
-            return f"{word} in the same line as M20/M21"
-    return None
 
 
 _STILL_G: Final = frozenset({0, 1, 2, 3, 4, 5, 17, 20, 21, 40, 54, 61, 80, 90, 91, 93, 94})

@@ -2,10 +2,11 @@
 
 :class:`MotionModes` is what the client knows of the firmware's parser state (``M20``/``M21``,
 ``G90``/``G91``, the motion code, ``G20``/``G21``); any part may be unknown (``None``), e.g. on
-connecting to an arm that another session left in inches. :func:`update_modes` follows every line
-written, checked or not. :class:`Chaining` follows whether each line still continues from where
-the lines before it end when they are streamed (the ``M20``/``M21`` restart, see there). Pure
-module (no numpy): the client imports it without an envelope.
+connecting to an arm that another session left in inches; :mod:`~mirobot_async._core.acceptance`
+follows it through every line written, checked or not. :class:`Chaining` follows whether each
+line still continues from where the lines before it end when they are streamed (the
+``M20``/``M21`` restart, see there). Pure module (no numpy): the client imports it without an
+envelope.
 """
 
 from __future__ import annotations
@@ -13,17 +14,24 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Final
 
-from mirobot_async._core.line import ParsedLine, parse_line
+from mirobot_async._core.line import ParsedLine
 
 __all__ = [
+    "HOMED",
     "JOINT_LETTERS",
+    "MM_PER_INCH",
+    "POWER_ON_FEED",
     "Chaining",
     "LineCheck",
     "MotionModes",
+    "line_feed",
     "modes_after",
     "modes_of",
-    "update_modes",
 ]
+
+POWER_ON_FEED: Final = 200.0
+"""The feed rate after power-on and after a reset (GRBL's ``gc_init`` on the Mirobot)."""
+MM_PER_INCH: Final = 25.4
 
 
 @dataclass(frozen=True, slots=True)
@@ -44,11 +52,18 @@ class MotionModes:
     """The motion code in effect: 0, 1, 2, 3 (or 5, the 2021 jump; 80, motion cancelled)."""
     inches: bool | None = False
     """``G20`` in effect (every axis word and F in inches; else ``G21``, mm)."""
+    feed: float | None = POWER_ON_FEED
+    """The feed rate in effect (firmware units: mm or deg per minute; 0 after homing, 200 after
+    power-on and a reset): a ``G1``/``G2``/``G3``/``G5`` with feed 0 is refused."""
+    inverse_time: bool | None = False
+    """``G93`` in effect (every feed move must state F; else ``G94``)."""
 
     @classmethod
     def unknown(cls) -> MotionModes:
-        """Nothing known: every motion line must state M20/M21, G90/G91, G0..G3 and G21."""
-        return cls(None, None, None, None)
+        """Nothing known: every motion line must state M20/M21, G90/G91, G0..G3 and G21, and a
+        feed move its F. ASSUMED: not ``G93`` (no Mirobot program uses inverse time, and the
+        client's checks refuse it; a line sent unchecked that states it is followed)."""
+        return cls(None, None, None, None, None, False)
 
     def missing(self) -> list[str]:
         """Names of the unknown modes, for a refusal message."""
@@ -61,8 +76,13 @@ class MotionModes:
         return [name for name, value in names if value is None]
 
 
+HOMED: Final = MotionModes(feed=0.0)
+"""The modes after homing: GRBL's ``gc_init`` with feed 0 (a ``G1`` needs an ``F`` then)."""
+
+
 def modes_of(parsed: ParsedLine, modes: MotionModes) -> MotionModes:
-    """The modes in effect for the motion of ``parsed`` (its own modal words applied)."""
+    """The modes in effect for the motion of ``parsed`` (its own modal words applied), as the
+    firmware computes them for a line it accepts (the feed rate too)."""
     coordinate = parsed.coordinate_mode
     distance = parsed.distance
     motion = parsed.motion
@@ -71,46 +91,50 @@ def modes_of(parsed: ParsedLine, modes: MotionModes) -> MotionModes:
     relative = modes.relative if distance is None else distance == 91
     motion = modes.motion if motion is None else motion
     inches = modes.inches if units is None else units == 20
-    if (cartesian, relative, motion, inches) == (
+    feed, inverse_time = line_feed(parsed, modes, inches)
+    if (cartesian, relative, motion, inches, feed, inverse_time) == (
         modes.cartesian,
         modes.relative,
         modes.motion,
         modes.inches,
+        modes.feed,
+        modes.inverse_time,
     ):
         return modes  # the line restates the modes in effect (most lines of a program)
-    return MotionModes(cartesian, relative, motion, inches)
+    return MotionModes(cartesian, relative, motion, inches, feed, inverse_time)
+
+
+def line_feed(
+    parsed: ParsedLine, modes: MotionModes, inches: bool | None
+) -> tuple[float | None, bool | None]:
+    """(feed rate, ``G93`` in effect) for ``parsed`` as GRBL 0.9j computes them, ``inches`` the
+    units in effect for it: in ``G93`` a line's feed is its ``F`` or 0; in ``G94`` an ``F``
+    (scaled by the units) or the feed in effect, but 0 when the line leaves ``G93`` without an
+    ``F`` (and unscaled with one)."""
+    g_codes = parsed.g_codes
+    inverse = modes.inverse_time
+    if 93 in g_codes or 94 in g_codes:
+        inverse = 93 in g_codes
+    f = parsed.value("F")
+    if inverse is True:
+        return (0.0 if f is None else f), True
+    old = modes.inverse_time
+    if old is True:  # leaving G93: no feed carried over
+        return (0.0 if f is None else f), inverse
+    if f is None:
+        return (modes.feed if old is False else None), inverse
+    if inches is None:
+        return None, inverse
+    scaled = f * MM_PER_INCH if inches else f
+    return (scaled if old is False or not inches else None), inverse
 
 
 def modes_after(parsed: ParsedLine, modes: MotionModes) -> MotionModes:
     """The modes after ``parsed`` ran (accepted by the firmware): program end resets some."""
     new = modes_of(parsed, modes)
     if parsed.program_end:  # GRBL: M2/M30 reset the distance mode and make the motion G1
-        return replace(new, relative=False, motion=1)
+        return replace(new, relative=False, motion=1, inverse_time=False)
     return new
-
-
-def update_modes(line: str | bytes | ParsedLine, modes: MotionModes) -> MotionModes:
-    """The modes after ``line`` is executed, without any envelope check; never raises.
-
-    For every line the client sends (checked or not). Homing resets the modes. A line whose
-    words are odd (numbers the firmware reads differently, refused forms) makes the modes it
-    touches unknown, since the firmware may have acted on part of it.
-    """
-    parsed = line if isinstance(line, ParsedLine) else parse_line(line)
-    if parsed.is_homing:
-        return MotionModes()
-    if parsed.kind != "gcode":
-        if parsed.dollar is not None and parsed.dollar.kind in ("startup", "restore", "unknown"):
-            return MotionModes.unknown()
-        return modes
-    if parsed.syntax_error is not None:
-        return modes
-    if parsed.has_odd_numbers or parsed.repeated:
-        return MotionModes.unknown()
-    if parsed.coordinate_conflict is not None or parsed.group_conflict:
-        # the firmware refuses the line; an M20/M21 in it may take effect all the same
-        return modes if parsed.coordinate_mode is None else replace(modes, cartesian=None)
-    return modes_after(parsed, modes)
 
 
 _Six = tuple[float, float, float, float, float, float]

@@ -43,13 +43,13 @@ def judge_stream(
     other one (:func:`may_differ_by_profile`): then one :func:`first_restart` per profile and
     nothing decided ahead. ``state`` is not changed."""
     profile = check_firmware(firmware) if firmware is not None else "classic"
-    current = ModalState(state.cartesian, state.relative, state.motion, state.chain)
+    current = state.copy()
     judged: list[ModalState | None] = []
     for index, parsed in enumerate(lines, start=1):
         if firmware is None and may_differ_by_profile(parsed, current):
             each = [first_restart(lines, firmware=p, state=state) for p in ("classic", "2021")]
             return StreamVerdict(each[0], (each[0] is None) != (each[1] is None))
-        before = ModalState(current.cartesian, current.relative, current.motion, current.chain)
+        before = current.copy()
         problems, chain = _problems(parsed, profile, current)
         if chain is not None:
             return StreamVerdict((index, parsed.source.strip() or parsed.text, chain))
@@ -81,7 +81,7 @@ def first_restart(
 
     found: tuple[int, str, str] | None = None
     for profile in profiles:
-        current = ModalState(state.cartesian, state.relative, state.motion, state.chain)
+        current = state.copy()
         first = None
         index = 0
         while (parsed := parsed_at(index)) is not None:

@@ -18,10 +18,11 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from typing import Final
 
+from mirobot_async._core.acceptance import MODAL_GROUP, UNDEFINED_FEED, Fate, line_fate
 from mirobot_async._core.line import (
     MAX_LINE_LENGTH,
     REALTIME_BYTES,
@@ -30,7 +31,7 @@ from mirobot_async._core.line import (
     Word,
     parse_line,
 )
-from mirobot_async._core.modal import Chaining, MotionModes
+from mirobot_async._core.modal import HOMED, POWER_ON_FEED, Chaining, MotionModes
 from mirobot_async._core.settings import setting_problem
 from mirobot_async._core.values import (
     JOINT_NAMES,
@@ -115,16 +116,39 @@ class ModalState:
     chain: Chaining = field(default_factory=Chaining)
     """Which joints may still move and which the parser took from where the arm was (see
     :class:`~mirobot_async._core.modal.Chaining`): a line reading those is reported."""
+    feed: float | None = POWER_ON_FEED
+    """The feed rate in effect (0 after homing: a ``G1`` without ``F`` is refused); None:
+    unknown."""
+    inverse_time: bool | None = False
+    """``G93`` in effect; None: unknown."""
 
     @classmethod
     def unknown(cls) -> ModalState:
         """Nothing known (a client on an arm in use): mode-dependent ranges are checked only
         when the line states its modes."""
-        return cls(None, None, None)
+        return cls(None, None, None, feed=None)
+
+    @classmethod
+    def of(cls, modes: MotionModes, chain: Chaining) -> ModalState:
+        """The state of a client whose modes are ``modes`` (a new object)."""
+        return cls(
+            modes.cartesian, modes.relative, modes.motion, chain, modes.feed, modes.inverse_time
+        )
+
+    def copy(self) -> ModalState:
+        """An equal state (a new object)."""
+        return replace(self)
 
     def modes(self) -> MotionModes:
         """The motion modes (units: mm; ``G20`` is refused by the check)."""
-        return MotionModes(self.cartesian, self.relative, self.motion, False)
+        return MotionModes(
+            self.cartesian, self.relative, self.motion, False, self.feed, self.inverse_time
+        )
+
+    def take(self, modes: MotionModes) -> None:
+        """Follow ``modes`` (the modes after a line, as the firmware leaves them)."""
+        self.cartesian, self.relative, self.motion = modes.cartesian, modes.relative, modes.motion
+        self.feed, self.inverse_time = modes.feed, modes.inverse_time
 
 
 def parse_words(line: str | bytes) -> list[tuple[str, float]]:
@@ -171,9 +195,7 @@ def _check_dollar(parsed: ParsedLine, profile: str, state: ModalState, problems:
             problems.append(f"{norm} needs the 2021 firmware")
             return
         if dollar.kind == "homing":
-            state.cartesian = False
-            state.relative = False
-            state.motion = 0
+            state.take(HOMED)
         return
     if norm.startswith(("$N0=", "$N1=")) or norm in ("$RST=$", "$RST=#", "$RST=*"):
         return
@@ -225,35 +247,40 @@ def _code_problem(word: CodeWord, profile: str) -> str | None:
 
 
 def _check_gcode(parsed: ParsedLine, profile: str, state: ModalState, problems: list[str]) -> None:
-    found, motion, cartesian, relative = _gcode_verdict(
-        parsed.source, profile, state.cartesian, state.relative
-    )
+    found, modes = _gcode_verdict(parsed.source, profile, state.modes())
     problems.extend(found)
-    if motion is not None:
-        state.motion = motion
-    if cartesian is not None:
-        state.cartesian = cartesian
-    if relative is not None:
-        state.relative = relative
+    state.take(modes)
 
 
 @lru_cache(maxsize=1024)
 def _gcode_verdict(
-    source: str, profile: str, cartesian: bool | None, relative: bool | None
-) -> tuple[tuple[str, ...], int | None, bool | None, bool | None]:
+    source: str, profile: str, modes: MotionModes
+) -> tuple[tuple[str, ...], MotionModes]:
     """:func:`_judge_gcode` of the line ``source`` from a state with these modes: its problems
-    and the motion, Cartesian and relative modes it sets (``None``: unchanged). A function of
-    its arguments (a line is a function of its text), so a line judged again from the same
-    modes (a program repeats its lines) is judged once."""
-    state = ModalState(cartesian, relative, None)
+    and the modes after it. A function of its arguments (a line is a function of its text), so
+    a line judged again from the same modes (a program repeats its lines) is judged once."""
+    state = ModalState.of(modes, Chaining())
     problems: list[str] = []
     _judge_gcode(parse_line(source), profile, state, problems)
-    new_cartesian = state.cartesian if state.cartesian is not cartesian else None
-    new_relative = state.relative if state.relative is not relative else None
-    return tuple(problems), state.motion, new_cartesian, new_relative
+    return tuple(problems), state.modes()
 
 
 def _judge_gcode(parsed: ParsedLine, profile: str, state: ModalState, problems: list[str]) -> None:
+    """The problems of a G-code line (its words, then the firmware's verdict on it from
+    ``state``), and ``state`` as the firmware leaves it."""
+    fate = line_fate(parsed, state.modes(), profile)
+    _word_problems(parsed, profile, state, problems)
+    if fate.accepted is False and not any(
+        str(fate.why) in problem or (fate.word is not None and fate.word in problem)
+        for problem in problems
+    ):  # (said once: a word already reported is why the firmware stops there)
+        problems.append(_fate_problem(fate))
+    state.take(fate.modes)
+
+
+def _word_problems(
+    parsed: ParsedLine, profile: str, state: ModalState, problems: list[str]
+) -> None:
     if parsed.syntax_error is not None:
         problems.append(_syntax_text(parsed))
         return
@@ -309,7 +336,6 @@ def _judge_gcode(parsed: ParsedLine, profile: str, state: ModalState, problems: 
             problems.append(f"{word} is negative ('Value < 0')")
         elif letter in "SE" and (not value.is_integer() or not PWM_MIN <= value <= PWM_MAX):
             problems.append(f"{word}: PWM must be an integer {PWM_MIN}..{PWM_MAX}")
-    _check_combinations(parsed, groups, problems)
 
     cartesian = state.cartesian if new_cartesian is None else new_cartesian
     is_relative = state.relative if new_relative is None else new_relative
@@ -346,28 +372,20 @@ def _judge_gcode(parsed: ParsedLine, profile: str, state: ModalState, problems: 
         state.relative = new_relative
 
 
-def _check_combinations(
-    parsed: ParsedLine, groups: dict[str, CodeWord], problems: list[str]
-) -> None:
-    """Word orders the firmware refuses around ``M20``/``M21`` (seen on the firmware oracle)."""
-    if "coordinate mode" not in groups or parsed.coordinate_conflict is None:
-        return  # (the parse found the first such word, if any)
-    mode = groups["coordinate mode"]
-    mode_word = f"{mode.letter}{mode.code}"
-    seen_mode = False
-    for word in parsed.codes:
-        if word.letter == "M" and word.code in (20, 21):
-            seen_mode = True
-        elif word.letter == "G" and word.code in (20, 21) and not seen_mode:
-            problems.append(
-                f"{word} before {mode_word}: the firmware refuses this order "
-                "('Modal group violation'); write the M word first"
-            )
-        elif word.letter == "M" and word.code not in (20, 21):
-            problems.append(
-                f"{mode_word} and {word} in one line: the firmware refuses it "
-                "('Modal group violation'); use two lines"
-            )
+def _fate_problem(fate: Fate) -> str:
+    """The firmware's refusal of a line, said with the fix where there is one."""
+    word = fate.word
+    if fate.why == MODAL_GROUP and word is not None and word[0] == "M":
+        return (
+            f"{word} after another G or M word: the firmware refuses this order ('{fate.why}'); "
+            "write M3/M4/M5/M20/M21/M50 first in the line, or use two lines"
+        )
+    if fate.why == UNDEFINED_FEED:
+        return (
+            "no feed rate in effect for this move (after homing or F0): the firmware refuses "
+            f"it ('{fate.why}'); add F<speed> to the line"
+        )
+    return fate.problem
 
 
 def _check_arc(
@@ -405,7 +423,9 @@ def line_problems(
     """Problems the firmware would have with one parsed line, as human-readable messages.
 
     ``state`` is the modal state before the line (power-on defaults when omitted) and is updated
-    in place. Feed-rate state is not checked (``G1`` without ``F`` depends on what ran before).
+    in place, with the modes as the firmware leaves them (accepted or refused:
+    :func:`~mirobot_async._core.acceptance.line_fate`, whose refusals are problems too: a
+    ``G1`` without ``F`` after homing, ``G90 M21``).
     A line that would end elsewhere streamed than sent after the arm stopped is a problem too
     (the last one; :class:`~mirobot_async._core.modal.Chaining`). An empty list means no problem
     found.
@@ -442,36 +462,15 @@ def _follow(parsed: ParsedLine, profile: str, state: ModalState) -> str | None:
                 and (norm in _DOLLAR_SIMPLE or norm in _DOLLAR_2021)
                 and (norm not in _DOLLAR_2021 or profile == "2021")
             ):
-                state.cartesian, state.relative, state.motion = False, False, 0
+                state.take(HOMED)
     state.chain = state.chain.after(parsed, before, profile)
     return chain
 
 
 def _follow_gcode(parsed: ParsedLine, profile: str, state: ModalState) -> None:
-    """The modal words of a G-code line that :func:`_check_gcode` takes into ``state``: each
-    the firmware accepts, the first of its group."""
-    groups: set[str] = set()
-    new_cartesian: bool | None = None
-    new_relative: bool | None = None
-    for word in parsed.codes:
-        if _code_problem(word, profile) is not None:
-            continue
-        code = word.code
-        group = (_G_GROUPS if word.letter == "G" else _M_GROUPS)[code]
-        if group in groups:
-            continue
-        groups.add(group)
-        if word.letter == "G":
-            if group == "motion":
-                state.motion = code
-            elif group == "distance":
-                new_relative = code == 91
-        elif code in (20, 21):
-            new_cartesian = code == 20
-    if new_cartesian is not None:
-        state.cartesian = new_cartesian
-    if new_relative is not None:
-        state.relative = new_relative
+    """The modes :func:`_check_gcode` takes into ``state``: the firmware's (the fate of the
+    line, accepted or refused)."""
+    state.take(line_fate(parsed, state.modes(), profile).modes)
 
 
 def _syntax_problems(parsed: ParsedLine, profile: str, state: ModalState) -> list[str]:

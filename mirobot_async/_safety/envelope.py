@@ -60,7 +60,8 @@ from typing import Final, TypeAlias
 import numpy as np
 import numpy.typing as npt
 
-from mirobot_async._core.modal import LineCheck, MotionModes, update_modes
+from mirobot_async._core.acceptance import update_modes
+from mirobot_async._core.modal import LineCheck, MotionModes
 from mirobot_async._core.values import fmt_number
 from mirobot_async._safety.paths import (
     MAX_JOINT_PATH_SAMPLES,

@@ -18,8 +18,9 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Final, TypeAlias
 
+from mirobot_async._core.acceptance import merge_unknown, update_modes
 from mirobot_async._core.line import ParsedLine, parse_line
-from mirobot_async._core.modal import LineCheck, MotionModes, update_modes
+from mirobot_async._core.modal import LineCheck, MotionModes
 from mirobot_async.errors import RefusalReason
 
 if TYPE_CHECKING:
@@ -203,17 +204,6 @@ def reset_modes(lines: Sequence[str] | None, *, ran: bool | None) -> MotionModes
     if ran is False:
         return MotionModes()
     return apply_startup_lines(MotionModes(), lines, certain=ran is True)
-
-
-def merge_unknown(a: MotionModes, b: MotionModes) -> MotionModes:
-    """Modes that are the same in ``a`` and ``b``, the others unknown."""
-    return replace(
-        a,
-        cartesian=a.cartesian if a.cartesian == b.cartesian else None,
-        relative=a.relative if a.relative == b.relative else None,
-        motion=a.motion if a.motion == b.motion else None,
-        inches=a.inches if a.inches == b.inches else None,
-    )
 
 
 def work_offset(

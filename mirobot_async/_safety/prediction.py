@@ -38,8 +38,9 @@ import math
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Final
 
+from mirobot_async._core.acceptance import ARC_START_UNKNOWN, line_fate
 from mirobot_async._core.line import CodeWord, ParsedLine, parse_line
-from mirobot_async._core.modal import MotionModes, modes_after, modes_of
+from mirobot_async._core.modal import HOMED, MotionModes, modes_of
 from mirobot_async._safety.cartesian import CartesianEnd, cartesian_path, point_to_point
 from mirobot_async._safety.firmware_memory import (
     PARSER_UNKNOWN,
@@ -85,7 +86,7 @@ firmware drops and how ``M20 G1`` moves."""
 _LINEAR_G1: Final = 35
 _BASE_OFFSET: Final = {41: 0, 42: 1, 43: 2}
 _GATE_LIFT: Final = 49
-_ALLOWED_G: Final = frozenset({0, 1, 2, 3, 4, 5, 17, 20, 21, 40, 54, 61, 90, 91, 93, 94})
+_ALLOWED_G: Final = frozenset({0, 1, 2, 3, 4, 5, 17, 20, 21, 40, 54, 61, 90, 91, 94})
 _ALLOWED_M: Final = frozenset({0, 1, 2, 3, 4, 5, 8, 9, 20, 21, 30, 50})
 _ALLOWED_LETTERS: Final = frozenset("XYZABCDFPSERNT")
 _G_GROUPS: Final = {
@@ -219,7 +220,7 @@ def _dollar(envelope: Envelope, parsed: ParsedLine, state: MachineState, what: s
         keeps_rail = parsed.text in ("$H", "$HH")
         after = replace(
             state,
-            modes=apply_startup_lines(MotionModes(), state.startup_lines, certain=True),
+            modes=apply_startup_lines(HOMED, state.startup_lines, certain=True),
             joints=None,
             pose=None,
             rail=state.rail if keeps_rail else None,
@@ -312,9 +313,6 @@ def _validate_words(parsed: ParsedLine, state: MachineState) -> None:
             raise _Refuse(f"the letter {word.letter} is not one the envelope can check")
     if parsed.repeated:
         raise _Refuse(f"the word {parsed.repeated[0]} appears twice (the firmware rejects it)")
-    conflict = parsed.coordinate_conflict
-    if conflict is not None:
-        raise _Refuse(f"{conflict}: the firmware rejects the line but switches the mode")
     values = parsed.values
     for letter in "FPSE":
         if values.get(letter, 0.0) < 0:
@@ -325,9 +323,14 @@ def _validate_words(parsed: ParsedLine, state: MachineState) -> None:
 
 def _gcode(envelope: Envelope, parsed: ParsedLine, state: MachineState, what: str) -> Prediction:
     _validate_words(parsed, state)
+    # the firmware's verdict: a line it refuses runs nothing (and on classic its M20/M21 still
+    # switches the mode), so the lines behind it would start where nobody predicted
+    fate = line_fate(parsed, state.modes, state.firmware)
+    if fate.accepted is False:
+        raise _Refuse(fate.problem)
     envelope = with_soft_limits(envelope, state.soft_limits)
     modes = modes_of(parsed, state.modes)
-    after_modes = modes_after(parsed, state.modes)
+    after_modes = fate.modes
     axes = dict(parsed.axis_words)
     pose = state.pose
     parser = state.parser
@@ -344,6 +347,8 @@ def _gcode(envelope: Envelope, parsed: ParsedLine, state: MachineState, what: st
     if not axes:
         if parsed.motion in (2, 3, 5):
             raise _Refuse(f"G{parsed.motion} without axis words: the firmware rejects it")
+        if fate.accepted is None:
+            raise _Refuse(fate.problem)
         return Prediction(parsed, replace(base, modes=after_modes), False)
     missing = modes.missing()
     if missing:
@@ -352,6 +357,8 @@ def _gcode(envelope: Envelope, parsed: ParsedLine, state: MachineState, what: st
             f"{'is' if len(missing) == 1 else 'are'} unknown; "
             f"state {'it' if len(missing) == 1 else 'them'} in the line (or in a line before)"
         )
+    if fate.accepted is None and fate.why != ARC_START_UNKNOWN:  # (the arc's own check)
+        raise _Refuse(fate.problem)
     scale = MM_PER_INCH if modes.inches else 1.0
     for letter, value in axes.items():
         axes[letter] = value * scale

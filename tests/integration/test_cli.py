@@ -465,6 +465,20 @@ def test_run_checks_the_whole_program_before_sending_anything(
     assert after["lines_in"] - before["lines_in"] <= 1  # at most "$$", never the program
 
 
+def test_run_no_check_sends_what_check_flags_with_a_warning(cli: Cli, tmp_path: Path) -> None:
+    """``--no-check`` sends the lines check flags (saying so), never half a program: the library
+    used to refuse the flagged line after the lines before it had moved the arm."""
+    program = tmp_path / "flagged.gcode"
+    program.write_text("M21 G90\nG0 X10\nM3 S2000 ; check: not a PWM value\nG0 X20\n")
+    proc = cli("run", str(program), "--no-check", *FAST)
+    assert proc.returncode == 0, proc.stderr
+    assert (
+        f"mirobot: warning: {program}:3: M3 S2000: S2000: PWM must be an integer 0..1000 "
+        "(sent anyway: --no-check)"
+    ) in proc.stderr.splitlines()
+    assert close_to(parse_table(proc.stdout).joints[:1], [20])
+
+
 def test_run_continue_on_error_reports_every_refused_line(cli: Cli, tmp_path: Path) -> None:
     program = tmp_path / "bad.gcode"
     program.write_text("M21 G90\nG7\nG0 X20\nG0 X500\nG0 X25\n")

@@ -17,6 +17,7 @@ import pytest
 from hypothesis import assume, event, given, settings
 from hypothesis import strategies as st
 
+from mirobot_async._core.modal import HOMED
 from mirobot_async._safety.envelope import Envelope, LineCheck, MotionModes, update_modes
 from mirobot_async.errors import MirobotUsageError
 from mirobot_async.kinematics import (
@@ -582,7 +583,7 @@ def test_arc_errors() -> None:
         env.check_arc(a, (210.0, 0.0, 200.0, 0, 0, 0), -10, clockwise=True)
     with pytest.raises(MirobotUsageError, match="needs R"):
         env.check_line("M20 G2 X210 Y0", HOME)
-    with pytest.raises(MirobotUsageError, match="Cartesian mode"):
+    with pytest.raises(MirobotUsageError, match="need the 2021 firmware and M20"):
         env.check_line("M21 G2 X10 Y0 R20", HOME)
     # From (200, 0) to (240, 0) with R20: G2 (clockwise seen from above) is the half circle on
     # the +y side, G3 the one on the -y side.
@@ -672,7 +673,7 @@ def test_cartesian_lines_absolute_and_relative() -> None:
         env.check_line("Z140", got.joints, got.pose, modes)
     rel = env.check_line("G91 G1 Z-40 F500", got.joints, got.pose, modes)
     assert rel.pose is not None and math.isclose(rel.pose[2], 160.0)
-    assert rel.modes == MotionModes(cartesian=True, relative=True, motion=1)
+    assert rel.modes == MotionModes(cartesian=True, relative=True, motion=1, feed=500.0)
     with pytest.raises(MirobotUsageError, match="minimum z=150"):
         env.check_line("Z-20", rel.joints, rel.pose, rel.modes)  # 160 - 20 = 140
     with pytest.raises(MirobotUsageError, match="current pose"):
@@ -729,15 +730,15 @@ def test_modes_persist_and_update() -> None:
     assert update_modes("G0 G1", m) == m  # the firmware rejects it: nothing changes
     assert update_modes("garbage!", m) == m
     assert update_modes("$20=1", m) == m
-    assert update_modes("$H", m) == MotionModes()
-    assert update_modes("$HH", m) == MotionModes()
+    assert update_modes("$H", m) == HOMED  # (feed 0)
+    assert update_modes("$HH", m) == HOMED
     assert update_modes("M21G90G0", m) == MotionModes()
     assert update_modes("G20", m) == MotionModes(True, True, 1, inches=True)
     assert update_modes("M21G91G21", m) == MotionModes(False, True, 1, inches=False)
     assert update_modes("M20 M21", m) == MotionModes(None, True, 1)  # refused; mode unsure
     assert update_modes("G21 M21", m) == MotionModes(None, True, 1)  # refused; M21 ran
-    assert update_modes("$H8", m) == MotionModes()  # any $H... homes
-    assert update_modes("M16404", m) == MotionModes.unknown()  # odd number forms
+    assert update_modes("$H8", m) == HOMED  # any $H... homes
+    assert update_modes("M16404", m) == replace(m, cartesian=True)  # read as the firmware does
 
 
 def test_lines_the_envelope_cannot_judge_are_refused() -> None:
@@ -756,7 +757,7 @@ def test_lines_the_envelope_cannot_judge_are_refused() -> None:
         ("G0 X0000000030", "reads it as 0"),
         ("M20.001 G0 X200", "plain command number"),
         ("M16404 G0 X200", "reads it as M20"),
-        ("G21 M21 G0 X10", "rejects the line"),
+        ("G21 M21 G0 X10", "Modal group violation"),
         ("$46=10", "geometry"),
         ("$N0=G20", "startup line"),
         ("$RST=$", "RST"),
@@ -770,7 +771,7 @@ def test_lines_the_envelope_cannot_judge_are_refused() -> None:
 def test_homing_and_zero_move_lines() -> None:
     env = Envelope(z=(240, None))  # the all-zero pose (z=230.72) is below the floor
     got = env.check_line("$H", HOME, None, MotionModes(True, True, 1))
-    assert got == LineCheck(MotionModes(), True, None, None, None)
+    assert got == LineCheck(HOMED, True, None, None, None)
     with pytest.raises(MirobotUsageError, match="minimum z=240"):
         env.check_line("$M", (0, -20, -20, 0, 0, 0))
     ok = Envelope(z=(200, None)).check_line("$M", (0, -20, -20, 0, 0, 0))
@@ -811,10 +812,11 @@ def test_unknown_modes_must_be_stated_in_the_line() -> None:
             env.check_line(line, HOME, None, unknown)
     got = env.check_line("M21 G90 G0 G21 X10", HOME, None, unknown)
     assert got.joints == (10.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-    assert got.modes == MotionModes()
+    assert got.modes == MotionModes(feed=None)  # (the feed rate is unknown until stated)
     # Lines that do not move pass whatever is unknown, and state what they set.
-    assert env.check_line("G91", None, None, unknown).modes == MotionModes(None, True, None, None)
-    assert update_modes("M20", unknown) == MotionModes(True, None, None, None)
+    got_modes = env.check_line("G91", None, None, unknown).modes
+    assert got_modes == MotionModes(None, True, None, None, feed=None)
+    assert update_modes("M20", unknown) == MotionModes(True, None, None, None, feed=None)
 
 
 def test_program_end_resets_distance_and_motion_modes() -> None:

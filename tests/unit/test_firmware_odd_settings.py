@@ -50,3 +50,16 @@ def test_homing_with_a_homing_feed_of_zero_is_answered(profile: str) -> None:
     out = send(fw, "$H\n", 120.0)
     assert out and out[-1].endswith("ok"), out
     assert send(fw, "?")[-1].startswith("<"), "the model still answers"
+
+
+@pytest.mark.parametrize("setting", ["$31=0", "$33=0"])
+def test_a_geometry_the_ik_cannot_solve_refuses_cartesian_moves(setting: str) -> None:
+    """2021: ``$31=0`` (A2 = 0; ``mirobot check`` accepts it) left the IK raising inside the
+    model on the next Cartesian move: no reply on a pty, and in process the line was reported
+    lost although it ran. It is refused as unreachable ("ok" but dropped), and the arm goes on."""
+    fw = unlocked("2021")
+    assert send(fw, f"{setting}\n")[-1] == "ok"
+    for line in ("M20 G90 G0 X200 Y0 Z200", "M20 G91 G1 X1 F100"):
+        replies = send(fw, line + "\n", math.inf)
+        assert replies[-1].startswith("GOAL OUT OF WORKSPACE") and replies[-1].endswith("ok")
+    assert send(fw, "M21 G91 G0 X1\n", math.inf)[-1] == "ok"  # joint moves still run

@@ -419,7 +419,7 @@ BAD_LINES: list[tuple[str, str, str]] = [
     ("M16404", "2021", "read by the firmware as M20"),
     ("M20.001 G0 X10", "2021", "read by the firmware as M20"),
     ("M20.5", "2021", "Invalid gcode ID:23"),
-    ("G21 M21", "2021", "write the M word first"),
+    ("G21 M21", "2021", "first in the line"),
     ("M21 M3 S10", "2021", "use two lines"),
     ("$041.5=1", "2021", "reads this as $41=1"),
     ("$H8", "2021", "homes the arm"),

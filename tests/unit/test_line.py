@@ -122,12 +122,16 @@ def test_parsed_line_properties() -> None:
 
 
 def test_coordinate_word_orders_the_firmware_refuses() -> None:
-    """Oracle: ``G21 M21``, ``G20 M20``, ``M21 M3``, ``M21 M50`` -> Modal group violation (yet
-    the M20/M21 takes effect); ``M21 G21 ...`` and ``M20 G21`` are fine."""
-    for line in ("G21 M21", "G20 M20", "M21 M3 S10", "M21 M5", "M21 M50"):
-        assert parse_line(line).coordinate_conflict is not None, line
-    for line in ("M21 G21 G90 G0 X1", "M20 G21", "M21 G90 G0 X3", "M3 S10"):
-        assert parse_line(line).coordinate_conflict is None, line
+    """Oracle: ``G21 M21``, ``G20 M20``, ``M21 M3``, ``M21 M50``, ``G90 M21`` -> Modal group
+    violation (yet on classic the M20/M21 takes effect); ``M21 G21 ...`` and ``M20 G21`` are
+    fine."""
+    from mirobot_async._core.acceptance import scan
+
+    for line in ("G21 M21", "G20 M20", "M21 M3 S10", "M21 M5", "M21 M50", "G90 M21", "G0 M20"):
+        found = scan(parse_line(line).text, "classic")
+        assert found.error == "Modal group violation" and found.coordinate is not None, line
+    for line in ("M21 G21 G90 G0 X1", "M20 G21", "M21 G90 G0 X3", "M3 S10", "M3 G91"):
+        assert scan(parse_line(line).text, "classic").error is None, line
 
 
 # ---- one validation: what check flags, send refuses (issue 15 item 3) ---------------------

@@ -9,7 +9,7 @@ import time
 import numpy as np
 import pytest
 
-from mirobot_async._core.modal import MotionModes
+from mirobot_async._core.modal import HOMED, MotionModes
 from mirobot_async._safety.envelope import Envelope
 from mirobot_async._safety.prediction import MachineState, Prediction, Refusal, predict
 from mirobot_async.errors import MirobotUsageError
@@ -96,7 +96,7 @@ def test_unknown_base_offset_refuses_absolute_cartesian_moves() -> None:
 def test_every_homing_variant_moves_and_forgets_the_position(line: str) -> None:
     got = predict(Envelope(), line, KNOWN)
     assert isinstance(got, Prediction) and got.moves
-    assert got.state.joints is None and got.state.modes == MotionModes()
+    assert got.state.joints is None and got.state.modes == HOMED
 
 
 def test_h8_homes_the_firmware_model() -> None:

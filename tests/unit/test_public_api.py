@@ -22,6 +22,7 @@ PUBLIC_MODULES = {
         "Connector",
         "DataCallback",
         "Envelope",
+        "EnvelopeRefusedError",
         "Firmware",
         "Implementation",
         "InvalidLineError",

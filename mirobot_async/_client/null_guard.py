@@ -1,0 +1,160 @@
+"""What the client follows of each line written without an envelope (:class:`NullGuard`), and
+what a guard keeps of a line to undo its prediction if the firmware refuses it
+(:class:`Tracked`). No I/O here."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Final
+
+from mirobot_async._client.condition import RobotCondition
+from mirobot_async._core.acceptance import line_fate, modes_after_refusal
+from mirobot_async._core.line import ParsedLine
+from mirobot_async._core.modal import Chaining, LineCheck, MotionModes
+from mirobot_async._core.replies import State, StatusReport
+from mirobot_async._core.validation import ModalState
+from mirobot_async.errors import RefusalReason
+
+if TYPE_CHECKING:
+    from mirobot_async._client.guard import NeedPosition
+    from mirobot_async._safety.envelope import Envelope
+    from mirobot_async._safety.prediction import MachineState
+
+__all__ = ["QUIET", "NullGuard", "Tracked"]
+
+QUIET: Final = frozenset({State.IDLE, State.ALARM, State.CHECK})
+"""States in which nothing moves."""
+
+
+@dataclass(frozen=True, slots=True)
+class Tracked:
+    """What the prediction assumed when a line was written (to undo it if the line fails)."""
+
+    line_id: int
+    check: LineCheck | None  # the envelope's verdict on the line (its target), if it had one
+    state_before: MachineState | None  # the predicted machine state before it (no envelope: None)
+    moved: bool
+    modes_changed: bool
+    epoch: int = 0  # the guard's epoch when it was written (a later change: do not undo)
+    coordinate: int | None = None  # the work coordinate system in effect before it
+    modes_before: MotionModes | None = None  # no envelope: the modes before the line
+    parsed: ParsedLine | None = None  # the line
+    refusal_expected: bool = False  # the firmware's refusal was predicted (and followed)
+
+
+class NullGuard:
+    """No envelope: every line passes, no position is predicted; only the modal words
+    (``M20``/``M21``, ``G90``/``G91``) are followed, for the validation of raw lines."""
+
+    epoch = 0
+    parser_apart = False
+
+    def __init__(self, condition: RobotCondition | None = None) -> None:
+        self._condition = condition
+        self._modes = MotionModes.unknown()
+        self.chain = Chaining()  # which joints may still move, which a mode word re-read
+        self._last_line_id: int | None = None  # the last line written
+
+    @property
+    def envelope(self) -> Envelope | None:
+        """``None``: there is no envelope."""
+        return None
+
+    @property
+    def modes(self) -> MotionModes:
+        """The modal words stated by the lines written since connect (``None``: unknown)."""
+        return self._modes
+
+    wants_settings = False  # no settings are needed
+
+    def wanted_queries(self) -> tuple[str, ...]:
+        """None: nothing stored in the firmware is needed."""
+        return ()
+
+    def adopt_query(self, query: str, output: Sequence[str] | None) -> None:
+        """Nothing to learn."""
+
+    def modal_state(self) -> ModalState:
+        """The modal words stated by the lines written since connect (unknown before)."""
+        return ModalState.of(self._modes, self.chain)
+
+    @property
+    def _firmware(self) -> str | None:
+        return None if self._condition is None else self._condition.firmware
+
+    def needs_firmware(self, parsed: ParsedLine) -> bool:
+        """Never: no kinematic model is needed."""
+        return False
+
+    def verdict(self, parsed: ParsedLine, what: str | None) -> LineCheck | NeedPosition | None:
+        """Nothing to check."""
+        return None
+
+    def preview(self, lines: Sequence[ParsedLine]) -> list[LineCheck] | NeedPosition:
+        """Nothing to check."""
+        return []
+
+    def adopt_status(self, report: StatusReport) -> None:
+        """A status at rest with nothing in flight: no motion is queued."""
+        if report.state in QUIET:
+            self.chain = self.chain.at_rest()
+
+    def adopt_settings(self, settings: Mapping[int, float]) -> None:
+        """Nothing to predict."""
+
+    def track_written(
+        self,
+        line_id: int,
+        command: str,
+        parsed: ParsedLine,
+        verdict: LineCheck | None,
+        *,
+        checked: bool,
+        what: str | None,
+        warn_unchecked: bool,
+    ) -> Tracked | None:
+        """Follow the line's modal words and chaining (tracked: a line that changed the modes
+        or that the firmware will refuse), as the firmware leaves them, accepted or refused."""
+        self.chain = self.chain.after(parsed, self._modes)
+        self._last_line_id = line_id
+        if parsed.kind == "empty":
+            return None
+        before = self._modes
+        fate = line_fate(parsed, before, self._firmware)
+        self._modes = fate.modes
+        if self._modes == before and fate.accepted is not False:
+            return None
+        return Tracked(
+            line_id, None, None, False, True, 0, None, before, parsed,
+            refusal_expected=fate.accepted is False,
+        )  # fmt: skip
+
+    def line_failed(
+        self,
+        tracked: Tracked,
+        *,
+        rejected: bool,
+        reason: RefusalReason | None = None,
+        error: str | None = None,
+    ) -> None:
+        """A rejected line the client predicted as accepted (``Alarm lock``, or a rule not
+        modelled): undone if it was the last line written (on classic its M20/M21 still acts),
+        else unknown. A refused move ran its modal words."""
+        if rejected and not tracked.refusal_expected:
+            last = tracked.line_id == self._last_line_id
+            before = tracked.modes_before
+            if last and before is not None and tracked.parsed is not None:
+                self._modes = modes_after_refusal(tracked.parsed, before, self._firmware, error)
+            else:
+                self._modes = MotionModes.unknown()
+
+    def forget(self, why: str) -> None:
+        """A reset restores the power-on modes; a lost reply makes them unknown."""
+        self._last_line_id = None
+        if why in ("reset", "lost"):
+            self._modes = MotionModes() if why == "reset" else MotionModes.unknown()
+            self.chain = Chaining() if why == "reset" else self.chain.moved_anything()
+
+    def warn_stream_unchecked(self) -> None:
+        """No envelope, nothing to warn about."""
