@@ -233,6 +233,7 @@ def test_alarm_is_an_event_not_output() -> None:
     events = feed(conn, [wire(["ALARM: Hard limit", "[Reset to continue]", "ok"])])
     assert events == [
         AlarmRaised("Hard limit"),
+        UnsolicitedText(ReplyKind.FEEDBACK, "Reset to continue"),  # news at once
         LineAcknowledged(a, ("[Reset to continue]",), None),
     ]
 
