@@ -184,7 +184,13 @@ async def open_robot(
     async with (
         start_emulator(firmware=firmware, time_scale=scale, in_process=True) as url,
         Mirobot.connect(
-            url, firmware="classic" if firmware == "classic" else "2021", envelope=envelope
+            url,
+            firmware="2024"
+            if firmware == "2024"
+            else "classic"
+            if firmware == "classic"
+            else "2021",
+            envelope=envelope,
         ) as arm,
     ):
         yield arm

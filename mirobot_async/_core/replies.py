@@ -323,7 +323,8 @@ def _coded(s: str, raw: str) -> Reply | None:
             return Reply(ReplyKind.INFO, text, code, False, raw)
         return Reply(ReplyKind.ALARM, text, code, False, raw)
     if prefix[0] in "Ee" and code in REFUSAL_TEXT_CODES:
-        return Reply(ReplyKind.TEXT, s, code, False, raw)
+        ok = _glued_ok(s)  # as the classic GOAL text's "...THETA3!ok"
+        return Reply(ReplyKind.TEXT, s[:-2].rstrip() if ok else s, code, ok, raw)
     return Reply(ReplyKind.ERROR, text, code, False, raw)
 
 
