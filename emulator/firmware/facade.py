@@ -65,7 +65,7 @@ class Firmware:
         byte_seconds: float = BYTE_SECONDS,
     ) -> None:
         if profile not in c.PROFILES:
-            raise ValueError(f"unknown firmware profile {profile!r} (use 'classic' or '2021')")
+            raise ValueError(f"unknown firmware profile {profile!r}: not one of {c.PROFILES}")
         if homing_seconds is None:
             homing_seconds = (
                 CLASSIC_HOMING_SECONDS if profile == "classic" else DEFAULT_HOMING_SECONDS
@@ -242,10 +242,10 @@ class Firmware:
         if not m.critical:
             running = m.planner.running
             if running is not None and running.kind == "home_search":
-                m.emit("ALARM: Homing fail")
+                m.emit(c.alarm_line(m.family, "Homing fail"))
                 interrupted = True
             elif m.moving():
-                m.emit("ALARM: Abort during cycle")
+                m.emit(c.alarm_line(m.family, "Abort during cycle"))
                 interrupted = True
         else:
             interrupted = True  # the hard-limit alarm survives the reset
@@ -349,7 +349,7 @@ class Firmware:
             if m.booting:
                 if self.now - self._reset_at >= RESET_DEAF_SECONDS:
                     self._status_after_boot = True  # answered when the banner is out
-            elif running is not None and running.kind == "home_search":
+            elif running is not None and running.kind == "home_search" and m.silent_homing:
                 m.status_deferred = True  # oracle: the homing search answers no ``?``
             elif m.parsing is not None:
                 if self._status_after_parse is None:  # later ones are merged into its report
@@ -444,7 +444,7 @@ class Firmware:
             m.emit("ok")
         elif line[0] == "$":
             self._system.execute(line)
-        elif m.alarm and not m50_allowed_in_alarm(self.profile, line):
+        elif m.alarm and not m50_allowed_in_alarm(m.profile, line):
             m.error(c.ALARM_LOCK)
         else:
             self._gcode.execute(line)

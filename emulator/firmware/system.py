@@ -105,7 +105,7 @@ class SystemCommands:
             if m.state in ("Run", "Hold"):
                 m.error(c.IDLE_ERROR)
                 return
-            m.emit_lines(cfg.format_dump(m.settings, m.profile))
+            m.emit_lines(cfg.format_dump(m.settings, m.family))
         elif kind == "G":
             m.emit(m.modal.report())
         elif kind == "C":
@@ -127,7 +127,7 @@ class SystemCommands:
     def _build_info(self, line: str) -> None:
         m = self.m
         if len(line) == 2:
-            suffix = c.BUILD_INFO_SUFFIX[m.profile]
+            suffix = c.BUILD_INFO_SUFFIX[m.family]
             m.emit(f"[{c.GRBL_VERSION}.{c.GRBL_BUILD}:{m.build_info}{suffix}]")
         elif line[2] != "=":
             m.error(c.INVALID_STATEMENT)
@@ -144,7 +144,7 @@ class SystemCommands:
         if line[5] in "$*":
             before = m.geometry.limits()
             m.settings.clear()  # in place: holders of ``settings`` see the change
-            m.settings.update(cfg.default_settings(m.profile))
+            m.settings.update(cfg.default_settings(m.family))
             m.regrid(before)
         if line[5] == "*":
             m.startup_lines = [""] * N_STARTUP_LINE
@@ -205,7 +205,7 @@ class SystemCommands:
         m = self.m
         if value < 0 and not (m.profile == "2021" and number in cfg.SIGNED_2021):
             return c.NEGATIVE_VALUE
-        spec = cfg.spec(m.profile, number)
+        spec = cfg.spec(m.family, number)
         if spec is None:
             return c.INVALID_STATEMENT
         if spec.kind != "float":
@@ -277,7 +277,7 @@ class SystemCommands:
             lines = [status_line(m, state="Home")] if m.status_deferred else []
             m.status_deferred = False
             self._return_to_zero(zero, homed)
-            return [*lines, c.TEXT_HOMED[m.profile]]
+            return [*lines, *c.HOMED_LINES[m.family]]
 
         m.wait(Pending(searches, "searched", finish))
 
@@ -313,7 +313,7 @@ class SystemCommands:
             m.error(c.ALARM_LOCK)
             return
         if m.locked:
-            m.emit_lines([*c.refusal_lines(c.TEXT_LOCKED), "ok"])
+            m.emit_lines([*c.refusal_lines(c.TEXT_LOCKED, m.family), "ok"])
             return
         start = m.planner.planned_position
         target = vec7((0.0, 0.0, 0.0, 0.0, 0.0, 0.0, start[6]))
