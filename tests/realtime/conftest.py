@@ -24,7 +24,7 @@ import pytest
 from mirobot_async import Mirobot
 from mirobot_async.testing import EmulatorPool, EmulatorProcess
 
-PROFILES = ("2021", "classic")
+PROFILES = ("2021", "classic", "2024")
 REPO = Path(__file__).resolve().parents[2]
 _SOURCES = [
     REPO.parent / "shared" / "firmware-oracle",

@@ -25,7 +25,7 @@ from mirobot_emulator.motion import Planner
 from mirobot_async import kinematics as kin
 
 VECTORS = json.loads((Path(__file__).parents[1] / "data" / "vectors.json").read_text())
-PROFILES = ("classic", "2021")
+PROFILES = ("classic", "2021", "2024")
 DH = {"classic": kin.DH_CLASSIC, "2021": kin.DH_2021}
 
 # ----------------------------------------------------------------------------------------------
