@@ -218,15 +218,18 @@ class RobotCondition:
 
     # ---- events ----
 
-    def on_alarm(self, text: str, code: int | None = None) -> bool:
-        """Remember an alarm; True when only a reset clears it (nothing is answered).
-
-        ``code`` is the 2024 family's number (``Error,A101,Hard limit:X`` -> 101): the
-        :data:`REFUSAL_ALARMS` are the refusal of the line being parsed, not a state (its
-        ``ok`` follows, or ``[Reset to continue]`` does: :meth:`on_feedback`)."""
+    @staticmethod
+    def refuses_a_line(text: str, code: int | None) -> bool:
+        """True for the 2024 family's :data:`REFUSAL_ALARMS` (``Error,A106,...``): the refusal
+        of the line being parsed, not a state of the arm (its ``ok`` follows, or
+        ``[Reset to continue]`` does: :meth:`on_feedback`)."""
         if code in REFUSAL_ALARMS:
-            _log.warning("robot refuses a line through its alarm table: %s", text)
-            return False
+            _log.info("robot refuses a line through its alarm table: %s", text)
+            return True
+        return False
+
+    def on_alarm(self, text: str) -> bool:
+        """Remember an alarm; True when only a reset clears it (nothing is answered)."""
         self.alarm = text
         self.alarm_epoch += 1
         _log.warning("robot alarm: %s", text)

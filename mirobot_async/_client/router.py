@@ -139,9 +139,11 @@ class EventRouter:
         self._wire.notify()
 
     def _on_alarm(self, text: str, code: int | None) -> None:
+        if self._condition.refuses_a_line(text, code):
+            return  # the line's output holds it: its reply says what was refused
         self._wire.stats.alarms += 1
         self._guard.forget("alarm")  # an alarm may stop the arm anywhere
-        if not self._condition.on_alarm(text, code):
+        if not self._condition.on_alarm(text):
             return  # the firmware still answers lines, or a banner follows
         self._fail_for_reset_only(text)
 

@@ -130,8 +130,9 @@ class MachineState:
     """``$49``, the lift of a ``G5`` gate move (2021)."""
     firmware: str | None = None
     """``"2021"``, ``"classic"``, ``"2024"`` or None (unknown: features of one profile are
-    refused; on 2024 what the evidence does not show: ``M20 G1``, ``$M``, arcs, gate moves,
-    a non-zero base offset, ``$35``/``$41..$43``/``$49``)."""
+    refused; on 2024 what the evidence does not show: ``M20 G1`` unless ``$$`` lists ``$35``
+    (then as 2021), ``$M``, arcs, gate moves, a non-zero base offset, ``$35``/``$41..$43``/
+    ``$49``)."""
     parser: ParserPosition | None = None
     """The parser's position when it differs from ``joints``/``pose`` (None: the same)."""
     work_offset: Offset | None = ZERO_OFFSET
@@ -515,10 +516,10 @@ def _cartesian(
     target = as_pose(combine(axes, relative, base.pose, "current pose"))
     motion = modes.motion
     end: CartesianEnd
-    if motion == 1 and base.firmware not in _KNOWN_FAMILIES:
+    if motion == 1 and base.firmware not in _KNOWN_FAMILIES and base.linear_g1 is None:
         raise _Refuse(
-            f"how M20 G1 moves on the {base.firmware} firmware (a straight line or a joint "
-            "move) is not known: use G0 or joint moves"
+            f"how M20 G1 moves on the {base.firmware} firmware is not known (its $$ lists no "
+            "$35, the 2021 switch between a straight line and a joint move)"
         )
     if motion == 1 and base.firmware == "2021" and base.linear_g1 is None:
         raise _Refuse("how M20 G1 moves depends on $35, which is unknown; read the settings first")
