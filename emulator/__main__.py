@@ -71,7 +71,7 @@ def _build_parser(
     )
     parser.add_argument(
         "--firmware",
-        choices=("classic", "2021"),
+        choices=("classic", "2021", "2024"),
         default="2021",
         help="firmware profile (default: 2021)",
     )

@@ -57,7 +57,7 @@ __all__ = [
     "specs",
 ]
 
-PROFILES: Final = ("classic", "2021")
+PROFILES: Final = ("classic", "2021", "2024")
 
 AXIS_LETTERS: Final = "abcdefg"
 """Firmware axis letters of the axis settings: a..g = J4, J5, J6, D, J1, J2, J3."""
@@ -141,6 +141,17 @@ _AXIS_GROUPS_EXTRA: Final = (
     (160, " backlash, mm", None, (0,) * 7),
 )
 
+_ROBOT_2024: Final = (
+    _s(44, 0, "Line discard number", "int"),
+    _s(45, 0, "Rail/conveyor mode", "int"),
+    _s(51, 0, "Reserved", "int"),
+    _s(52, 0, "Colour sensor", "int"),
+)
+"""What the 2024 family's ``$$`` lists beyond the 2021 manual (EVIDENCE-NEWER.md 1: ``$44`` line
+discard number, ``$45`` rail/conveyor mode, ``$51``, ``$52`` colour sensor). ASSUMED: their
+defaults (0), kinds (integers) and descriptions (the capture's meanings, not its words; ``$51``
+has none)."""
+
 _HOMING_POS_DIR: Final = _s(28, 65, "homing pos dir invert mask", "mask")
 """``$28`` on both profiles (the classic ``$$`` lists it too)."""
 
@@ -151,8 +162,10 @@ SIGNED_2021: Final = frozenset({34, 41, 42, 43, 46, 47, 48})
 def _build(profile: str) -> dict[int, SettingSpec]:
     table: dict[int, SettingSpec] = {s.number: s for s in _GRBL_BASICS}
     table[_HOMING_POS_DIR.number] = _HOMING_POS_DIR
-    if profile == "2021":
+    if profile in ("2021", "2024"):
         table.update({s.number: s for s in _ROBOT_2021})
+    if profile == "2024":
+        table.update({s.number: s for s in _ROBOT_2024})
     for base, suffix, classic, modern in _AXIS_GROUPS:
         values = classic if profile == "classic" else modern
         for k, letter in enumerate(AXIS_LETTERS):
@@ -171,7 +184,7 @@ _TABLES: Final = {profile: _build(profile) for profile in PROFILES}
 
 def _check_profile(profile: str) -> None:
     if profile not in _TABLES:
-        raise ValueError(f"unknown firmware profile {profile!r} (use 'classic' or '2021')")
+        raise ValueError(f"unknown firmware profile {profile!r} (use 'classic', '2021' or '2024')")
 
 
 def specs(profile: str) -> Mapping[int, SettingSpec]:

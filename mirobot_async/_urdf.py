@@ -36,6 +36,7 @@ TOOL_LINK: Final = "tool0"
 _MAX_RATES: Final = {  # deg/min, J1..J6: the profiles' $110..$116 defaults in joint order
     "classic": (2000.0, 2000.0, 2000.0, 1800.0, 1500.0, 2500.0),
     "2021": (1800.0, 1500.0, 1800.0, 1800.0, 1500.0, 2500.0),
+    "2024": (1800.0, 1500.0, 1800.0, 1800.0, 1500.0, 2500.0),  # ASSUMED: the 2021 defaults
 }
 _MM: Final = 0.001
 _HOUSING_RADIUS: Final = 0.024
@@ -52,12 +53,13 @@ _MATERIALS: Final = {
 
 
 def dh_of(firmware: str) -> DH:
-    """The DH geometry of a firmware profile (``classic`` or ``2021``)."""
+    """The DH geometry of a firmware profile (``classic``, ``2021``, ``2024``: ASSUMED the
+    2021 one, docs/2024-profile.md)."""
     if firmware == "classic":
         return DH_CLASSIC
-    if firmware == "2021":
+    if firmware in ("2021", "2024"):
         return DH_2021
-    raise MirobotUsageError(f"firmware={firmware!r}: expected 'classic' or '2021'")
+    raise MirobotUsageError(f"firmware={firmware!r}: expected 'classic', '2021' or '2024'")
 
 
 @dataclass(frozen=True, slots=True)

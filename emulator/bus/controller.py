@@ -46,7 +46,7 @@ TEST_PROGRAM = (
 
 _O_COMMAND = re.compile(rb"^[oO](\d{3})=?(.*)$", re.DOTALL)
 _STATE_NUMBERS = {"Offline": 0, "Idle": 1, "Alarm": 2, "Home": 3, "Run": 5}
-_ARM_VERSION = re.compile(r"Qinnew Robot (\S+)")
+_ARM_VERSION = re.compile(r"(?:Qinnew Robot |Firmware version:Mirobot,)(\S+)")
 _HOMING_MODES = ("$H0", "$H1", "$H2", "$H3", "$H4", "$H5", "$H6", "$H7", "$H", "$HH", "$HE")
 _NO_EFFECT = frozenset({162, 163, 164, 170, 171, 172, 173, 174, 175, 180})
 

@@ -122,7 +122,7 @@ class Firmware(_MachineViews):
         byte_seconds: float = BYTE_SECONDS,
     ) -> None:
         if profile not in c.PROFILES:
-            raise ValueError(f"unknown firmware profile {profile!r} (use 'classic' or '2021')")
+            raise ValueError(f"unknown firmware profile {profile!r}: not one of {c.PROFILES}")
         if homing_seconds is None:
             homing_seconds = (
                 CLASSIC_HOMING_SECONDS if profile == "classic" else DEFAULT_HOMING_SECONDS
@@ -388,7 +388,7 @@ class Firmware(_MachineViews):
             if m.booting:
                 if self.now - self._reset_at >= RESET_DEAF_SECONDS:
                     self._status_after_boot = True  # answered when the banner is out
-            elif running is not None and running.kind == "home_search":
+            elif running is not None and running.kind == "home_search" and m.silent_homing:
                 m.status_deferred = True  # oracle: the homing search answers no ``?``
             elif m.parsing is not None:
                 if self._status_after_parse is None:  # later ones are merged into its report
@@ -479,7 +479,7 @@ class Firmware(_MachineViews):
             m.emit("ok")
         elif line[0] == "$":
             self._system.execute(line)
-        elif m.alarm and not m50_allowed_in_alarm(self.profile, line):
+        elif m.alarm and not m50_allowed_in_alarm(m.profile, line):
             m.error(c.ALARM_LOCK)
         else:
             self._gcode.execute(line)

@@ -242,7 +242,7 @@ class GcodeExecutor:
             try:
                 blocks += self._go_to_stored(line, start)
             except Refusal as refusal:
-                out += c.refusal_lines(refusal.text)
+                out += c.refusal_lines(refusal.text, m.family)
         elif line.axis_command and line.motion_mode != 80:
             start = blocks[-1].end if blocks else m.planner.planned_position
             try:
@@ -259,10 +259,10 @@ class GcodeExecutor:
                     check=m.check,
                 )
             except Refusal as refusal:
-                out += c.refusal_lines(refusal.text)
+                out += c.refusal_lines(refusal.text, m.family)
                 if refusal.then is not None:  # the first text's line ends before the second
-                    out += c.refusal_lines(refusal.then)[1:]
-                elif refusal.text in c.TEXTS_WITHOUT_LINE_END:
+                    out += c.refusal_lines(refusal.then, m.family)[1:]
+                elif refusal.text in c.TEXTS_WITHOUT_LINE_END and m.family != "2024":
                     ok = out.pop() + ok
                 self._refused_target(line, refusal.text)
             else:

@@ -12,7 +12,7 @@ from .. import motion
 from .. import settings as cfg
 from ..motion import Block, Planner, Vec7
 from . import codes as c
-from .geometry import Geometry
+from .geometry import FW_LETTERS, Geometry
 from .linebuffer import LineBuffer, ReceivedLine
 from .modal import ModalState
 from .moves import MoveBuilder
@@ -46,8 +46,13 @@ class Machine:
     """Everything the firmware knows between two bytes, and how it prints."""
 
     def __init__(self, profile: str, homing_seconds: float) -> None:
-        self.profile = profile
+        self.family = profile
+        """The firmware family: its texts, banner, settings list (``codes.PROFILES``)."""
+        self.profile = c.BEHAVES_AS[profile]
+        """The profile whose behaviour the family has (2024 behaves as 2021)."""
         self.homing_seconds = homing_seconds
+        self.silent_homing = not c.ANSWERS_STATUS_WHILE_HOMING[profile]
+        """No ``?`` is answered during the homing search (oracle; not on 2024)."""
         self.settings: dict[int, float] = cfg.default_settings(profile)
         self.geometry = Geometry(profile, self.settings)
         self.moves = MoveBuilder(self.geometry, self.settings)
@@ -115,7 +120,7 @@ class Machine:
             self.emit(line)
 
     def error(self, status: int) -> None:
-        self.emit(c.error_line(self.profile, status))
+        self.emit(c.error_line(self.family, status))
 
     def reply(self, status: int) -> None:
         """``ok`` for status 0, else the error line."""
@@ -126,6 +131,8 @@ class Machine:
 
     def info(self, text: str) -> str:
         """``text`` as the profile prints an information line."""
+        if self.family == "2024":
+            return f"Info,{text}"  # EVIDENCE-NEWER.md 2: no space
         return text if self.profile == "classic" else f"Info, {text}"
 
     # state ----------------------------------------------------------------------------------
@@ -213,7 +220,11 @@ class Machine:
 
         ``pins``: the closed switches by firmware axis bit (a..g = bits 0..6); the oracle prints
         them as 8 binary digits right before the text (``00010000ALARM: Hard limit``: J1)."""
-        self.emit(f"{pins:08b}ALARM: Hard limit")  # [Reset to continue] after the stall
+        if self.family == "2024":  # ASSUMED: the axis letter of the lowest closed switch
+            letters = [FW_LETTERS[k] for k in range(7) if pins >> k & 1]
+            self.emit(c.alarm_line(self.family, "Hard limit", (letters or [""])[0]))
+        else:
+            self.emit(f"{pins:08b}ALARM: Hard limit")  # [Reset to continue] after the stall
         self.planner.abort()
         self.limit_blocks.clear()
         self.line_cut_short = self.line_cut_short or self.pending is not None
@@ -233,9 +244,9 @@ class Machine:
             return False, True
         running = self.planner.running
         if running is not None and running.kind == "home_search":
-            self.emit("ALARM: Homing fail")
+            self.emit(c.alarm_line(self.family, "Homing fail"))
         elif self.moving():
-            self.emit("ALARM: Abort during cycle")
+            self.emit(c.alarm_line(self.family, "Abort during cycle"))
         else:
             return False, False
         return True, True

@@ -85,7 +85,10 @@ def status_line(m: Machine, state: str | None = None) -> str:
 
 
 def banner(m: Machine) -> list[str]:
-    """The welcome message (PROTOCOL 4.2), then the unlock hint when in Alarm."""
+    """The welcome message (PROTOCOL 4.2), then the unlock hint when in Alarm; the 2024
+    family's one line (EVIDENCE-NEWER.md 1: no unlock hint after it)."""
+    if m.family == "2024":
+        return [c.BANNER_2024.format(version=c.VERSIONS[m.family])]
     d1, a1, a2, a3, d4, el = m.geometry.dh_values()
     offsets = m.geometry.base_offset()
     pose = m.geometry.fk(motion.ZERO)

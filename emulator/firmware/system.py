@@ -112,7 +112,7 @@ class SystemCommands:
             if m.state in ("Run", "Hold"):
                 m.error(c.IDLE_ERROR)
                 return
-            m.emit_lines(cfg.format_dump(m.settings, m.profile))
+            m.emit_lines(cfg.format_dump(m.settings, m.family))
         elif kind == "G":
             m.emit(m.modal.report())
         elif kind == "C":
@@ -134,7 +134,7 @@ class SystemCommands:
     def _build_info(self, line: str) -> None:
         m = self.m
         if len(line) == 2:
-            suffix = c.BUILD_INFO_SUFFIX[m.profile]
+            suffix = c.BUILD_INFO_SUFFIX[m.family]
             m.emit(f"[{c.GRBL_VERSION}.{c.GRBL_BUILD}:{m.build_info}{suffix}]")
         elif line[2] != "=":
             m.error(c.INVALID_STATEMENT)
@@ -151,7 +151,7 @@ class SystemCommands:
         if line[5] in "$*":
             before = m.geometry.limits()
             m.settings.clear()  # in place: holders of ``settings`` see the change
-            m.settings.update(cfg.default_settings(m.profile))
+            m.settings.update(cfg.default_settings(m.family))
             m.regrid(before)
         if line[5] in "#*":  # GRBL: the coordinate data G54..G59, G28, G30 (tape
             m.work = WorkOffsets()  # scenarios-s4/restore_variants: $# after $RST=# reads 0)
@@ -214,7 +214,7 @@ class SystemCommands:
         m = self.m
         if value < 0 and not (m.profile == "2021" and number in cfg.SIGNED_2021):
             return c.NEGATIVE_VALUE
-        spec = cfg.spec(m.profile, number)
+        spec = cfg.spec(m.family, number)
         if spec is None:
             return c.INVALID_STATEMENT
         if spec.kind != "float":
@@ -284,7 +284,7 @@ class SystemCommands:
             m.planner.set_position(zero)
             m.parser_init(feed=0.0)
             self._return_to_zero(zero, homed)
-            return [c.TEXT_HOMED[m.profile]]
+            return list(c.HOMED_LINES[m.family])
 
         # a ? during the search is answered when it ends (the facade, ``status_deferred``),
         # before the return move is planned and the reply printed
@@ -322,7 +322,7 @@ class SystemCommands:
             m.error(c.ALARM_LOCK)
             return
         if m.locked:
-            m.emit_lines([*c.refusal_lines(c.TEXT_LOCKED), "ok"])
+            m.emit_lines([*c.refusal_lines(c.TEXT_LOCKED, m.family), "ok"])
             return
         start = m.planner.planned_position
         target = vec7((0.0, 0.0, 0.0, 0.0, 0.0, 0.0, start[6]))

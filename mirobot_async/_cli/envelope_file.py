@@ -38,7 +38,7 @@ ENVELOPE_KEYS: Final = ("box", "joints", "rail", "tool")
 """The top-level keys an envelope file may have."""
 _BOX_KEYS: Final = ("x", "y", "z")
 _JOINT_KEYS: Final = ("1", "2", "3", "4", "5", "6")
-_MODELS: Final[Mapping[str, DH]] = {"classic": DH_CLASSIC, "2021": DH_2021}
+_MODELS: Final[Mapping[str, DH]] = {"classic": DH_CLASSIC, "2021": DH_2021, "2024": DH_2021}
 
 
 def _number(value: object) -> float | None:

@@ -196,7 +196,11 @@ async def open_robot(
         start_emulator(firmware=firmware, time_scale=scale, in_process=True) as url,
         Mirobot.connect(
             url,
-            firmware="classic" if firmware == "classic" else "2021",
+            firmware="2024"
+            if firmware == "2024"
+            else "classic"
+            if firmware == "classic"
+            else "2021",
             envelope=envelope,
             record=record_of(args),
         ) as arm,

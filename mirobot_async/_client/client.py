@@ -266,8 +266,8 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
         Use as ``async with Mirobot.connect(url) as arm:`` (closed at the end of the block) or
         ``arm = await Mirobot.connect(url)`` (then call :meth:`close`).
 
-        ``firmware`` (``"2021"`` / ``"classic"``) is learnt from the reset banner the arm prints
-        when the port opens or, failing that, from the first :meth:`settings` call; pass it to
+        ``firmware`` (``"2021"`` / ``"classic"`` / ``"2024"``) is learnt from the reset banner the
+        arm prints when the port opens or, failing that, from ``$$`` or ``$I``; pass it to
         skip detection. ``envelope`` is a workspace safety envelope
         (:class:`mirobot_async.Envelope`): every line that moves the arm is checked against it
         before anything is written (see the module docstring, "Safety envelope"); with an
@@ -409,12 +409,20 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
 
     @property
     def firmware(self) -> Firmware | None:
-        """``"2021"``, ``"classic"``, or ``None`` while not known (see :meth:`detect_firmware`)."""
+        """The firmware family: ``"classic"``, ``"2021"``, ``"2024"``, or ``None`` while not
+        known (see :meth:`detect_firmware`; :attr:`firmware_evidence` says how it was learnt)."""
         return self._condition.firmware
 
     @property
+    def firmware_evidence(self) -> str | None:
+        """What decided :attr:`firmware`, once per connection: the banner, ``$$``, ``$I`` or
+        ``firmware=`` (e.g. ``"$$ lists $44, $45 (only the 2024 family has them)"``)."""
+        return self._condition.firmware_evidence
+
+    @property
     def firmware_version(self) -> str | None:
-        """The version printed in the last banner seen (``20191228_2``...), if any."""
+        """The version printed in the last banner seen (``20191228_2``, ``Mirobot,20240820``...),
+        if any."""
         return self._condition.firmware_version
 
     @property

@@ -29,6 +29,7 @@ __all__ = [
     "HOMING_BOUND",
     "HOMING_DEFAULT_RATES",
     "HOMING_LINE_RE",
+    "REFUSAL_ALARMS",
     "RESET_ONLY_ALARMS",
     "Firmware",
     "HomingCycle",
@@ -39,11 +40,28 @@ __all__ = [
 
 _log = logging.getLogger("mirobot_async.client")
 
-Firmware = Literal["2021", "classic"]
+Firmware = Literal["2021", "classic", "2024"]
+
+FAMILY_2024_SETTINGS: Final = frozenset({44, 45, 51, 52})
+"""Settings only the 2024 family lists in ``$$`` (EVIDENCE-NEWER.md 1: ``$44`` line discard
+number, ``$45`` rail/conveyor mode, ``$51``, ``$52`` colour sensor); ``$29`` (D1) is the 2021
+manual's, absent on classic."""
+CLASSIC_BUILD_SUFFIX: Final = "--ZDX&LEAH(201306)"
+"""What the classic firmware (oracle) appends to the build info in ``$I``; the 2024 family's
+``$I`` has no suffix (``[0.9j.20160303:]``, EVIDENCE-NEWER.md 1). No 2021 device shows ``$I``."""
+_ONE_LINE_VERSION_RE: Final = re.compile(r"Firmware version\s*:\s*(\S+)")
+_BUILD_INFO_RE: Final = re.compile(r"\[[0-9.]+[a-z]?\.[0-9]{8}:(.*)\]")
 
 # Alarms after which the firmware processes nothing but "%" (PROTOCOL.md 6.1; GRBL's critical
 # alarms print "[Reset to continue]").
 RESET_ONLY_ALARMS: Final = ("hard limit", "soft limit")
+REFUSAL_ALARMS: Final = frozenset({102, 106, 107})
+"""The 2024 family's alarm-table lines that replace the classic "``ok`` but dropped" texts
+(EVIDENCE-NEWER.md 2, INFERRED): ``A102`` ``Soft limit:<axis>`` (classic ``Soft limit
+triggered:<axis>``), ``A106`` ``Locked status of each axis``, ``A107`` ``Axis 2 and 3 have
+conflicting angles.:``. They are kept in the line's output (a refusal when its ``ok`` follows);
+if the firmware instead stops as GRBL does at a soft limit, its ``[Reset to continue]`` makes
+the alarm reset-only."""
 _VERSION_RE: Final = re.compile(r"Robot\s+(\d{8})(\S*)")
 
 _BannerResult = tuple[str, ...] | BaseException
@@ -109,8 +127,14 @@ class HomingCycle:
 
 
 def firmware_from_banner(lines: Iterable[str]) -> tuple[Firmware | None, str | None]:
-    """The profile and version printed in a banner (``(None, None)`` when it names none)."""
+    """The profile and version printed in a banner (``(None, None)`` when it names none): the
+    2024 family's one line ``WLKATA Robot started successfully.Firmware version:MT4,20240820``
+    (version ``MT4,20240820``), or ``Qinnew Robot 20191228_2 based on...`` (classic before
+    2021, else 2021)."""
     for line in lines:
+        one_line = _ONE_LINE_VERSION_RE.search(line)
+        if one_line is not None and "started successfully" in line:
+            return "2024", one_line.group(1)
         match = _VERSION_RE.search(line)
         if match is not None:
             date = match.group(1)
@@ -124,6 +148,7 @@ class RobotCondition:
 
     def __init__(self, firmware: Firmware | None) -> None:
         self.firmware: Firmware | None = firmware
+        self.firmware_evidence: str | None = None if firmware is None else "given (firmware=)"
         self.firmware_version: str | None = None
         self.banner: tuple[str, ...] | None = None
         self.alarm: str | None = None
@@ -193,20 +218,34 @@ class RobotCondition:
 
     # ---- events ----
 
+    @staticmethod
+    def refuses_a_line(text: str, code: int | None) -> bool:
+        """True for the 2024 family's :data:`REFUSAL_ALARMS` (``Error,A106,...``): the refusal
+        of the line being parsed, not a state of the arm (its ``ok`` follows, or
+        ``[Reset to continue]`` does: :meth:`on_feedback`)."""
+        if code in REFUSAL_ALARMS:
+            _log.info("robot refuses a line through its alarm table: %s", text)
+            return True
+        return False
+
     def on_alarm(self, text: str) -> bool:
         """Remember an alarm; True when only a reset clears it (nothing is answered)."""
         self.alarm = text
         self.alarm_epoch += 1
         _log.warning("robot alarm: %s", text)
-        if text.strip().lower() in RESET_ONLY_ALARMS:
+        name = text.split(":", 1)[0].strip().lower()  # 2024: "Hard limit:X", the axis after
+        if name in RESET_ONLY_ALARMS:
             self.reset_only = text
             return True
         return False
 
-    def on_feedback(self, text: str) -> None:
-        """``[Reset to continue]``: the firmware takes nothing but ``%`` now."""
-        if "reset to continue" in text.lower():
-            self.reset_only = self.reset_only or (self.alarm or text)
+    def on_feedback(self, text: str) -> bool:
+        """``[Reset to continue]``: the firmware takes nothing but ``%`` now (True when this
+        is news: then the waiting calls fail)."""
+        if "reset to continue" in text.lower() and self.reset_only is None:
+            self.reset_only = self.alarm or text
+            return True
+        return False
 
     def on_reset(self, now: float) -> None:
         """A banner started: the robot reset (a homing search in progress ended with it)."""
@@ -222,12 +261,8 @@ class RobotCondition:
         if version is not None:
             self.firmware_version = version
         if firmware is not None:
-            if self.firmware is not None and self.firmware != firmware:
-                _log.warning(
-                    "firmware=%r was given but the banner says %r", self.firmware, firmware
-                )
-            else:
-                self.firmware = firmware
+            line = next((line for line in lines if version is not None and version in line), "")
+            self.learn_firmware(firmware, f"the banner {line!r}")
         keep = []
         for asked_at, fut in self._banner_waiters:
             if fut.done():
@@ -246,8 +281,38 @@ class RobotCondition:
             self.base_offset = (float(numbers[41]), float(numbers[42]), float(numbers[43]))
         if isinstance(numbers, Mapping) and all(n in numbers for n in (24, 25)):
             self.homing_rates = (float(numbers[24]), float(numbers[25]))
-        if self.firmware is None and values:
-            self.firmware = "2021" if 29 in values else "classic"
+        if not values:
+            return
+        family = sorted(values & FAMILY_2024_SETTINGS)
+        if family:
+            shown = ", ".join(f"${n}" for n in family)
+            self.learn_firmware("2024", f"$$ lists {shown} (only the 2024 family has them)")
+        elif 29 in values:
+            self.learn_firmware("2021", "$$ lists $29..$34 (the 2021 manual's DH lengths)")
+        else:
+            self.learn_firmware("classic", "$$ lists no $29 (D1) and no 2024 setting")
+
+    def learn_build_info(self, output: Iterable[str]) -> None:
+        """The lines a ``$I`` printed: without the classic build suffix, the 2024 family."""
+        for line in output:
+            match = _BUILD_INFO_RE.fullmatch(line.strip())
+            if match is not None and not match.group(1).endswith(CLASSIC_BUILD_SUFFIX):
+                self.learn_firmware("2024", f"$I {line.strip()!r} has no {CLASSIC_BUILD_SUFFIX}")
+
+    def learn_firmware(self, firmware: Firmware, evidence: str) -> None:
+        """The family is decided once per connection, by the first evidence (a banner, ``$$``,
+        ``$I``, or ``firmware=`` given): later evidence that disagrees is logged, not taken."""
+        if self.firmware is None:
+            self.firmware, self.firmware_evidence = firmware, evidence
+            _log.info("firmware family %s: %s", firmware, evidence)
+        elif self.firmware != firmware:
+            _log.warning(
+                "firmware family %r (%s), but %s says %r",
+                self.firmware,
+                self.firmware_evidence,
+                evidence,
+                firmware,
+            )
 
     def cleared_by_reset(self, alarm_epoch: int) -> None:
         """A reset() ended: the reset-only lock is gone, and so is an alarm raised before it."""
@@ -262,6 +327,8 @@ class RobotCondition:
         once when it was written): the facts its success settles, decided here only."""
         if parsed is None or not isinstance(reply, LineAcknowledged) or reply.refusal is not None:
             return
+        if parsed.text == "$I":
+            self.learn_build_info(reply.output)
         if parsed.clears_alarm:
             self.unlocked()
         if parsed.changes_base_offset:

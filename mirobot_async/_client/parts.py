@@ -92,8 +92,10 @@ class ClientParts:
         implementation: Implementation = "fast",
         status_timeout: float = STATUS_TIMEOUT,
     ) -> None:
-        if firmware not in (None, "2021", "classic"):
-            raise MirobotUsageError(f"firmware={firmware!r} must be '2021', 'classic' or None")
+        if firmware not in (None, *gcode.FIRMWARE_PROFILES):
+            raise MirobotUsageError(
+                f"firmware={firmware!r} must be '2021', 'classic', '2024' or None"
+            )
         if implementation not in ("fast", "original"):
             raise MirobotUsageError(
                 f"implementation={implementation!r} must be 'fast' or 'original'"

@@ -110,7 +110,7 @@ class EventRouter:
         elif isinstance(event, StatusCorrupted):
             self._poller.on_corrupted(event.reason)
         elif isinstance(event, AlarmRaised):
-            self._on_alarm(event.text)
+            self._on_alarm(event.text, event.code)
         elif isinstance(event, ResetDetected):
             stats.resets += 1
             assert self._loop is not None
@@ -129,8 +129,8 @@ class EventRouter:
             self._lines.on_banner()
         elif isinstance(event, UnsolicitedText):
             _log.info("robot says: %s", event.text)
-            if event.kind is ReplyKind.FEEDBACK:
-                self._condition.on_feedback(event.text)
+            if event.kind is ReplyKind.FEEDBACK and self._condition.on_feedback(event.text):
+                self._fail_for_reset_only(self._condition.reset_only or event.text)
         elif isinstance(event, ProtocolViolation):
             stats.protocol_violations += 1
             _log.warning("protocol violation: %s: %r", event.description, event.data)
@@ -138,13 +138,18 @@ class EventRouter:
             self.on_lost(None)
         self._wire.notify()
 
-    def _on_alarm(self, text: str) -> None:
+    def _on_alarm(self, text: str, code: int | None) -> None:
+        if self._condition.refuses_a_line(text, code):
+            return  # the line's output holds it: its reply says what was refused
         self._wire.stats.alarms += 1
         self._guard.forget("alarm")  # an alarm may stop the arm anywhere
         if not self._condition.on_alarm(text):
             return  # the firmware still answers lines, or a banner follows
-        # Hard limit: the firmware processes nothing but "%", not even "?". Fail every pending
-        # line and status request now; their slots stay, so late replies are still matched.
+        self._fail_for_reset_only(text)
+
+    def _fail_for_reset_only(self, text: str) -> None:
+        """Hard limit: the firmware processes nothing but "%", not even "?". Fail every pending
+        line and status request now; their slots stay, so late replies are still matched."""
         self._lines.fail_waiting(
             lambda slot: MirobotAlarmError(slot.command, text, output=("ALARM: " + text,)),
             forget=False,

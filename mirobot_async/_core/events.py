@@ -98,9 +98,11 @@ class StatusCorrupted:
 
 @dataclass(frozen=True, slots=True)
 class AlarmRaised:
-    """``ALARM: <text>``: the robot entered Alarm (hard limit, abort during cycle...)."""
+    """``ALARM: <text>``: the robot entered Alarm (hard limit, abort during cycle...); 2024
+    ``Error,A102,Soft limit:B`` -> text ``Soft limit:B``, ``code`` 102 (None when unnumbered)."""
 
     text: str
+    code: int | None = None
 
 
 @dataclass(frozen=True, slots=True)

@@ -21,6 +21,7 @@ from mirobot_async._core.line import MAX_INT_DIGITS, normalize_line, parse_line
 from mirobot_async._core.settings import SETTINGS, SettingInfo, setting_problem
 from mirobot_async._core.validation import ModalState, check_line, check_program, parse_words
 from mirobot_async._core.values import (
+    COMMAND_PROFILE,
     FIRMWARE_PROFILES,
     GRIPPER_CLOSE,
     GRIPPER_OPEN,
@@ -383,7 +384,7 @@ def arc(
     firmware's ``E116 Arc radius error``) or of length zero is rejected here.
     """
     profile = _check_firmware(firmware)
-    if profile != "2021":
+    if COMMAND_PROFILE[profile] != "2021":
         raise _usage(f"arc (G2/G3) needs the 2021 firmware, not firmware={profile!r}")
     places = _check_decimals(decimals)
     x_text = fmt_number(x, places, name="x")
@@ -468,7 +469,7 @@ def home_axis(axis: int, *, firmware: str = "2021") -> bytes:
     manual only documents ``$H7``, as "fast homing of the arm, then axis 7 (rail)".
     """
     profile = _check_firmware(firmware)
-    if profile != "2021":
+    if COMMAND_PROFILE[profile] != "2021":
         raise _usage(f"home_axis ($H0..$H7) needs the 2021 firmware, not firmware={profile!r}")
     if isinstance(axis, bool) or not isinstance(axis, int) or not 0 <= axis <= 7:
         raise _usage(f"axis={axis!r} must be an integer 0..7")
@@ -481,7 +482,7 @@ def home_compact(*, firmware: str = "2021") -> bytes:
     2021 firmware only (2021 manual section 2.1.1).
     """
     profile = _check_firmware(firmware)
-    if profile != "2021":
+    if COMMAND_PROFILE[profile] != "2021":
         raise _usage(f"home_compact ($HE) needs the 2021 firmware, not firmware={profile!r}")
     return b"$HE\n"
 
@@ -489,7 +490,7 @@ def home_compact(*, firmware: str = "2021") -> bytes:
 def zero_pose(*, firmware: str = "2021") -> bytes:
     """``$M``: rapid move of every joint to its nominal 0 deg (2021 firmware only)."""
     profile = _check_firmware(firmware)
-    if profile != "2021":
+    if COMMAND_PROFILE[profile] != "2021":
         raise _usage(f"zero_pose ($M) needs the 2021 firmware, not firmware={profile!r}")
     return b"$M\n"
 

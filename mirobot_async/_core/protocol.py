@@ -347,12 +347,8 @@ class MirobotConnection:
         self._events.append(ConnectionClosed())
 
     def _overlong(self, raw: bytes) -> None:
-        self._events.append(
-            ProtocolViolation(
-                f"line longer than {self.max_reply_length} bytes; skipped to the next line end",
-                raw[: self.max_reply_length],
-            )
-        )
+        what = f"line longer than {self.max_reply_length} bytes; skipped to the next line end"
+        self._events.append(ProtocolViolation(what, raw[: self.max_reply_length]))
 
     def _handle_line(self, raw_bytes: bytes) -> None:
         """Turn one complete, non-empty, not-too-long line into events."""
@@ -376,19 +372,23 @@ class MirobotConnection:
         elif kind is ReplyKind.STATUS:
             self._status(reply.text)
         elif kind is ReplyKind.ALARM:
-            events.append(AlarmRaised(reply.text))
-        elif kind is ReplyKind.BANNER_START or kind is ReplyKind.BANNER_END:
+            if reply.code is not None and (self._pending or self._doubt_open()):
+                self._add_output(reply.raw.strip(), raw_bytes)  # 2024: maybe a refusal
+            events.append(AlarmRaised(reply.text, reply.code))
+        elif kind in _BANNER_FIRST:  # (a 2024 BANNER is a whole banner in one line)
             self._reset()
             self._banner = []
-            self._banner_line(reply.raw.strip(), kind is ReplyKind.BANNER_END)
-        else:  # TEXT, INFO, FEEDBACK, possibly with a glued ok
-            text = reply.raw.strip()
-            if reply.ok:
-                self._final_ok(text, reply, raw_bytes)
-            elif self._pending or (self._doubt_open() and kind is not ReplyKind.FEEDBACK):
-                self._add_output(text, raw_bytes)  # ([...] feedback after a reset: its own)
-            else:
-                events.append(UnsolicitedText(kind, reply.text))
+            self._banner_line(reply.raw.strip(), kind is not ReplyKind.BANNER_START)
+        elif kind is ReplyKind.UNKNOWN:
+            events.append(ProtocolViolation("a line in none of the known reply forms", raw_bytes))
+        elif reply.ok:  # TEXT, INFO, FEEDBACK from here on
+            self._final_ok(reply.raw.strip(), reply, raw_bytes)
+        elif self._pending or (self._doubt_open() and kind is not ReplyKind.FEEDBACK):
+            self._add_output(reply.raw.strip(), raw_bytes)  # ([...] after a reset: its own)
+            if kind is ReplyKind.FEEDBACK and reply.text.lower() == "reset to continue":
+                events.append(UnsolicitedText(kind, reply.text))  # no reply comes until "%"
+        else:
+            events.append(UnsolicitedText(kind, reply.text))
 
     def _status(self, line: str) -> None:
         if self._status_outstanding:
@@ -493,6 +493,8 @@ class MirobotConnection:
             self._banner = None
             self._events.append(BannerReceived(tuple(banner)))
 
+
+_BANNER_FIRST = frozenset({ReplyKind.BANNER_START, ReplyKind.BANNER_END, ReplyKind.BANNER})
 
 # Line kinds that are part of a banner while one is being collected. OK, ERROR, STATUS and ALARM
 # keep their meaning; a second BANNER_START (the classic banner has "Grbl 0.9j ..." and then

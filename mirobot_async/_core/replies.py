@@ -25,10 +25,13 @@ import enum
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Final
 
 from mirobot_async.errors import MirobotProtocolError, RefusalReason
 
 __all__ = [
+    "NONFINAL_INFO_CODES",
+    "REFUSAL_TEXT_CODES",
     "Refusal",
     "Reply",
     "ReplyKind",
@@ -248,7 +251,9 @@ class ReplyKind(enum.Enum):
     STATUS = "status"  # "<...>" (possibly corrupted: parse it to know)
     BANNER_START = "banner start"  # first line of the reset banner: the robot reset
     BANNER_END = "banner end"  # "Using reset pos!": last line of the banner
+    BANNER = "banner"  # a whole one-line banner (2024: "WLKATA Robot started successfully...")
     TEXT = "text"  # anything else (classic bare info, banner body, ""), also empty lines
+    UNKNOWN = "unknown"  # a line in a reply form (Error,/Info,/non-ASCII) but none of the known
 
 
 @dataclass(frozen=True, slots=True)
@@ -261,6 +266,11 @@ class Reply:
     (``Error, E113,...`` -> 113). ``ok`` is True for ``ok`` and for a text line ending in a glued
     ``ok`` (``in homeing moving...ok``): such a line is both text and the final reply. ``raw`` is
     the line as received, without its line ending.
+
+    The 2024 family (EVIDENCE-NEWER.md) numbers its texts: ``Info,E102,Invalid statement``
+    (a refusal: ERROR, code 102), ``Error,A102,Soft limit:B`` (ALARM, code 102),
+    ``Info,A100,Line Discard`` (INFO, code 100; its ``ok`` follows), ``Error,E118,...`` (TEXT,
+    code 118: an "``ok`` but dropped" text, see :data:`REFUSAL_TEXT_CODES`).
     """
 
     kind: ReplyKind
@@ -270,14 +280,52 @@ class Reply:
     raw: str
 
 
-# 2021 error: "Error, E113,Undefined feed rate"; lenient about spaces, the "E" and a missing code.
-_ERROR_2021_RE = re.compile(
-    r"Error\s*,\s*(?:[Ee]?([0-9]{1,9})(?:\s*[,:]\s*|\s+|$))?(.*)", re.DOTALL
+# Numbered lines: 2021 "Error, E113,Undefined feed rate"; 2024 "Error,E113,...",
+# "Error,E000, Invalid gcode ID:24", "Error,A102,Soft limit:B", "Info,E102,Invalid statement",
+# "Info,A100,Line Discard". Spaces after the commas optional; the text may be empty.
+_CODED_RE = re.compile(
+    r"(Error|Info)\s*,\s*([EA])([0-9]{1,9})\s*(?:,\s*(.*))?", re.IGNORECASE | re.DOTALL
 )
+# What claims to be a numbered or an error line: one that does not match _CODED_RE is UNKNOWN.
+_CODED_HEAD_RE = re.compile(r"(?:Error\s*,|Info\s*,\s*[EA][0-9])", re.IGNORECASE)
 # Classic GRBL style with a number only ("error:23" as GRBL 1.1 prints it).
 _DIGITS_RE = re.compile(r"[0-9]{1,9}")
 _INFO_RE = re.compile(r"Info\s*[,:]\s*(.*)", re.IGNORECASE | re.DOTALL)
 _SWITCH_ALARM_RE = re.compile(r"[01]{8}ALARM:(.*)", re.IGNORECASE)
+# Printable ASCII and tab: a line with any other byte is line noise, not a reply.
+_NOISE_RE = re.compile(r"[^\t\x20-\x7e]")
+# The 2024 family's one-line banner: "WLKATA Robot started successfully.Firmware
+# version:MT4,20240820" (EVIDENCE-NEWER.md 1).
+_ONE_LINE_BANNER_RE = re.compile(r".*\bstarted successfully\b.*\bFirmware version\s*:.*")
+
+REFUSAL_TEXT_CODES: Final = frozenset({118, 119})
+"""``Error,E118,The given location is outside the workspace.`` and ``Error,E119,The angle of an
+axis is out of range.``: the 2024 family's forms of the classic "``ok`` but dropped" texts
+(``GOAL OUT OF WORKSPACE...``, ``There is one angle out of limit!!!``). **INFERRED**
+(EVIDENCE-NEWER.md 2): printed as the classic texts are (an empty line first), so their ``ok``
+follows; they are text for the line, never its final reply. Taking them as final would give
+that ``ok`` to the next line (a shifted attribution); this way a missing ``ok`` is at worst a
+lost reply, which the client detects."""
+
+NONFINAL_INFO_CODES: Final = frozenset({100})
+"""``Info,A100,Line Discard``: its ``ok`` follows (the message table: ``...Line Discard\nok``)."""
+
+
+def _coded(s: str, raw: str) -> Reply | None:
+    """A numbered 2021/2024 line, or None when ``s`` is not one."""
+    m = _CODED_RE.fullmatch(s)
+    if m is None:
+        return None
+    prefix, letter, number, rest = m.groups()
+    code, text = int(number), (rest or "").strip()
+    if letter in "Aa":
+        if prefix[0] in "Ii" or code in NONFINAL_INFO_CODES:
+            return Reply(ReplyKind.INFO, text, code, False, raw)
+        return Reply(ReplyKind.ALARM, text, code, False, raw)
+    if prefix[0] in "Ee" and code in REFUSAL_TEXT_CODES:
+        ok = _glued_ok(s)  # as the classic GOAL text's "...THETA3!ok"
+        return Reply(ReplyKind.TEXT, s[:-2].rstrip() if ok else s, code, ok, raw)
+    return Reply(ReplyKind.ERROR, text, code, False, raw)
 
 
 def _glued_ok(text: str) -> bool:
@@ -306,12 +354,18 @@ def classify_line(line: str | bytes) -> Reply:
     * ``ok`` -> OK.
     * ``<...`` -> STATUS (also when truncated: it is a status reply, to be parsed and maybe
       reported corrupted, never text for a command).
-    * ``error: <text>`` -> ERROR (``error:23`` gives code 23); ``Error, E113,<text>`` -> ERROR with
-      code 113 (spaces after commas optional).
+    * a line with a byte outside printable ASCII (line noise) -> UNKNOWN.
+    * ``error: <text>`` -> ERROR (``error:23`` gives code 23); ``Error, E113,<text>`` (2021) and
+      ``Error,E113,<text>`` (2024) -> ERROR with code 113 (spaces after commas optional), except
+      :data:`REFUSAL_TEXT_CODES` (TEXT with the code); ``Info,E102,<text>`` (2024) -> ERROR with
+      code 102 (the line's only reply); ``Error,A102,<text>`` -> ALARM with code 102;
+      ``Info,A100,<text>`` -> INFO with code 100; any other ``Error,...`` or ``Info,E<digit>...``
+      line -> UNKNOWN (never a final reply).
     * ``ALARM: <text>`` -> ALARM, also after the eight switch bits the firmware prints before a
       hard-limit alarm (``00010000ALARM: Hard limit``).
     * ``Grbl x ['$' for help]`` or ``... based on Grbl ...`` -> BANNER_START;
-      ``Using reset pos!`` -> BANNER_END.
+      ``Using reset pos!`` -> BANNER_END; ``... started successfully ... Firmware version:...``
+      -> BANNER (a whole banner in one line).
     * otherwise the line is text; a glued ``ok`` at its end is removed and sets ``ok=True``; the
       remainder is ``[<text>]`` -> FEEDBACK, ``Info, <text>`` -> INFO, or anything else -> TEXT
       (``Qinnew``/``WLKATA`` banner lines, classic bare replies such as ``M50: Unlock each axis.``).
@@ -327,17 +381,16 @@ def classify_line(line: str | bytes) -> Reply:
     first = s[0]
     if first == "<":
         return Reply(ReplyKind.STATUS, s, None, False, raw)
-    if first in "Ee":
-        head = s[:6].lower()
-        if head.startswith("error:"):
+    if _NOISE_RE.search(s) is not None:
+        return Reply(ReplyKind.UNKNOWN, s, None, False, raw)
+    if first in "EeIi":
+        if s[:6].lower() == "error:":
             text = s[6:].strip()
             code = int(text) if _DIGITS_RE.fullmatch(text) else None
             return Reply(ReplyKind.ERROR, text, code, False, raw)
-        if head.startswith("error") and (m := _ERROR_2021_RE.fullmatch(s)) is not None:
-            number, text = m.groups()
-            return Reply(
-                ReplyKind.ERROR, text.strip(), None if number is None else int(number), False, raw
-            )
+        if _CODED_HEAD_RE.match(s) is not None:
+            coded = _coded(s, raw)
+            return coded if coded is not None else Reply(ReplyKind.UNKNOWN, s, None, False, raw)
     elif first in "Aa" and s[:6].upper() == "ALARM:":
         return Reply(ReplyKind.ALARM, s[6:].strip(), None, False, raw)
     elif first in "01" and (m := _SWITCH_ALARM_RE.fullmatch(s)) is not None:
@@ -349,6 +402,8 @@ def classify_line(line: str | bytes) -> Reply:
         return Reply(ReplyKind.BANNER_END, s, None, False, raw)
     if "based on Grbl" in s:
         return Reply(ReplyKind.BANNER_START, s, None, False, raw)
+    if "started successfully" in s and _ONE_LINE_BANNER_RE.fullmatch(s) is not None:
+        return Reply(ReplyKind.BANNER, s, None, False, raw)
     ok = _glued_ok(s)
     body = s[:-2].rstrip() if ok else s
     if body.startswith("[") and body.endswith("]"):
@@ -377,11 +432,18 @@ class Refusal:
 
 # Matched leniently (substring, case-insensitive), so a 2021 "Info, " prefix or a trailing glued
 # "ok" does not hide them. The GOAL text is the vendor's ("VAILD VALUS"); only its start is used.
+# The 2024 family's forms (EVIDENCE-NEWER.md 2, INFERRED as refusals: they replace the classic
+# texts): "Error,A106,Locked status of each axis", "Error,A102,Soft limit:B" (the axis after the
+# colon), "Error,E118,The given location is outside the workspace.", "The Cartesian position
+# exceeds the boundary.", "Error,E119,The angle of an axis is out of range.", "Error,A107,Axis 2
+# and 3 have conflicting angles.:", "Axis 2 and 3 angles are too small." / "... too big.".
 _REFUSAL_RE = re.compile(
     r"(?P<locked>locked status of each axis)"
-    r"|(?P<soft>soft limit triggered\s*:?\s*(?P<axis>[A-Za-z](?![A-Za-z]))?)"
-    r"|(?P<goal>goal out of workspace)"
-    r"|(?P<angle>angle out of limit)",
+    r"|(?P<soft>soft limit(?:\s+triggered\s*:?|\s*:)\s*(?P<axis>[A-Za-z](?![A-Za-z]))?)"
+    r"|(?P<goal>goal out of workspace|location is outside the workspace"
+    r"|position exceeds the boundary)"
+    r"|(?P<angle>angle out of limit|angle of an axis is out of range"
+    r"|axis 2 and 3 (?:have conflicting angles|angles are too))",
     re.IGNORECASE,
 )
 

@@ -76,7 +76,7 @@ def _build_settings(profile: str) -> dict[int, SettingInfo]:
         SettingInfo(26, "homing switch debounce", "ms", "int", 0, 65535),
         SettingInfo(27, "homing pull-off", "deg", "float", 0),
     ]
-    if profile == "2021":
+    if profile in ("2021", "2024"):
         s += [
             SettingInfo(28, "direction of motion after homing (axis mask)", "", "int", 0, 255),
             SettingInfo(29, "DH length D1", "mm"),
@@ -98,6 +98,13 @@ def _build_settings(profile: str) -> dict[int, SettingInfo]:
                 50, "tool type (0 none, 1 suction cup, 2 gripper, 3 soft gripper)", "", "int", 0, 3
             ),
         ]
+    if profile == "2024":  # EVIDENCE-NEWER.md 1: what its $$ lists beyond the 2021 manual
+        s += [
+            SettingInfo(44, "line discard number (2024)", ""),
+            SettingInfo(45, "rail / conveyor mode (2024)", ""),
+            SettingInfo(51, "(2024; meaning not in the evidence)", ""),
+            SettingInfo(52, "colour sensor (2024)", ""),
+        ]
     groups = (
         (100, "steps per {u}", "steps/{u}"),
         (110, "max rate", "{u}/min"),
@@ -116,7 +123,7 @@ def _build_settings(profile: str) -> dict[int, SettingInfo]:
                     0,
                 )
             )
-    if profile == "2021":
+    if profile in ("2021", "2024"):
         # The 2021 manual lists $150 twice: J4 calibration (3.9) and backlash switch (3.10).
         for offset, (axis, axis_unit) in enumerate(_SETTING_AXES):
             s.append(SettingInfo(150 + offset, f"calibration position {axis}", axis_unit))

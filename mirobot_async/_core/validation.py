@@ -34,6 +34,7 @@ from mirobot_async._core.line import (
 from mirobot_async._core.modal import HOMED, POWER_ON_FEED, Chaining, MotionModes
 from mirobot_async._core.settings import setting_problem
 from mirobot_async._core.values import (
+    COMMAND_PROFILE,
     JOINT_NAMES,
     JOINT_RANGES,
     PWM_MAX,
@@ -64,6 +65,7 @@ _JOINT_LETTERS: Final = ("X", "Y", "Z", "A", "B", "C")
 _G_CODES: Final[dict[str, frozenset[int]]] = {
     "classic": frozenset({0, 1, 4, 21, 90, 91}),
     "2021": frozenset({0, 1, 2, 3, 4, 5, 21, 90, 91}),
+    "2024": frozenset({0, 1, 2, 3, 4, 5, 21, 90, 91}),  # ASSUMED: the 2021 manual's
 }
 _M_CODES: Final = frozenset({2, 3, 4, 5, 20, 21, 30, 50})
 _G_GROUPS: Final[dict[int, str]] = {
@@ -191,7 +193,7 @@ def _check_dollar(parsed: ParsedLine, profile: str, state: ModalState, problems:
     dollar = parsed.dollar
     assert dollar is not None
     if norm in _DOLLAR_SIMPLE or norm in _DOLLAR_2021:
-        if norm in _DOLLAR_2021 and profile != "2021":
+        if norm in _DOLLAR_2021 and COMMAND_PROFILE[profile] != "2021":
             problems.append(f"{norm} needs the 2021 firmware")
             return
         if dollar.kind == "homing":
@@ -460,7 +462,7 @@ def _follow(parsed: ParsedLine, profile: str, state: ModalState) -> str | None:
             if (
                 parsed.dollar.kind == "homing"
                 and (norm in _DOLLAR_SIMPLE or norm in _DOLLAR_2021)
-                and (norm not in _DOLLAR_2021 or profile == "2021")
+                and (norm not in _DOLLAR_2021 or COMMAND_PROFILE[profile] == "2021")
             ):
                 state.take(HOMED)
     state.chain = state.chain.after(parsed, before, profile)

@@ -15,6 +15,7 @@ from mirobot_async._core.line import MAX_LINE_LENGTH
 from mirobot_async.errors import MirobotUsageError
 
 __all__ = [
+    "COMMAND_PROFILE",
     "FIRMWARE_PROFILES",
     "GRIPPER_CLOSE",
     "GRIPPER_OPEN",
@@ -31,13 +32,19 @@ __all__ = [
     "VALVE_GRIPPER_OPEN",
     "check_decimals",
     "check_firmware",
+    "command_profile",
     "fmt_number",
     "real_number",
     "show_number",
 ]
 
-FIRMWARE_PROFILES: Final = ("2021", "classic")
-"""The two firmware generations (PROTOCOL.md section 1)."""
+FIRMWARE_PROFILES: Final = ("2021", "classic", "2024")
+"""The firmware families (PROTOCOL.md section 1; 2024: EVIDENCE-NEWER.md, docs/2024-profile.md)."""
+
+COMMAND_PROFILE: Final[dict[str, str]] = {"2021": "2021", "classic": "classic", "2024": "2021"}
+"""The manual whose commands, geometry and settings a family follows. **ASSUMED** for 2024:
+the evidence shows its replies, banner, settings list and states, nothing of its commands or
+geometry, and its message table is the 2021 one renumbered (docs/2024-profile.md)."""
 
 PWM_MIN: Final = 0
 PWM_MAX: Final = 1000
@@ -69,6 +76,7 @@ JOINT_RANGES: Final[dict[str, tuple[float, float]]] = {
 RAIL_RANGES: Final[dict[str, tuple[float, float]]] = {
     "2021": (0.0, 500.0),
     "classic": (-1000.0, 1000.0),
+    "2024": (0.0, 500.0),
 }
 """Rail (D axis) range in mm per firmware profile."""
 
@@ -86,6 +94,12 @@ def check_firmware(firmware: object) -> str:
             f"firmware={firmware!r} is not one of {', '.join(FIRMWARE_PROFILES)}"
         )
     return str(firmware)
+
+
+def command_profile(firmware: object) -> str:
+    """``"2021"`` or ``"classic"``: the manual whose commands the family ``firmware`` follows
+    (:data:`COMMAND_PROFILE`); MirobotUsageError for an unknown family."""
+    return COMMAND_PROFILE[check_firmware(firmware)]
 
 
 def check_decimals(decimals: object) -> int:

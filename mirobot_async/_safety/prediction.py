@@ -109,6 +109,10 @@ _M_GROUPS: Final = {
 }
 _ZERO: Final[Joints] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
+_KNOWN_FAMILIES: Final = ("2021", "classic")
+"""The families whose motion semantics are known (manuals, oracle); on others (2024) what
+differs between them is refused (docs/2024-profile.md)."""
+
 
 @dataclass(frozen=True, slots=True)
 class MachineState:
@@ -126,7 +130,10 @@ class MachineState:
     gate_lift: float | None = None
     """``$49``, the lift of a ``G5`` gate move (2021)."""
     firmware: str | None = None
-    """``"2021"``, ``"classic"`` or None (unknown: features of one profile are refused)."""
+    """``"2021"``, ``"classic"``, ``"2024"`` or None (unknown: features of one profile are
+    refused; on 2024 what the evidence does not show: ``M20 G1`` unless ``$$`` lists ``$35``
+    (then as 2021), ``$M``, arcs, gate moves, a non-zero base offset, ``$35``/``$41..$43``/
+    ``$49``)."""
     parser: ParserPosition | None = None
     """The parser's position when it differs from ``joints``/``pose`` (None: the same)."""
     work_offset: Offset | None = ZERO_OFFSET
@@ -230,6 +237,8 @@ def _dollar(envelope: Envelope, parsed: ParsedLine, state: MachineState, what: s
     if kind == "zero":
         if state.firmware == "classic":
             return Prediction(parsed, state, False)  # the classic firmware refuses $M
+        if state.firmware != "2021":
+            raise _Refuse(f"$M on the {state.firmware} firmware is not known to the envelope")
         envelope.check_joints(_ZERO, start=state.joints, what=what)
         pose = forward(_ZERO, envelope.dh, envelope.tool)
         return Prediction(parsed, replace(state, joints=_ZERO, pose=pose), True)
@@ -503,12 +512,22 @@ def _cartesian(
                 "an absolute M20 move needs the base offset ($41..$43), which is unknown; "
                 "read the settings ($$) first"
             )
+        if base.firmware not in _KNOWN_FAMILIES and any(offset):
+            raise _Refuse(
+                f"whether the {base.firmware} firmware adds the base offset ($41..$43 = "
+                f"{offset}) to an absolute M20 target is not known; set it to 0"
+            )
         for k, delta in zip("XYZ", offset, strict=True):
             if k in axes:
                 axes[k] += delta
     target = as_pose(combine(axes, relative, base.pose, "current pose"))
     motion = modes.motion
     end: CartesianEnd
+    if motion == 1 and base.firmware not in _KNOWN_FAMILIES and base.linear_g1 is None:
+        raise _Refuse(
+            f"how M20 G1 moves on the {base.firmware} firmware is not known (its $$ lists no "
+            "$35, the 2021 switch between a straight line and a joint move)"
+        )
     if motion == 1 and base.firmware == "2021" and base.linear_g1 is None:
         raise _Refuse("how M20 G1 moves depends on $35, which is unknown; read the settings first")
     # oracle: the classic firmware (and the 2021 one with $35=0) runs M20 G1 in joint space

@@ -58,7 +58,9 @@ async def _open_arm(args: argparse.Namespace, envelope: Envelope | None) -> Asyn
     """The arm at ``--port`` as it is, or an embedded virtual Mirobot, homed first."""
     from mirobot_async._client.client import Mirobot
 
-    firmware: Literal["2021", "classic"] = "classic" if args.firmware == "classic" else "2021"
+    firmware: Literal["2021", "classic", "2024"] = (
+        args.firmware if args.firmware in ("classic", "2024") else "2021"
+    )
     if args.port is not None:
         async with Mirobot.connect(
             args.port, firmware=args.firmware, envelope=envelope, record=args.record
@@ -114,7 +116,7 @@ async def serve_view(args: argparse.Namespace) -> int:
         if source is not None:
             offset: tuple[float, float, float] | None = (0.0, 0.0, 0.0)
             lift: float | None = None
-            if firmware == "2021":  # absolute M20 targets add $41..$43; G5 lifts by $49
+            if firmware != "classic":  # absolute M20 targets add $41..$43; G5 lifts by $49
                 settings = await arm.settings()  # read-only ($$)
                 offset = (settings.get(41, 0.0), settings.get(42, 0.0), settings.get(43, 0.0))
                 lift = settings.get(49)

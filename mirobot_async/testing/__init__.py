@@ -356,7 +356,8 @@ async def start_emulator(
 ) -> AsyncIterator[str]:
     """Run a virtual Mirobot for the duration of the block; yields its port URL.
 
-    ``firmware`` is ``"2021"`` or ``"classic"``; ``time_scale`` is simulated seconds per wall
+    ``firmware`` is ``"2021"``, ``"classic"`` or ``"2024"``; ``time_scale`` is simulated seconds
+    per wall
     second (0: motion completes at once, 1: real time, 100: a 10 s homing takes 0.1 s);
     ``extra_args`` go to the ``mirobot-emulator`` command line (``--baud``, ``--fault``...);
     ``listen`` is ``"pty"``, ``"tcp"`` or ``"HOST:PORT"`` (``None``: ``$MIROBOT_TEST_LINK``, else a
@@ -411,7 +412,7 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     group = parser.getgroup("mirobot", "virtual Mirobot (mirobot-async)")
     group.addoption(
         "--mirobot-firmware",
-        choices=("2021", "classic"),
+        choices=("2021", "classic", "2024"),
         default=DEFAULT_FIRMWARE,
         help="firmware profile of the mirobot_emulator fixture (default: 2021)",
     )

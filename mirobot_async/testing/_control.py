@@ -89,8 +89,8 @@ def emulator_args(
     extra_args: Sequence[str] = (),
 ) -> list[str]:
     """The emulator's options for these settings (checked: :class:`MirobotUsageError`)."""
-    if firmware not in ("2021", "classic"):
-        raise MirobotUsageError(f"firmware={firmware!r} must be '2021' or 'classic'")
+    if firmware not in ("2021", "classic", "2024"):
+        raise MirobotUsageError(f"firmware={firmware!r} must be '2021', 'classic' or '2024'")
     scale = float(time_scale)
     if not scale >= 0 or scale == float("inf"):
         raise MirobotUsageError(f"time_scale={time_scale!r} must be a finite number >= 0")

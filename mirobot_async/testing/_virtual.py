@@ -68,14 +68,15 @@ class _Clock(Protocol):
     def next_wall_deadline(self) -> float | None: ...
 
 
-FIRMWARES: Final = ("2021", "classic")
+FIRMWARES: Final = ("2021", "classic", "2024")
 _numbers = itertools.count(1)
 
 
 class InProcessArm:
     """One virtual Mirobot in this process, reachable as :attr:`url` while open.
 
-    ``firmware`` is ``"2021"`` or ``"classic"``; ``time_scale`` is simulated seconds per wall
+    ``firmware`` is ``"2021"``, ``"classic"`` or ``"2024"``; ``time_scale`` is simulated seconds
+    per wall
     second (0: motion completes at once, 1: real time). ``homing_seconds`` overrides the
     duration of the homing search (``None``: the profile's). Use it as a (sync or async)
     context manager, or call :meth:`open` and :meth:`close`.

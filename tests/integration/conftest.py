@@ -48,7 +48,7 @@ from mirobot_async.testing import (
     session_link,
 )
 
-PROFILES = ("2021", "classic")
+PROFILES = ("2021", "classic", "2024")
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:

@@ -38,8 +38,8 @@ async def test_cancelling_one_call_mid_reply_leaves_the_others_their_replies(
     slow.cancel()
     with pytest.raises(asyncio.CancelledError):
         await slow
-    info = "Info, " if profile == "2021" else ""
-    assert await m20 == ((f"{info}M20: Cartesian mode start.",) if profile == "2021" else ())
+    info = {"classic": "", "2021": "Info, ", "2024": "Info,"}[profile]
+    assert await m20 == (() if profile == "classic" else (f"{info}M20: Cartesian mode start.",))
     with pytest.raises(MirobotCommandError, match="Unsupported command"):
         await bad
     assert await m50 == (f"{info}M50: Unlock each axis.",)

@@ -33,7 +33,12 @@ from mirobot_async.testing import EmulatorProcess, SyncEmulatorProcess, WireSpy,
 
 pytestmark = [pytest.mark.timeout(60), pytest.mark.usefixtures("no_leftover_tasks")]
 
-ZERO_POSE = {"2021": (198.670, 0.0, 230.720), "classic": (202.0, 0.0, 181.0)}
+ZERO_POSE = {
+    "2021": (198.670, 0.0, 230.720),
+    "classic": (202.0, 0.0, 181.0),
+    "2024": (198.670, 0.0, 230.720),
+}
+INFO = {"classic": "", "2021": "Info, ", "2024": "Info,"}  # the 2024 family: no space
 
 
 def assert_joints(report: StatusReport, expected: tuple[float, ...], tol: float = 0.05) -> None:
@@ -191,7 +196,7 @@ async def test_loop_url_transport_echoes() -> None:
 
 async def test_status_at_power_on(arm: Mirobot, profile: str) -> None:
     report = await arm.status()
-    assert report.state is (State.ALARM if profile == "2021" else State.IDLE)
+    assert report.state is (State.IDLE if profile == "classic" else State.ALARM)
     assert report.joints == (0.0,) * 6
     assert report.pose[:3] == pytest.approx(ZERO_POSE[profile], abs=0.001)
     assert arm.last_status == report
@@ -219,7 +224,7 @@ async def test_settings_and_firmware_detection(arm: Mirobot, profile: str) -> No
     assert arm.firmware == profile
     assert settings[20] == 1.0 and settings[21] == 1.0
     assert settings[110] == 1800.0
-    assert (29 in settings) is (profile == "2021")
+    assert (29 in settings) is (profile != "classic")
     await arm.set_setting(24, 1234.5)
     assert (await arm.settings())[24] == 1234.5
     await arm.set_soft_limits(False)
@@ -240,7 +245,7 @@ async def test_set_setting_detects_the_firmware_first(arm: Mirobot, profile: str
         assert arm.stats.lines_sent == sent
     else:
         await arm.set_setting(49, 25)
-        assert arm.firmware == "2021"
+        assert arm.firmware == profile
         assert (await arm.settings())[49] == 25.0
 
 
@@ -249,9 +254,7 @@ async def test_set_setting_detects_the_firmware_first(arm: Mirobot, profile: str
 
 async def test_send_returns_the_firmware_output(arm: Mirobot, profile: str) -> None:
     output = await arm.send("M50")
-    assert output == (
-        ("Info, M50: Unlock each axis.",) if profile == "2021" else ("M50: Unlock each axis.",)
-    )
+    assert output == (f"{INFO[profile]}M50: Unlock each axis.",)
     assert await arm.send("M3 S100") == ()
     assert await arm.send(b"m4e200\n") == ()  # bytes, lower case, no spaces, one line end
     report = await arm.status()
@@ -266,7 +269,7 @@ async def test_error_lines_raise_command_error(ready_arm: Mirobot, profile: str)
     assert type(err) is MirobotCommandError
     assert err.text == "Unsupported command"
     assert err.command == "M99"
-    assert err.code == (120 if profile == "2021" else None)
+    assert err.code == {"2021": 120, "classic": None, "2024": 112}[profile]
     # the link is still in step
     assert await arm.send("M3 S1") == ()
 
@@ -276,7 +279,9 @@ async def test_reset_during_motion_leaves_an_alarm(ready_arm: Mirobot) -> None:
     arm = ready_arm
     await arm.move_joints(j1=30, speed=600, wait=False)  # ~3 s
     banner = await arm.reset()
-    assert banner[-1] in ("Using reset pos!", "['$H'|'$X' to unlock]")
+    assert banner[-1] in ("Using reset pos!", "['$H'|'$X' to unlock]") or (
+        banner[-1].startswith("WLKATA Robot started successfully.Firmware version:")  # 2024
+    )
     assert arm.alarm == "Abort during cycle"
     assert (await arm.status()).state is State.ALARM
     # remembered: motion calls fail before anything is written ...
@@ -341,12 +346,16 @@ async def test_outputs_and_helpers(ready_arm: Mirobot) -> None:
 
 
 async def test_locked_axes_refuse_motion(arm: Mirobot, profile: str) -> None:
-    if profile == "2021":
+    if profile != "classic":
         await arm.clear_alarm()  # leaves Alarm, keeps the power-on lock
     with pytest.raises(MotionRefusedError) as info:
         await arm.move_joints(j1=10)
     assert info.value.reason is RefusalReason.LOCKED
-    assert info.value.text == "Locked status of each axis!"
+    assert info.value.text == (
+        "Error,A106,Locked status of each axis"
+        if profile == "2024"
+        else "Locked status of each axis!"
+    )
     assert (await arm.status()).joints == (0.0,) * 6
 
 
@@ -405,7 +414,7 @@ async def test_safety_envelope_refuses_moves_before_writing(
     from mirobot_async import Envelope
     from mirobot_async.kinematics import DH_2021, DH_CLASSIC
 
-    dh = DH_2021 if profile == "2021" else DH_CLASSIC
+    dh = DH_CLASSIC if profile == "classic" else DH_2021
     envelope = Envelope(z=(150.0, None), joints={1: (-45.0, 45.0)}, dh=dh)
     async with Mirobot.connect(emu.url, envelope=envelope) as arm:
         assert arm.envelope is envelope
@@ -491,14 +500,14 @@ async def test_wait_false_then_wait_idle_hold_and_resume(
 
 async def test_rail_moves_detect_the_firmware(ready_arm: Mirobot, profile: str) -> None:
     arm = ready_arm
-    if profile == "2021":
+    if profile != "classic":
         with pytest.raises(MirobotUsageError, match="rail"):
             await arm.move_joints(rail=-10)
-        assert arm.firmware == "2021"
+        assert arm.firmware == profile
         report = await arm.move_joints(rail=100)
     else:
         report = await arm.move_joints(rail=-10)
-    assert report is not None and report.rail == (100.0 if profile == "2021" else -10.0)
+    assert report is not None and report.rail == (-10.0 if profile == "classic" else 100.0)
 
 
 async def test_wire_logging(ready_arm: Mirobot, caplog: pytest.LogCaptureFixture) -> None:

@@ -307,8 +307,8 @@ async def test_a_failed_move_does_not_shift_the_predicted_position(
 ) -> None:
     envelope = Envelope(joints={1: (-60, 60)})
     async with connected(emu, envelope, unlock=False, spy=spy) as arm:
-        # Both profiles power on locked: 2021 answers "Alarm lock", classic "ok" but dropped.
-        with pytest.raises(MirobotAlarmError if profile == "2021" else MotionRefusedError):
+        # Every profile powers on locked: 2021/2024 answer "Alarm lock", classic "ok" but dropped.
+        with pytest.raises(MotionRefusedError if profile == "classic" else MirobotAlarmError):
             await arm.move_joints(j1=40)
         await arm.unlock()
         # From 0 (where the arm is), not from 40 (where the refused line would have taken it).

@@ -125,11 +125,11 @@ class Model:
     mode: int = 0  # Motion_MODE: 1 after M20, 0 after M21 / homing / reset
 
     def __post_init__(self) -> None:
-        self.alarm = self.profile == "2021"
+        self.alarm = self.profile != "classic"
 
     @property
     def dh(self) -> Any:
-        return DH_2021 if self.profile == "2021" else DH_CLASSIC
+        return DH_CLASSIC if self.profile == "classic" else DH_2021
 
     def after_reset(self) -> None:
         # the axis lock survives a reset: only power-on sets it (oracle), M50 / homing clear it;
@@ -170,7 +170,7 @@ class ClientMachine(RuleBasedStateMachine):
             if self.emu is not None:
                 _POOL[-1].release(self.emu)
 
-    @initialize(profile=st.sampled_from(["2021", "classic"]))
+    @initialize(profile=st.sampled_from(["2021", "classic", "2024"]))
     def start(self, profile: str) -> None:
         note(f"profile {profile}")
         self.model = Model(profile)

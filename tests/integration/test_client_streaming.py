@@ -161,7 +161,7 @@ async def test_twenty_tasks_at_once_each_get_their_own_replies_in_call_order(
 ) -> None:
     arm = ready_arm
     issued: list[str] = []
-    info = "Info, " if profile == "2021" else ""
+    info = {"classic": "", "2021": "Info, ", "2024": "Info,"}[profile]
 
     async def worker(n: int) -> None:
         for k in range(6):

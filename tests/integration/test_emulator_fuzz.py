@@ -261,7 +261,7 @@ class RawEmulator:
         return self.read_until(lambda line: line.startswith("<"), "a status line after '?'")
 
 
-@pytest.fixture(scope="module", params=["2021", "classic"])
+@pytest.fixture(scope="module", params=["2021", "classic", "2024"])
 def emulator(request: pytest.FixtureRequest) -> Iterator[RawEmulator]:
     """One emulator process per profile for the module's tests (all their examples): every
     example starts with :meth:`RawEmulator.restore` (reset, settings back to the defaults)."""

@@ -34,7 +34,7 @@ pytestmark = [pytest.mark.timeout(30), pytest.mark.emulator_process]  # the proc
 
 MODULE = (sys.executable, "-m", "mirobot_emulator")
 SCRIPT = Path(sys.executable).parent / "mirobot-emulator"
-PROFILES = ("classic", "2021")
+PROFILES = ("classic", "2021", "2024")
 BANNER_LAST = "Using reset pos!"
 LISTEN = ("--listen", "127.0.0.1:0")  # TCP on the loopback, a free port
 TRANSPORTS = {"pty": (), "tcp": LISTEN}

@@ -78,7 +78,7 @@ def mess_up(emulator: SyncEmulatorProcess) -> serial.SerialBase:
 
 
 @pytest.mark.parametrize("link", LINKS)
-@pytest.mark.parametrize("firmware", ["2021", "classic"])
+@pytest.mark.parametrize("firmware", ["2021", "classic", "2024"])
 def test_a_renewed_emulator_is_a_new_process_to_its_client(link: str, firmware: str) -> None:
     with SyncEmulatorProcess("2021", 1.0, listen=link) as used:
         leftover = mess_up(used)

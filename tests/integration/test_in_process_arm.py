@@ -17,7 +17,7 @@ from mirobot_async.errors import (
 )
 from mirobot_async.testing import InProcessArm, start_emulator
 
-PROFILES = ("2021", "classic")
+PROFILES = ("2021", "classic", "2024")
 
 
 @pytest.mark.parametrize("firmware", PROFILES)

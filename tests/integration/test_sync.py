@@ -65,7 +65,7 @@ SCRIPT = """
 """
 
 
-@pytest.mark.parametrize("profile", ["2021", "classic"])
+@pytest.mark.parametrize("profile", ["2021", "classic", "2024"])
 def test_a_plain_script_drives_the_arm(
     tmp_path: Path, profile: str, mirobot_emulator_pool: EmulatorPool
 ) -> None:

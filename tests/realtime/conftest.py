@@ -18,7 +18,7 @@ import pytest
 from mirobot_async import Mirobot
 from mirobot_async.testing import EmulatorPool, EmulatorProcess
 
-PROFILES = ("2021", "classic")
+PROFILES = ("2021", "classic", "2024")
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:

@@ -35,6 +35,11 @@ async def homing_started(arm: Mirobot) -> None:
 
 
 async def test_home_waits_through_the_silent_search(arm: Mirobot, profile: str) -> None:
+    if profile == "2024":
+        pytest.skip(
+            "the 2024 family answers '?' during the search (its Home reports: "
+            "tests/integration/test_newer_dialect.py)"
+        )
     started = time.monotonic()
     report = await arm.home()
     assert at_zero(report), report
@@ -68,6 +73,11 @@ async def test_streamed_home_then_a_move(arm: Mirobot, profile: str) -> None:
 
 
 async def test_status_during_homing_names_homing_or_waits(arm: Mirobot, profile: str) -> None:
+    if profile == "2024":
+        pytest.skip(
+            "the 2024 family answers '?' during the search (its Home reports: "
+            "tests/integration/test_newer_dialect.py)"
+        )
     homing = asyncio.create_task(arm.home())
     try:
         await homing_started(arm)
@@ -120,6 +130,11 @@ async def test_a_link_that_dies_while_homing_fails_at_once(
 
 
 async def test_a_silent_link_past_the_homing_bound_names_homing(arm: Mirobot, profile: str) -> None:
+    if profile == "2024":
+        pytest.skip(
+            "the 2024 family answers '?' during the search (its Home reports: "
+            "tests/integration/test_newer_dialect.py)"
+        )
     arm.homing_bounds["$H"] = 3.0  # shorter than the search: the silence outlasts it
     with pytest.raises(MirobotTimeoutError, match="homing") as raised:
         await arm.home()

@@ -49,7 +49,7 @@ def cli(capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> I
             signal.signal(sig, handler)
 
 
-@pytest.mark.parametrize("profile", ["2021", "classic"])
+@pytest.mark.parametrize("profile", ["2021", "classic", "2024"])
 def test_cli_home_at_real_speed(
     cli: object, mirobot_emulator_pool: EmulatorPool, profile: str
 ) -> None:
@@ -139,7 +139,7 @@ def bus_emulator(directory: Path, profile: str) -> Iterator[str]:
             proc.stdout.close()
 
 
-@pytest.mark.parametrize("profile", ["2021", "classic"])
+@pytest.mark.parametrize("profile", ["2021", "classic", "2024"])
 async def test_bus_arm_home_at_real_speed(tmp_path: Path, profile: str) -> None:
     with bus_emulator(tmp_path, profile) as path:
         async with ControllerBus.open(path) as bus:

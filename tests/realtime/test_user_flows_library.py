@@ -41,7 +41,7 @@ def run_python(code: str, *args: str, timeout: float = 150) -> subprocess.Comple
     )
 
 
-@pytest.mark.parametrize("profile", ["2021", "classic"])
+@pytest.mark.parametrize("profile", ["2021", "classic", "2024"])
 def test_readme_example_at_real_speed(profile: str) -> None:
     """The 15 lines with the virtual arm at real speed instead of 100x: homing (8-10 s of a
     search that answers no ``?``), two moves, suction, a stream that waits for the arm."""

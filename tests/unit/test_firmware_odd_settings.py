@@ -8,7 +8,7 @@ import math
 import pytest
 from mirobot_emulator.firmware import Firmware
 
-PROFILES = ("classic", "2021")
+PROFILES = ("classic", "2021", "2024")
 
 
 def send(fw: Firmware, data: str, dt: float = 0.0) -> list[str]:

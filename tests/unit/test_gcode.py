@@ -356,7 +356,11 @@ def test_settings_tables() -> None:
     assert "rail" in new[103].description and new[103].unit == "steps/mm"
     assert "backlash" in new[164].description
     assert gcode.JOINT_RANGES["J1"] == (-100.0, 160.0)
-    assert gcode.RAIL_RANGES == {"2021": (0.0, 500.0), "classic": (-1000.0, 1000.0)}
+    assert gcode.RAIL_RANGES == {
+        "2021": (0.0, 500.0),
+        "classic": (-1000.0, 1000.0),
+        "2024": (0.0, 500.0),
+    }
 
 
 # --------------------------------------------------------------------------------------------

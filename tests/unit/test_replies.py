@@ -415,7 +415,7 @@ def R(kind: ReplyKind, text: str, code: int | None = None, ok: bool = False) -> 
         ("Error,E120, Unsupported command", R(ReplyKind.ERROR, "Unsupported command", 120)),
         ("Error , E113 , Undefined feed rate", R(ReplyKind.ERROR, "Undefined feed rate", 113)),
         ("Error, E113", R(ReplyKind.ERROR, "", 113)),
-        ("Error, Something odd", R(ReplyKind.ERROR, "Something odd")),
+        ("Error, Something odd", R(ReplyKind.UNKNOWN, "Error, Something odd")),  # never final
         # alarms
         ("ALARM: Hard limit", R(ReplyKind.ALARM, "Hard limit")),
         ("ALARM: Abort during cycle", R(ReplyKind.ALARM, "Abort during cycle")),
