@@ -76,16 +76,6 @@ def _relative_imports(path: Path) -> set[tuple[int, str]]:
     }
 
 
-@pytest.mark.parametrize("path", SOURCES, ids=lambda p: str(p.relative_to(ROOT)))
-def test_module_and_classes_are_small(path: Path) -> None:
-    lines = path.read_text().count("\n")
-    assert lines <= 600, f"{path.name}: {lines} lines"
-    for node in ast.walk(_tree(path)):
-        if isinstance(node, ast.ClassDef):
-            size = (node.end_lineno or node.lineno) - node.lineno + 1
-            assert size <= 400, f"class {node.name}: {size} lines"
-
-
 @pytest.mark.parametrize("path", PURE, ids=lambda p: str(p.relative_to(ROOT)))
 def test_sans_io_core_is_pure(path: Path) -> None:
     imported = {module.split(".")[0] for module in _imports(path)}
