@@ -17,7 +17,7 @@ import pytest
 from mirobot_async._tapes.format import Written, read_tapes
 
 Cli = Callable[..., subprocess.CompletedProcess[str]]
-PROFILES = ("classic", "2021")
+PROFILES = ("classic", "2021", "2024")
 
 
 @pytest.mark.parametrize("firmware", PROFILES)
@@ -36,7 +36,9 @@ def test_the_doctor_finds_no_difference_on_a_virtual_arm(
     assert recorded.header["family"] == firmware
 
 
-@pytest.mark.parametrize(("firmware", "other"), [("classic", "2021"), ("2021", "classic")])
+@pytest.mark.parametrize(
+    ("firmware", "other"), [("classic", "2021"), ("2021", "classic"), ("2024", "2021")]
+)
 def test_the_doctor_lists_what_the_other_profile_answers_otherwise(
     cli: Cli, tmp_path: Path, firmware: str, other: str
 ) -> None:
@@ -44,7 +46,7 @@ def test_the_doctor_lists_what_the_other_profile_answers_otherwise(
     done = cli("doctor", "--firmware", firmware, "--against", other, "--record", str(tape))
     assert done.returncode == 1, done.stdout + done.stderr
     assert f"difference(s) from the emulator's {other} profile:" in done.stdout
-    assert "Invalid statement" in done.stdout  # the two profiles word a $3 refusal otherwise
+    assert "Invalid statement" in done.stdout  # the profiles word a $3 refusal otherwise
     assert f"attach {tape} to a report" in done.stdout
 
 
