@@ -30,6 +30,10 @@ __all__ = [
 # per degree, as few as 11.11 on the classic J6: 0.09 deg a step) and prints 3 decimals, so a
 # reached target reads back within half a step.
 JOINT_TOLERANCE: Final = 0.05  # degrees (joints) and mm (rail)
+RELATIVE_JOINT_TOLERANCE: Final = 0.1
+"""A relative joint move's target measured from a status: the firmware adds to its parser's
+exact position, up to half a motor step from the whole steps a status shows, and the arm then
+stops at whole steps again: up to one step (J6: 0.09 degrees) from the status plus the move."""
 POSITION_TOLERANCE: Final = 0.1  # mm (pose x, y, z)
 ORIENTATION_TOLERANCE: Final = 0.1  # degrees (pose rx, ry, rz)
 
@@ -49,16 +53,20 @@ class Target:
     joints: tuple[float | None, ...] = (None,) * 6
     rail: float | None = None
     pose: tuple[float | None, ...] = (None,) * 6
+    joint_tolerance: float = JOINT_TOLERANCE
+    """Degrees (mm for the rail): :data:`RELATIVE_JOINT_TOLERANCE` for a relative move whose
+    target was measured from a status."""
 
     def reached(self, report: StatusReport) -> bool:
         """Whether ``report`` shows the arm at this target (within the tolerances)."""
+        tolerance = self.joint_tolerance
         for want, have in zip(self.joints, report.joints, strict=True):
-            if want is not None and abs(want - have) > JOINT_TOLERANCE:
+            if want is not None and abs(want - have) > tolerance:
                 return False
         if (
             self.rail is not None
             and report.rail is not None
-            and abs(self.rail - report.rail) > JOINT_TOLERANCE
+            and abs(self.rail - report.rail) > tolerance
         ):
             return False
         for index, (want, have) in enumerate(zip(self.pose, report.pose, strict=True)):

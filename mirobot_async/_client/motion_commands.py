@@ -14,7 +14,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Final
 
-from mirobot_async._client.completion import Target
+from mirobot_async._client.completion import RELATIVE_JOINT_TOLERANCE, Target
 from mirobot_async._client.condition import RobotCondition
 from mirobot_async._client.deadline import deadline_after
 from mirobot_async._client.parts import DEFAULT_TIMEOUT, HOME_TIMEOUT, MOVE_TIMEOUT, ClientParts
@@ -174,7 +174,7 @@ class MotionCommands(ClientParts):
                 None if v is None else b + v for v, b in zip(values, base.joints, strict=True)
             )
             new_rail = None if rail is None or base.rail is None else base.rail + rail
-            return Target(joints=joints, rail=new_rail)
+            return Target(joints=joints, rail=new_rail, joint_tolerance=RELATIVE_JOINT_TOLERANCE)
 
         return await self._move(
             build,

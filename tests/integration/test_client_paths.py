@@ -10,6 +10,7 @@ before
 
 from __future__ import annotations
 
+import asyncio
 import logging
 
 import pytest
@@ -198,3 +199,23 @@ async def test_structured_moves_state_millimetres(ready_arm: Mirobot) -> None:
     assert report.pose[:3] == pytest.approx((200, 0, 200), abs=0.1)
     report = await arm.move_joints(j1=10)
     assert report is not None and abs(report.joints[0] - 10) < 0.05
+
+
+@pytest.mark.parametrize("firmware", ["2021", "classic", "2024"])
+async def test_a_relative_move_from_a_stepped_position_ends_at_its_target(firmware: str) -> None:
+    """The firmware adds a relative move to its parser's exact position (36.4), not to the whole
+    motor steps a status shows (36.364): the arm ends a step away from status + move, and a
+    wait that never saw it moving (motion over at once) must still see it arrive."""
+    from mirobot_async.testing import start_emulator
+
+    async with (
+        start_emulator(firmware=firmware, time_scale=0, in_process=True) as url,
+        Mirobot.connect(url, firmware=firmware) as arm,  # type: ignore[arg-type]
+    ):
+        await arm.home()
+        at = await arm.move_joints(j6=36.4)
+        assert at is not None
+        async with asyncio.timeout(10):
+            report = await arm.move_joints(j6=-3.3, relative=True, speed=3000)
+        assert report is not None
+        assert abs(report.joints[5] - (at.joints[5] - 3.3)) <= 0.1
