@@ -179,9 +179,9 @@ def test_a_lost_link_is_said_on_the_page_and_the_command_exits_1(
 def test_no_jog_and_no_second_run_while_a_program_runs(
     start_view: Any, open_page: Any, tmp_path: Path
 ) -> None:
-    """While a program runs, "J1 +" and a second "Run program" are refused, with the reason on
-    the page; nothing of them runs after the program (the next command finds J1 where the
-    program left it)."""
+    """While a program runs (held here, so that it still runs when the clicks arrive), "J1 +"
+    and a second "Run program" are refused, with the reason on the page; nothing of them runs
+    after the program (the next command finds J1 where the program left it)."""
     program = tmp_path / "slow.gcode"
     program.write_text("M21 G90 G21 G1 F300\nX-20\nX0\n")  # 8 s at time scale 1
     view = start_view(str(program), "--time-scale", "1")
@@ -189,10 +189,13 @@ def test_no_jog_and_no_second_run_while_a_program_runs(
     page.expect_text("State: Idle")
     page.click("Run program")
     page.expect_text("State: Run")
+    page.click("Hold")  # the program stays running, however slow the machine is
+    page.expect_text("State: Hold")
     page.click("J1 +")
     page.expect_text("J1 +5 deg: refused, a program is running")  # the notice line
     page.click("Run program")
     page.expect_text("Run program: refused, a program is running")
+    page.click("Resume")
     page.expect_text("slow.gcode: 3 lines done")
     page.click("Pump on")  # queued behind anything still waiting
     page.expect_text("Pump/gripper: pump sucking")
