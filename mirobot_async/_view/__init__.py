@@ -18,7 +18,7 @@ import contextlib
 import sys
 import time
 import webbrowser
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final, Literal
 
@@ -39,8 +39,8 @@ __all__ = ["parse_listen", "serve_view"]
 DEFAULT_HOST = "127.0.0.1"
 LOST_LINK_GRACE: Final = 1.0
 """Seconds the page keeps showing that the link is lost before the command exits (status 1)."""
-SCENE_TIMEOUT: Final = 60.0
-"""Seconds a connected page has to show the scene before ``--run`` waits for the next one."""
+RENDER_WAIT: Final = 20.0
+"""Seconds for a page to answer one request for a frame before it is asked again."""
 RENDER_SIZE: Final = 160
 """Pixels (square) of the frame asked of the page to tell that it shows the arm."""
 DRAWN_PIXELS: Final = 200
@@ -184,7 +184,7 @@ async def serve_view(args: argparse.Namespace) -> int:
         def on_connect(client: viser.ClientHandle) -> None:
             # viser calls this once the page has sent its camera (its canvas exists); the
             # scene is on screen once a frame rendered by the page shows it
-            if not shown_scene.is_set() and scene_drawn(client):
+            if scene_drawn(server, client, lambda: not shown_scene.is_set()):
                 loop.call_soon_threadsafe(shown_scene.set)
 
         if args.run and source is not None:
@@ -211,17 +211,21 @@ async def serve_view(args: argparse.Namespace) -> int:
     return 0
 
 
-def scene_drawn(client: viser.ClientHandle, timeout: float = SCENE_TIMEOUT) -> bool:
+def scene_drawn(
+    server: viser.ViserServer, client: viser.ClientHandle, wanted: Callable[[], bool]
+) -> bool:
     """Whether a frame rendered by ``client`` shows the arm (blocking: viser's thread pool).
-    Asks again (a frame rendered before the arm's meshes are decoded shows the grid alone)
-    until ``timeout`` seconds have passed or the page has gone."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
+    Asks again while the page is connected and ``wanted()``: a frame rendered before the
+    arm's meshes are decoded shows the grid alone, and a loaded machine may take longer than
+    :data:`RENDER_WAIT` to render one."""
+    while wanted() and client.client_id in server.get_clients():
         try:
             image = client.get_render(
-                height=RENDER_SIZE, width=RENDER_SIZE, transport_format="png", timeout=10.0
+                height=RENDER_SIZE, width=RENDER_SIZE, transport_format="png", timeout=RENDER_WAIT
             )
-        except Exception:  # the page went away, or answered nothing: not shown there
+        except TimeoutError:
+            continue
+        except Exception:  # the page went away: not shown there
             return False
         if arm_pixels(np.asarray(image)) >= DRAWN_PIXELS:
             return True
