@@ -407,13 +407,25 @@ def build_parser() -> argparse.ArgumentParser:
         "--listen",
         default="127.0.0.1:0",
         metavar="HOST:PORT",
-        help="where to serve the page (default: 127.0.0.1 and a free port; the URL is the first "
-        "line of standard output)",
+        help="where to serve the page (default: 127.0.0.1 and a free port; the URL, with this "
+        "run's secret, is the first line of standard output; other than loopback needs "
+        "--allow-remote)",
     )
     view.add_argument(
         "--run",
         action="store_true",
-        help="stream PROGRAM once the first browser has connected (else: the Run button)",
+        help="stream PROGRAM once a browser shows the scene (else: the Run button)",
+    )
+    view.add_argument(
+        "--allow-remote",
+        action="store_true",
+        help="allow a --listen address other than loopback (anyone on that network with the "
+        "printed URL, which carries this run's secret, can drive the arm)",
+    )
+    view.add_argument(
+        "--export-dir",
+        metavar="DIR",
+        help="the folder the pendant's Export writes into (default: the current folder)",
     )
     view.add_argument("--no-browser", action="store_true", help="do not open a browser")
     add_envelope_option(view)  # drawn as a box; every jog and streamed line is checked

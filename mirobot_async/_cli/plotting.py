@@ -13,10 +13,11 @@ real arm, whose time is the wall time). The plot's time axis is the robot's time
 times the time scale (wall time when the virtual arm ran at time scale 0, where moves take no
 time). Files without the ``time_scale`` column (older traces) are read as a real arm's.
 
-Events (pump, valve, gripper, alarm, hold) are marked where the status first showed them. The
-firmware reports an ``M3``/``M4`` output as soon as it reads the line, which can be while moves
-queued ahead of it are still running (the vendor firmware does the same), so a pump event can
-appear before the arm reaches the place where the program switches it.
+Events (alarm, hold) are marked where the status first showed them; outputs (pump, valve,
+gripper) where they took effect. The firmware reports an ``M3``/``M4`` output as soon as it reads
+the line, which can be while moves queued ahead of it are still running (the vendor firmware does
+the same), but switches it once those moves have ended: the mark is put at the first sample from
+there on where the arm stands (see :meth:`Trace.took_effect`).
 
 Reading and writing need only the standard library. :func:`plot_trace` needs matplotlib (the
 ``plot`` extra: ``pip install 'mirobot-async[plot]'``), imported only when it is called; without
@@ -75,6 +76,8 @@ PLOT_SIZE_PX: Final = (1200, 800)
 """Width and height of the PNG written by :func:`plot_trace`, in pixels."""
 
 _DPI: Final = 100
+_AT_REST_MM: Final = 0.05
+"""Tool travel between two samples below which the arm is taken to stand (mm)."""
 _INSTALL_HINT: Final = (
     "plotting needs matplotlib, which is not installed; "
     "install the plot extra: pip install 'mirobot-async[plot]'"
@@ -216,6 +219,40 @@ class Trace:
     def __len__(self) -> int:
         return len(self.seconds)
 
+    def took_effect(self, index: int) -> int:
+        """The sample at which an output first reported at ``index`` took effect: the firmware
+        reports an ``M3``/``M4`` as soon as it reads the line but runs it once the moves queued
+        ahead have ended, where the arm stands. That is the sample before ``index`` when the arm
+        stood there (the line ran between the two samples, and the arm went on), else the first
+        sample from ``index`` on where the arm is at rest (not ``Run``, or the tool within
+        :data:`_AT_REST_MM` of the next sample), or where its speed dips to a clear minimum
+        between two moves (a stop shorter than a sample)."""
+        if index >= 1 and (
+            self.states[index - 1] != "Run"
+            or (
+                index >= 2
+                and math.dist(self.positions[index - 2], self.positions[index - 1]) <= _AT_REST_MM
+            )
+        ):
+            return index - 1  # read and run while the arm stood there, seen as it moved on
+        fastest = 0.0
+        for j in range(index, len(self) - 1):
+            step = math.dist(self.positions[j], self.positions[j + 1])
+            if self.states[j] != "Run" or step <= _AT_REST_MM:
+                return j
+            speed = self._speed(j)
+            if j > index:
+                before = self._speed(j - 1)
+                if before < 0.3 * fastest and speed > 2.0 * before:
+                    return j  # slowed down to here, faster after: a stop between samples
+            fastest = max(fastest, speed)
+        return len(self) - 1 if self.states[-1] != "Run" else index
+
+    def _speed(self, j: int) -> float:
+        """Tool speed from sample ``j`` to the next (mm/s; samples are not evenly spaced)."""
+        dt = max(self.seconds[j + 1] - self.seconds[j], 1e-6)
+        return math.dist(self.positions[j], self.positions[j + 1]) / dt
+
     def events(self) -> list[TraceEvent]:
         """Changes of the pump / valve outputs and entries into Alarm or Hold, in order."""
         found: list[TraceEvent] = []
@@ -227,8 +264,9 @@ class Trace:
                     previous = values[before] if before >= 0 else None
                     if before >= 0 and previous is not None and value != previous:
                         assert value is not None
+                        took = self.took_effect(index)
                         found.append(
-                            TraceEvent(index, self.seconds[index], "output", describe(value))
+                            TraceEvent(took, self.seconds[took], "output", describe(value))
                         )
             state = self.states[index]
             if state in ("Alarm", "Hold") and (before < 0 or self.states[before] != state):

@@ -14,8 +14,10 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import os
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
 import viser
@@ -28,17 +30,18 @@ from mirobot_async._view.scene import ArmScene
 from mirobot_async._view.teach import (
     TaughtPoint,
     TeachTable,
+    export_name,
     export_program,
     modes_line,
     point_line,
 )
-from mirobot_async.errors import MirobotError, MirobotTimeoutError
+from mirobot_async.errors import MirobotConnectionError, MirobotError, MirobotTimeoutError
 
 if TYPE_CHECKING:
     from mirobot_async._client.client import Mirobot
     from mirobot_async._safety.envelope import Envelope
 
-__all__ = ["STATUS_INTERVAL", "ProgramSource", "ViewController"]
+__all__ = ["STATUS_INTERVAL", "ProgramSource", "ViewController", "write_export"]
 
 _log = logging.getLogger("mirobot_async.view")
 
@@ -84,12 +87,17 @@ class ViewController:
         program: ProgramSource | None,
         preview: ProgramPreview | None,
         envelope: Envelope | None,
+        export_dir: Path,
     ) -> None:
         self.server = server
         self.arm = arm
         self.firmware = firmware
         self.program = program
         self.preview = preview
+        self.export_dir = export_dir
+        self.link_lost = asyncio.Event()
+        """Set when the link to the arm is gone (the page says so; the command exits)."""
+        self.link_error: str | None = None
         self.loop = asyncio.get_running_loop()
         self.scene = ArmScene(server, firmware)
         self.panel = ControlPanel(server, self, program=None if program is None else program.name)
@@ -97,7 +105,11 @@ class ViewController:
         self.last: StatusReport | None = None
         self.reports = 0
         self.current: str | None = None
-        self._queue: asyncio.Queue[tuple[str, Callable[[], Awaitable[object]]]] = asyncio.Queue()
+        self._programs = 0
+        """Programs ("Run program", "Run all points") queued or running."""
+        self._queue: asyncio.Queue[tuple[str, Callable[[], Awaitable[object]], bool]] = (
+            asyncio.Queue()
+        )
         if envelope is not None:
             self.scene.show_envelope(envelope)
         if preview is not None and program is not None:
@@ -110,7 +122,8 @@ class ViewController:
 
     async def follow_status(self) -> None:
         """Show every status report (about :data:`STATUS_INTERVAL` apart) until cancelled. The
-        firmware answers no ``?`` while it homes: the view says so and keeps asking."""
+        firmware answers no ``?`` while it homes: the view says so and keeps asking. When the
+        link is gone the page says so at once and :attr:`link_lost` is set (the command exits)."""
         while True:
             try:
                 async with contextlib.aclosing(self.arm.statuses(STATUS_INTERVAL)) as reports:
@@ -121,15 +134,30 @@ class ViewController:
                         self.panel.status.content = describe_status(report, self.current)
             except MirobotTimeoutError:
                 self.panel.status.content = "**State:** no status reply (homing?)"
+            except MirobotConnectionError as err:
+                self.lose_link(str(err))
+                return
+
+    def lose_link(self, why: str) -> None:
+        """Say on the page that the link is lost (state, joints and tool no longer known)."""
+        self.link_error = why
+        self.panel.status.content = (
+            f"**State: LINK LOST** ({why}). The arm's state is unknown; mirobot view has "
+            "stopped: start it again once the arm is connected."
+        )
+        self.panel.say("**Link to the arm lost: nothing more can be sent.**")
+        self.link_lost.set()
 
     async def work(self) -> None:
         """Run queued commands one at a time until cancelled; a failure is shown, not raised."""
         while True:
-            name, action = await self._queue.get()
+            name, action, program = await self._queue.get()
             self.current = name
             try:
                 outcome = await action()
                 self.panel.say(outcome if isinstance(outcome, str) else f"{name}: done")
+            except MirobotConnectionError as err:
+                self.lose_link(str(err))
             except MirobotError as err:
                 self.panel.say(f"**{name}: {err}**")
             except Exception as err:  # a bug must not kill the pendant; it is logged
@@ -137,15 +165,31 @@ class ViewController:
                 self.panel.say(f"**{name}: {type(err).__name__}: {err}**")
             finally:
                 self.current = None
+                if program:
+                    self._programs -= 1
 
-    def _submit(self, name: str, action: Callable[[], Awaitable[object]]) -> None:
-        """Queue ``action`` on the client's loop (from viser's threads)."""
+    def _submit(
+        self, name: str, action: Callable[[], Awaitable[object]], *, program: bool = False
+    ) -> None:
+        """Queue ``action`` on the client's loop (from viser's threads). Refused, said on the
+        page, when the link is lost, when a program (``program=True``) is queued or running
+        (a jog would wait behind it and run after it: Hold, Resume and Stop are not queued),
+        or when :data:`_QUEUE_LIMIT` commands wait."""
 
         def put() -> None:
-            if self._queue.qsize() >= _QUEUE_LIMIT:
-                self.panel.say(f"**{name}: refused, {self._queue.qsize()} commands still waiting**")
-                return
-            self._queue.put_nowait((name, action))
+            if self.link_lost.is_set():
+                self.panel.refuse(f"{name}: refused, the link to the arm is lost")
+            elif self._programs:
+                self.panel.refuse(
+                    f"{name}: refused, a program is running (it would run after the "
+                    "program; Hold, Resume and Stop (reset) work at once)"
+                )
+            elif self._queue.qsize() >= _QUEUE_LIMIT:
+                self.panel.refuse(f"{name}: refused, {self._queue.qsize()} commands still waiting")
+            else:
+                self.panel.notice.content = ""
+                self._programs += program
+                self._queue.put_nowait((name, action, program))
 
         self.loop.call_soon_threadsafe(put)
 
@@ -186,7 +230,7 @@ class ViewController:
         elif name == "Gripper close":
             self._submit(name, arm.gripper_close)
         elif name == "Run program":
-            self._submit(name, self.run_program)
+            self._submit(name, self.run_program, program=True)
 
     def realtime(self, name: str) -> None:
         """Hold, Resume, Stop (reset): written at once (they jump the queue); Stop also drops
@@ -201,7 +245,8 @@ class ViewController:
                     await arm.resume()
                 else:
                     while not self._queue.empty():
-                        self._queue.get_nowait()
+                        if self._queue.get_nowait()[2]:
+                            self._programs -= 1
                     await arm.reset()
                 self.panel.say(f"{name}: sent")
             except MirobotError as err:
@@ -215,7 +260,7 @@ class ViewController:
         async def act() -> str | None:
             return await self._teach(name)
 
-        self._submit(name, act)
+        self._submit(name, act, program=name == "Run all points")
 
     # ------------------------------------------------------------------------------------
     # Teach pendant
@@ -288,15 +333,27 @@ class ViewController:
             raise _ViewError(f"stopped at point {result.errors[0].number - 1}")
 
     def _export(self) -> str:
+        """Write the program into the export folder fixed at start, under the name the page
+        gives (a file name, no folder); an existing file only when the page's Overwrite box
+        is ticked (it is cleared again after each export)."""
         lines = export_program(
             self.table.points, speed=float(self.panel.teach_speed.value), firmware=self.firmware
         )
-        path = self.panel.export_path.value
-        with open(path, "w", encoding="ascii") as file:
-            file.write("\n".join(lines) + "\n")
+        name = export_name(self.panel.export_path.value)
+        overwrite = bool(self.panel.overwrite.value)
+        path = self.export_dir / name
+        try:
+            write_export(path, "\n".join(lines) + "\n", overwrite=overwrite)
+        except FileExistsError:
+            raise _ViewError(
+                f"{name} exists in {self.export_dir}: tick Overwrite to replace it, or give "
+                "another name"
+            ) from None
+        finally:
+            _set_value(self.panel.overwrite, False)
         shown = "\n".join(lines)
         self.panel.exported.content = f"```\n{shown}\n```"
-        return f"Wrote {path} ({len(self.table.points)} points)"
+        return f"Wrote {name} ({len(self.table.points)} points) in {self.export_dir}"
 
     # ------------------------------------------------------------------------------------
     # The program
@@ -330,6 +387,20 @@ class ViewController:
             raise _ViewError(f"{program.name}:{line}: {failed.error or 'failed'}")
         _set_value(bar, 100.0)
         return f"{program.name}: {total} lines done"
+
+
+def write_export(path: Path, text: str, *, overwrite: bool) -> None:
+    """Write ``text`` to ``path``: a new file only (``FileExistsError``), unless ``overwrite``;
+    never through a symbolic link."""
+    flags = os.O_WRONLY | os.O_CREAT | os.O_NOFOLLOW | (os.O_TRUNC if overwrite else os.O_EXCL)
+    try:
+        fd = os.open(path, flags, 0o644)
+    except OSError as err:
+        if isinstance(err, FileExistsError) or path.is_symlink():
+            raise FileExistsError(str(path)) from None
+        raise _ViewError(f"cannot write {path}: {err.strerror}") from None
+    with os.fdopen(fd, "w", encoding="ascii") as file:
+        file.write(text)
 
 
 def _set_value(handle: Any, value: object) -> None:

@@ -38,6 +38,8 @@ class ControlPanel:
         )
         self.status = gui.add_markdown("**State:** connecting ...")
         self.message = gui.add_markdown("")
+        self.notice = gui.add_markdown("")  # the last refused click (a program's progress
+        # overwrites the message line; a refusal must stay readable)
         with gui.add_folder("Motion"):
             stops = gui.add_button_group("Stop", ("Hold", "Resume", "Stop (reset)"))
             stops.on_click(_pick(lambda v: actions.realtime(v)))
@@ -83,7 +85,8 @@ class ControlPanel:
             )
             run_all = gui.add_button("Run all points")
             run_all.on_click(lambda _: actions.teach("Run all points"))
-            self.export_path = gui.add_text("Export to", "taught.gcode")
+            self.export_path = gui.add_text("Export to", "taught.gcode")  # in the export folder
+            self.overwrite = gui.add_checkbox("Overwrite", False)
             export = gui.add_button("Export")
             export.on_click(lambda _: actions.teach("Export"))
             self.exported = gui.add_markdown("")
@@ -91,6 +94,11 @@ class ControlPanel:
     def say(self, text: str) -> None:
         """The panel's message line (errors, refusals, what happened)."""
         self.message.content = text
+
+    def refuse(self, text: str) -> None:
+        """Say that a click was refused, and why (kept until a command is accepted)."""
+        self.notice.content = f"**{text}**"
+        self.message.content = f"**{text}**"
 
 
 def _pick(

@@ -17,7 +17,14 @@ from mirobot_async._core import gcode
 from mirobot_async.errors import MirobotUsageError
 from mirobot_async.kinematics import Joints, Pose
 
-__all__ = ["DEFAULT_TEACH_SPEED", "TaughtPoint", "TeachTable", "export_program", "point_line"]
+__all__ = [
+    "DEFAULT_TEACH_SPEED",
+    "TaughtPoint",
+    "TeachTable",
+    "export_name",
+    "export_program",
+    "point_line",
+]
 
 DEFAULT_TEACH_SPEED: Final = 2000.0
 """Joint speed of an exported program (deg/min)."""
@@ -73,6 +80,17 @@ def export_program(
     lines = [f"({title}: {len(points)} points, firmware {firmware})", modes_line(speed)]
     lines += [point_line(p, firmware=firmware) for p in points]
     return lines
+
+
+def export_name(text: str) -> str:
+    """The export's file name as the page gives it: a plain name, never a folder (the export
+    folder is fixed when the command starts)."""
+    name = text.strip()
+    if not name or name in (".", "..") or any(c in name for c in "/\\\0") or name[0] == "~":
+        raise MirobotUsageError(
+            f"export to {text!r}: give a file name only (it is written in the export folder)"
+        )
+    return name
 
 
 class TeachTable:

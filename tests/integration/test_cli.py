@@ -532,6 +532,22 @@ def test_run_trace_then_plot(cli: Cli, tmp_path: Path) -> None:
     assert 0.3 < white < 0.99
 
 
+def test_plot_marks_the_pump_where_it_took_effect(cli: Cli, tmp_path: Path) -> None:
+    """The pick-and-place example: the status shows the pump on while the arm still goes down
+    to the part (the firmware reports M3 when it reads the line), but the pump switches once
+    the arm is down at z = 60; the plot's marks (the trace's events) are there, not 33 mm
+    above."""
+    trace = tmp_path / "pick.csv"
+    proc = cli("run", str(EXAMPLES / "pick_and_place.gcode"), "--trace", str(trace), "--unlock")
+    assert proc.returncode == 0, proc.stderr
+    recorded = read_trace(trace)
+    outputs = [e for e in recorded.events() if e.kind == "output"]
+    assert [e.label for e in outputs] == ["suction on", "blow", "pump off"]
+    for event, y in zip(outputs, (-100, 100, 100), strict=True):
+        x_, y_, z_ = recorded.positions[event.index]
+        assert (x_, y_, z_) == pytest.approx((200, y, 60), abs=0.5), event
+
+
 def test_plot_without_matplotlib_says_how_to_install_it(tmp_path: Path) -> None:
     trace = tmp_path / "t.csv"
     trace.write_text(",".join(TRACE_HEADER) + "\n2025-01-01T00:00:00+00:00,Idle" + ",0" * 15 + "\n")
