@@ -120,7 +120,9 @@ def _add_prepare_options(parser: argparse.ArgumentParser, embedded: str) -> None
     group = parser.add_argument_group(
         "before starting",
         f"an arm is locked after power-on: by default the embedded virtual Mirobot is {done} "
-        "first and a real arm (--port) is used as it is",
+        "first and a real arm (--port) is used as it is; a locked arm is refused before the "
+        "first motion line (where its status does not show the lock, a zero-length joint "
+        "move that moves nothing finds it)",
     )
     choice = group.add_mutually_exclusive_group()
     choice.add_argument(

@@ -38,7 +38,9 @@ from mirobot_async._cli.session import (
     open_robot,
     preflight,
     prepare,
+    refuse_if_locked,
     sampling,
+    start_modes,
     stop_safely,
     time_scale_of,
 )
@@ -278,10 +280,11 @@ async def cmd_run(args: argparse.Namespace) -> int:
             else:
                 await _warn_unchecked(arm, args, name, program)
             await prepare(arm, args)
-            before = await preflight(arm)
+            before = await preflight(arm, probe_lock=False)
             # the envelope is no part of check: with --no-check too, a program it refuses is
             # refused whole before its first byte (never half run)
             await check_envelope_before_running(arm, name, program)
+            await refuse_if_locked(arm)  # writes its probe: after the read-only checks
             if trace is not None:
                 trace.write(before)  # the start of the path, before the first move
             result = await _stream_program(arm, args, name, program, trace, scale)
@@ -314,7 +317,7 @@ async def _warn_unchecked(
     """``--no-check``: the lines ``check`` flags are said on stderr and sent all the same (the
     stream does not validate them either: the run never stops half-way at one)."""
     firmware = args.firmware or arm.firmware or "2021"
-    for line, message in program_problems(program, firmware):
+    for line, message in program_problems(program, firmware, start_modes(args)):
         note(f"warning: {name}:{line.number}: {line.text}: {message} (sent anyway: --no-check)")
 
 
@@ -322,17 +325,19 @@ async def _check_before_running(
     arm: Mirobot, args: argparse.Namespace, name: str, program: list[ProgramLine]
 ) -> None:
     """The whole program through the validation ``check`` uses
-    (:mod:`mirobot_async._core.validation`, the arm's firmware profile) before anything is sent:
+    (:mod:`mirobot_async._core.validation`, the arm's firmware profile, from the modes the
+    program will start from: after ``--home`` the feed rate is 0) before anything is sent:
     problems as ``FILE:LINE: message`` on stderr and :class:`RobotNotReadyError` (exit 1), so a
     program never stops half-way through at a line the check would have refused. The firmware
     profile is asked (``$$``, read-only) only when it is unknown and the profiles disagree about
     the program."""
     firmware = args.firmware or arm.firmware
+    start = start_modes(args)  # after --home the feed rate is 0: a G1 needs its F
     if firmware is None:  # a port whose profile is not known yet: ask ($$) only if it matters
-        if not any(program_problems(program, p) for p in gcode.FIRMWARE_PROFILES):
+        if not any(program_problems(program, p, start) for p in gcode.FIRMWARE_PROFILES):
             return
         firmware = await arm.detect_firmware()
-    problems = program_problems(program, firmware)
+    problems = program_problems(program, firmware, start)
     if not problems:
         return
     for line, message in problems:
