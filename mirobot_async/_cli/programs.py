@@ -127,8 +127,15 @@ def program_problems(
     """The one validation of a program, for ``check`` and ``run`` alike: each command as ``run``
     sends it (comments removed, so what is only in a comment is never judged), through
     :func:`~mirobot_async._core.validation.check_program` (modal state carried from ``start``,
-    the modes the program starts from: power-on by default, ``HOMED`` after ``--home``)."""
-    found = check_program([line.text for line in program], firmware=firmware, start=start)
+    the modes the program starts from: power-on by default, ``HOMED`` after ``--home``), and
+    its Cartesian targets through the firmware's inverse kinematics where the program gives
+    their six coordinates (:func:`~mirobot_async._safety.reach.unreachable_targets`)."""
+    from mirobot_async._safety.reach import unreachable_targets  # numpy: when it is needed
+
+    texts = [line.text for line in program]
+    found = check_program(texts, firmware=firmware, start=start)
+    found += unreachable_targets(texts, firmware=firmware, start=start)
+    found.sort(key=lambda problem: problem[0])  # (stable: a line's own problems first)
     return [(program[index - 1], message) for index, message in found]
 
 

@@ -500,6 +500,32 @@ def test_run_home_refuses_a_g1_without_feed_before_homing(
     assert "no feed rate in effect" in proc.stderr
 
 
+@pytest.mark.parametrize("firmware", ["classic", "2021"])
+def test_check_and_run_flag_a_cartesian_target_the_arm_cannot_reach(
+    cli: Cli, tmp_path: Path, mirobot_emulator_pool: EmulatorPool, firmware: str
+) -> None:
+    """The firmware's inverse kinematics on the targets the program gives whole (absolute, or
+    relative after a known one); a target whose start is unknown is not judged."""
+    program = tmp_path / "far.gcode"
+    program.write_text(
+        "M20 G90 G0 X500 ; start unknown: not judged\nG0 X200 Y0 Z200 A0 B0 C0\nG91 G0 X300\n"
+    )
+    proc = cli("check", str(program), "--firmware", firmware)
+    assert proc.returncode == 1
+    assert proc.stdout.splitlines() == [
+        f"{program}:3: the Cartesian target X500 Y0 Z200 A0 B0 C0 is unreachable: the "
+        "firmware's inverse kinematics has no solution and drops the move ('GOAL OUT OF "
+        "WORKSPACE')"
+    ]
+    with mirobot_emulator_pool.lend(firmware, 0) as emulator:  # run refuses it whole
+        before = emulator_stats(emulator)
+        proc = cli("run", str(program), "--port", emulator.url, "--home")
+        after = emulator_stats(emulator)
+    assert proc.returncode == 1
+    assert "nothing was sent" in error_line(proc)
+    assert after["lines_in"] - before["lines_in"] <= 1  # at most "$$"
+
+
 def test_run_checks_the_whole_program_before_sending_anything(
     cli: Cli, tmp_path: Path, mirobot_emulator_pool: EmulatorPool
 ) -> None:
