@@ -367,6 +367,13 @@ def build_parser() -> argparse.ArgumentParser:
         default="2021",
         help="firmware profile to check against (default: 2021)",
     )
+    check.add_argument(
+        "--envelope",
+        metavar="FILE",
+        help="also check the program against this safety envelope (TOML, as run takes it), "
+        "predicted from the arm at rest after homing (every joint 0): the lines it refuses, "
+        "with run's reasons",
+    )
 
     plot = add(
         "plot", commands.cmd_plot, "plot a trace: tool path (top, side), joints", talks=False

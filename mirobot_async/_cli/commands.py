@@ -34,6 +34,7 @@ from mirobot_async._cli.rendering import (
 from mirobot_async._cli.session import (
     HOMING_INTERRUPT,
     background_jobs,
+    envelope_of,
     firmware_of,
     open_robot,
     preflight,
@@ -56,6 +57,7 @@ from mirobot_async.errors import (
 
 if TYPE_CHECKING:
     from mirobot_async._client.client import Mirobot, StreamResult
+    from mirobot_async._safety.envelope import Envelope
 
 __all__ = [
     "JOINT_KEYS",
@@ -373,6 +375,19 @@ async def check_envelope_before_running(
         ) from None
 
 
+def envelope_refusals(
+    program: list[ProgramLine], envelope: Envelope, firmware: str
+) -> list[tuple[ProgramLine, str]]:
+    """The lines of ``program`` the envelope refuses, offline (``check --envelope``): predicted
+    as ``mirobot view`` draws the program, from the arm at rest after homing (every joint 0,
+    power-on modes; ``run`` predicts from where the arm stands), with the reasons ``run``'s
+    check gives."""
+    from mirobot_async._view.preview import preview_program
+
+    preview = preview_program([line.text for line in program], firmware=firmware, envelope=envelope)
+    return [(program[flag.number - 1], flag.message) for flag in preview.flagged]
+
+
 # --- end of the envelope's check --------------------------------------------------------------
 
 
@@ -417,15 +432,29 @@ async def _stream_program(
 
 
 def cmd_check(args: argparse.Namespace) -> int:
-    """``mirobot check FILE``: offline validation, problems as ``FILE:LINE: message``."""
+    """``mirobot check FILE``: offline validation, problems as ``FILE:LINE: message``; with
+    ``--envelope FILE`` also the lines the envelope refuses, as ``run`` says them."""
     name = program_name(args.file)
     lines = read_lines(args.file)
     program = program_of(lines)
+    envelope = envelope_of(args)  # a bad file: a usage error before anything is judged
     problems = program_problems(program, args.firmware)
     for line, message in problems:
         print(f"{name}:{line.number}: {message}")
-    if problems:
-        count = len(problems)
+    refused: list[tuple[ProgramLine, str]] = []
+    if envelope is not None:
+        flagged = {line.number for line, _ in problems}
+        refused = [
+            (line, why)
+            for line, why in envelope_refusals(program, envelope, args.firmware)
+            if line.number not in flagged
+        ]
+    for line, why in refused:
+        print(f"{name}:{line.number}: {line.text}: {why}")
+    if refused:
+        note(f"{name} leaves the safety envelope at line {refused[0][0].number}")
+    if problems or refused:
+        count = len(problems) + len(refused)
         note(f"{count} problem{'s' if count != 1 else ''} in {name}")
         return EXIT_FAILED
     print(f"OK: {len(lines)} lines ({len(program)} commands, firmware {args.firmware})")
