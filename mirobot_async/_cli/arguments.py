@@ -120,7 +120,9 @@ def _add_prepare_options(parser: argparse.ArgumentParser, embedded: str) -> None
     group = parser.add_argument_group(
         "before starting",
         f"an arm is locked after power-on: by default the embedded virtual Mirobot is {done} "
-        "first and a real arm (--port) is used as it is",
+        "first and a real arm (--port) is used as it is; a locked arm is refused before the "
+        "first motion line (where its status does not show the lock, a zero-length joint "
+        "move that moves nothing finds it)",
     )
     choice = group.add_mutually_exclusive_group()
     choice.add_argument(
@@ -364,6 +366,13 @@ def build_parser() -> argparse.ArgumentParser:
         choices=gcode.FIRMWARE_PROFILES,
         default="2021",
         help="firmware profile to check against (default: 2021)",
+    )
+    check.add_argument(
+        "--envelope",
+        metavar="FILE",
+        help="also check the program against this safety envelope (TOML, as run takes it), "
+        "predicted from the arm at rest after homing (every joint 0): the lines it refuses, "
+        "with run's reasons",
     )
 
     plot = add(

@@ -34,11 +34,14 @@ from mirobot_async._cli.rendering import (
 from mirobot_async._cli.session import (
     HOMING_INTERRUPT,
     background_jobs,
+    envelope_of,
     firmware_of,
     open_robot,
     preflight,
     prepare,
+    refuse_if_locked,
     sampling,
+    start_modes,
     stop_safely,
     time_scale_of,
 )
@@ -54,6 +57,7 @@ from mirobot_async.errors import (
 
 if TYPE_CHECKING:
     from mirobot_async._client.client import Mirobot, StreamResult
+    from mirobot_async._safety.envelope import Envelope
 
 __all__ = [
     "JOINT_KEYS",
@@ -278,10 +282,11 @@ async def cmd_run(args: argparse.Namespace) -> int:
             else:
                 await _warn_unchecked(arm, args, name, program)
             await prepare(arm, args)
-            before = await preflight(arm)
+            before = await preflight(arm, probe_lock=False)
             # the envelope is no part of check: with --no-check too, a program it refuses is
             # refused whole before its first byte (never half run)
             await check_envelope_before_running(arm, name, program)
+            await refuse_if_locked(arm)  # writes its probe: after the read-only checks
             if trace is not None:
                 trace.write(before)  # the start of the path, before the first move
             result = await _stream_program(arm, args, name, program, trace, scale)
@@ -314,7 +319,7 @@ async def _warn_unchecked(
     """``--no-check``: the lines ``check`` flags are said on stderr and sent all the same (the
     stream does not validate them either: the run never stops half-way at one)."""
     firmware = args.firmware or arm.firmware or "2021"
-    for line, message in program_problems(program, firmware):
+    for line, message in program_problems(program, firmware, start_modes(args)):
         note(f"warning: {name}:{line.number}: {line.text}: {message} (sent anyway: --no-check)")
 
 
@@ -322,17 +327,19 @@ async def _check_before_running(
     arm: Mirobot, args: argparse.Namespace, name: str, program: list[ProgramLine]
 ) -> None:
     """The whole program through the validation ``check`` uses
-    (:mod:`mirobot_async._core.validation`, the arm's firmware profile) before anything is sent:
+    (:mod:`mirobot_async._core.validation`, the arm's firmware profile, from the modes the
+    program will start from: after ``--home`` the feed rate is 0) before anything is sent:
     problems as ``FILE:LINE: message`` on stderr and :class:`RobotNotReadyError` (exit 1), so a
     program never stops half-way through at a line the check would have refused. The firmware
     profile is asked (``$$``, read-only) only when it is unknown and the profiles disagree about
     the program."""
     firmware = args.firmware or arm.firmware
+    start = start_modes(args)  # after --home the feed rate is 0: a G1 needs its F
     if firmware is None:  # a port whose profile is not known yet: ask ($$) only if it matters
-        if not any(program_problems(program, p) for p in gcode.FIRMWARE_PROFILES):
+        if not any(program_problems(program, p, start) for p in gcode.FIRMWARE_PROFILES):
             return
         firmware = await arm.detect_firmware()
-    problems = program_problems(program, firmware)
+    problems = program_problems(program, firmware, start)
     if not problems:
         return
     for line, message in problems:
@@ -366,6 +373,19 @@ async def check_envelope_before_running(
         raise RobotNotReadyError(
             f"{name} leaves the safety envelope at line {line.number}: nothing was sent"
         ) from None
+
+
+def envelope_refusals(
+    program: list[ProgramLine], envelope: Envelope, firmware: str
+) -> list[tuple[ProgramLine, str]]:
+    """The lines of ``program`` the envelope refuses, offline (``check --envelope``): predicted
+    as ``mirobot view`` draws the program, from the arm at rest after homing (every joint 0,
+    power-on modes; ``run`` predicts from where the arm stands), with the reasons ``run``'s
+    check gives."""
+    from mirobot_async._view.preview import preview_program
+
+    preview = preview_program([line.text for line in program], firmware=firmware, envelope=envelope)
+    return [(program[flag.number - 1], flag.message) for flag in preview.flagged]
 
 
 # --- end of the envelope's check --------------------------------------------------------------
@@ -412,15 +432,29 @@ async def _stream_program(
 
 
 def cmd_check(args: argparse.Namespace) -> int:
-    """``mirobot check FILE``: offline validation, problems as ``FILE:LINE: message``."""
+    """``mirobot check FILE``: offline validation, problems as ``FILE:LINE: message``; with
+    ``--envelope FILE`` also the lines the envelope refuses, as ``run`` says them."""
     name = program_name(args.file)
     lines = read_lines(args.file)
     program = program_of(lines)
+    envelope = envelope_of(args)  # a bad file: a usage error before anything is judged
     problems = program_problems(program, args.firmware)
     for line, message in problems:
         print(f"{name}:{line.number}: {message}")
-    if problems:
-        count = len(problems)
+    refused: list[tuple[ProgramLine, str]] = []
+    if envelope is not None:
+        flagged = {line.number for line, _ in problems}
+        refused = [
+            (line, why)
+            for line, why in envelope_refusals(program, envelope, args.firmware)
+            if line.number not in flagged
+        ]
+    for line, why in refused:
+        print(f"{name}:{line.number}: {line.text}: {why}")
+    if refused:
+        note(f"{name} leaves the safety envelope at line {refused[0][0].number}")
+    if problems or refused:
+        count = len(problems) + len(refused)
         note(f"{count} problem{'s' if count != 1 else ''} in {name}")
         return EXIT_FAILED
     print(f"OK: {len(lines)} lines ({len(program)} commands, firmware {args.firmware})")

@@ -10,6 +10,7 @@ from typing import Final
 
 from mirobot_async._cli.exits import CliError, note
 from mirobot_async._cli.plotting import TraceError, TraceWriter
+from mirobot_async._core.modal import MotionModes
 from mirobot_async._core.validation import check_program
 
 __all__ = [
@@ -120,11 +121,21 @@ def read_program(path: str) -> list[ProgramLine]:
     return program_of(read_lines(path))
 
 
-def program_problems(program: list[ProgramLine], firmware: str) -> list[tuple[ProgramLine, str]]:
+def program_problems(
+    program: list[ProgramLine], firmware: str, start: MotionModes | None = None
+) -> list[tuple[ProgramLine, str]]:
     """The one validation of a program, for ``check`` and ``run`` alike: each command as ``run``
     sends it (comments removed, so what is only in a comment is never judged), through
-    :func:`~mirobot_async._core.validation.check_program` (modal state carried from power-on)."""
-    found = check_program([line.text for line in program], firmware=firmware)
+    :func:`~mirobot_async._core.validation.check_program` (modal state carried from ``start``,
+    the modes the program starts from: power-on by default, ``HOMED`` after ``--home``), and
+    its Cartesian targets through the firmware's inverse kinematics where the program gives
+    their six coordinates (:func:`~mirobot_async._safety.reach.unreachable_targets`)."""
+    from mirobot_async._safety.reach import unreachable_targets  # numpy: when it is needed
+
+    texts = [line.text for line in program]
+    found = check_program(texts, firmware=firmware, start=start)
+    found += unreachable_targets(texts, firmware=firmware, start=start)
+    found.sort(key=lambda problem: problem[0])  # (stable: a line's own problems first)
     return [(program[index - 1], message) for index, message in found]
 
 

@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Final
 
 from mirobot_async._cli.exits import CliError, RobotNotReadyError, note
 from mirobot_async._client.ports import AUTO, find_mirobot
+from mirobot_async._core.modal import HOMED, MotionModes
 from mirobot_async._core.replies import State, StatusReport
 from mirobot_async.errors import MirobotError
 
@@ -35,6 +36,7 @@ __all__ = [
     "DEFAULT_TIME_SCALE",
     "HOMING_INTERRUPT",
     "LOCKED_MESSAGE",
+    "LOCKED_PROBED_MESSAGE",
     "STOP_WAIT",
     "Interrupts",
     "background_jobs",
@@ -43,7 +45,10 @@ __all__ = [
     "open_robot",
     "preflight",
     "prepare",
+    "prepare_mode",
+    "refuse_if_locked",
     "sampling",
+    "start_modes",
     "stop_safely",
     "time_scale_of",
 ]
@@ -61,6 +66,10 @@ HOMING_INTERRUPT: Final = "reset"
 """How an interrupted homing cycle is stopped: GRBL 0.9 checks only for a soft reset while it
 homes (a feed hold would be ignored and the arm would go on homing)."""
 LOCKED_MESSAGE: Final = "the arm is locked: run `mirobot home` or pass --home"
+LOCKED_PROBED_MESSAGE: Final = (
+    "the arm is locked (a zero-length move got 'Locked status of each axis!'): "
+    "run `mirobot home` or pass --home"
+)
 HELD_MESSAGE: Final = (
     "the arm is in Hold with moves still queued: `mirobot reset` clears them "
     "(then `mirobot home`, or pass --home)"
@@ -218,13 +227,29 @@ async def sampling(arm: Mirobot, interval: float) -> AsyncIterator[AsyncIterator
         await statuses.aclose()
 
 
+def prepare_mode(args: argparse.Namespace) -> str:
+    """What :func:`prepare` does: ``"home"``, ``"unlock"`` or ``"none"`` (``--home`` /
+    ``--unlock`` / ``--no-home``; without them nothing on a port, the embedded virtual
+    Mirobot's default otherwise)."""
+    mode: str | None = args.prepare
+    if mode is None:
+        mode = "none" if args.port is not None else str(args.embedded_prepare)
+    return mode
+
+
+def start_modes(args: argparse.Namespace) -> MotionModes:
+    """The modes a program starts from after :func:`prepare`: homing leaves
+    :data:`~mirobot_async._core.modal.HOMED` (feed rate 0: a ``G1`` needs an ``F``), otherwise
+    the power-on modes the check assumes."""
+    return HOMED if prepare_mode(args) == "home" else MotionModes()
+
+
 async def prepare(arm: Mirobot, args: argparse.Namespace) -> None:
     """Home or unlock before starting, as ``--home`` / ``--unlock`` / ``--no-home`` say.
 
     Homing is stopped safely with a soft reset (:data:`HOMING_INTERRUPT`)."""
-    mode = args.prepare
-    if mode is None:
-        mode = "none" if args.port is not None else args.embedded_prepare
+    mode = prepare_mode(args)
+    if args.prepare is None:
         if mode == "home":
             note("homing the virtual Mirobot first (--no-home to skip)")
         elif mode == "unlock":
@@ -236,15 +261,28 @@ async def prepare(arm: Mirobot, args: argparse.Namespace) -> None:
         await arm.unlock()
 
 
-async def preflight(arm: Mirobot) -> StatusReport:
+async def preflight(arm: Mirobot, *, probe_lock: bool = True) -> StatusReport:
     """The arm's status, if it can move: :class:`RobotNotReadyError` (one line, exit 1) when it
-    is locked (Alarm) or holds queued moves (Hold), before a byte of the command is sent."""
+    is locked or holds queued moves (Hold), before a line of the command is sent.
+
+    Locked: in Alarm, or (``probe_lock``; the status does not show it: a classic arm after
+    power-on, a 2021 arm after ``$X``) as :func:`refuse_if_locked` finds it."""
     report = await arm.status()
     if report.state is State.ALARM:
         raise RobotNotReadyError(LOCKED_MESSAGE)
     if report.state is State.HOLD:
         raise RobotNotReadyError(HELD_MESSAGE)
+    if probe_lock:
+        await refuse_if_locked(arm)
     return report
+
+
+async def refuse_if_locked(arm: Mirobot) -> None:
+    """:class:`RobotNotReadyError` naming ``mirobot home`` when :meth:`Mirobot.axes_locked`
+    finds the axes locked with its zero-length move (it moves nothing and leaves the modes as
+    they were): before the command's first motion line."""
+    if await arm.axes_locked():
+        raise RobotNotReadyError(LOCKED_PROBED_MESSAGE)
 
 
 @contextlib.asynccontextmanager

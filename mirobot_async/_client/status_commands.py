@@ -1,5 +1,6 @@
 """Status and realtime commands of :class:`~mirobot_async._client.client.Mirobot` (a mixin):
-``status``, ``statuses``, ``wait_idle``, ``hold``, ``resume``, ``reset``, ``hold_on_exit``."""
+``status``, ``statuses``, ``wait_idle``, ``axes_locked``, ``hold``, ``resume``, ``reset``,
+``hold_on_exit``."""
 
 from __future__ import annotations
 
@@ -10,8 +11,15 @@ from collections.abc import AsyncGenerator, AsyncIterator
 from mirobot_async._client.deadline import check_timeout, deadline_after, within
 from mirobot_async._client.parts import MOVE_TIMEOUT, RESET_TIMEOUT, STATUS_TIMEOUT, ClientParts
 from mirobot_async._client.scheduler import QUIET
+from mirobot_async._core.modal import lock_probe
 from mirobot_async._core.replies import State, StatusReport
-from mirobot_async.errors import MirobotAlarmError, MirobotError, MirobotUsageError
+from mirobot_async.errors import (
+    MirobotAlarmError,
+    MirobotError,
+    MirobotUsageError,
+    MotionRefusedError,
+    RefusalReason,
+)
 
 STANDING_SECONDS = 0.25
 """A held arm stands once its reports show the same motor steps for this long: braking at the
@@ -91,6 +99,47 @@ class StatusCommands(ClientParts):
                     raise MirobotAlarmError(None, self._condition.alarm or "the robot is in Alarm")
                 if report.state in QUIET:
                     return report
+
+    async def axes_locked(self, *, timeout: float | None = MOVE_TIMEOUT) -> bool:
+        """Whether the axes are locked (motion lines are dropped: ``Locked status of each
+        axis!``), found without moving the arm. The status does not always show it: classic
+        arms power on locked in ``Idle``, and a 2021 arm stays locked after ``$X``.
+
+        ``True`` in ``Alarm`` (every G-code line is refused). Otherwise, once the arm is at rest
+        (it waits for queued motion to end; in ``Hold`` until :meth:`resume`), a relative joint
+        move of zero length is sent (``M21 G91 X0``: refused when locked, not a motor step
+        otherwise), then the line that puts back the coordinate and distance modes (``M20``,
+        ``G90``); a mode that was unknown is left known (``M21``, ``G90``, ``G0``, ``G21``:
+        :func:`~mirobot_async._core.modal.lock_probe`). Both lines go through validation, the
+        mode tracking and the envelope as any line. Raises as :meth:`send`;
+        :class:`MirobotTimeoutError` after ``timeout`` seconds (default :data:`MOVE_TIMEOUT`).
+        """
+        loop = self._running_loop()
+        deadline = deadline_after(loop, timeout)
+        report = await self.status(timeout=STATUS_TIMEOUT if timeout is None else timeout)
+        if report.state is State.ALARM:
+            return True
+        # at rest first: a mode word written behind moving joints would restart from where
+        # they are (Chaining), and validation refuses it
+        await self.wait_idle(timeout=None if deadline is None else max(0.0, deadline - loop.time()))
+        probe = lock_probe(self._guard.modes)
+        what = "axes_locked()"
+        locked = False
+        try:
+            await self._command(
+                probe.line.encode("ascii"),
+                deadline=deadline, timeout=timeout, idle=True, validate=True, what=what,
+            )  # fmt: skip
+        except MotionRefusedError as err:
+            if err.reason is not RefusalReason.LOCKED:
+                raise
+            locked = True
+        if probe.restore is not None:
+            await self._command(
+                probe.restore.encode("ascii"),
+                deadline=deadline, timeout=timeout, idle=True, validate=True, what=what,
+            )  # fmt: skip
+        return locked
 
     async def hold(self, *, timeout: float | None = STATUS_TIMEOUT) -> StatusReport:
         """Feed hold (``!``): decelerate to a stop; returns once the arm stands: in ``Hold`` at the

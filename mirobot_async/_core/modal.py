@@ -23,8 +23,10 @@ __all__ = [
     "POWER_ON_FEED",
     "Chaining",
     "LineCheck",
+    "LockProbe",
     "MotionModes",
     "line_feed",
+    "lock_probe",
     "modes_after",
     "modes_of",
 ]
@@ -135,6 +137,51 @@ def modes_after(parsed: ParsedLine, modes: MotionModes) -> MotionModes:
     if parsed.program_end:  # GRBL: M2/M30 reset the distance mode and make the motion G1
         return replace(new, relative=False, motion=1, inverse_time=False)
     return new
+
+
+@dataclass(frozen=True, slots=True)
+class LockProbe:
+    """Lines that ask the firmware whether its axes are locked, moving nothing (see
+    :func:`lock_probe`)."""
+
+    line: str
+    """A relative joint move of zero length: a locked arm answers it ``Locked status of each
+    axis!`` then ``ok`` (its motion dropped); an unlocked one ``ok``, without a motor step."""
+    restore: str | None
+    """The line that puts back the coordinate and distance modes the probe changed (None: none
+    to put back)."""
+    after: MotionModes
+    """The modes after both lines, accepted: those before, with any unknown part known."""
+
+
+def lock_probe(modes: MotionModes) -> LockProbe:
+    """The lock probe from the parser modes ``modes`` (oracle, both profiles: ``M21 G91 X0``).
+
+    The zero-length move keeps the motion mode when a zero-length move in it is accepted (``G0``,
+    or ``G1`` at a known feed rate), else states ``G0`` (``G1`` at feed 0 would be refused as
+    ``Undefined feed rate``, arcs and ``G05`` in ``M21`` as ``Unsupported command``); it states
+    ``G21`` when the units are unknown. The restore line puts back ``M20`` and ``G90`` (after the
+    probe's ``M21 G91``); a mode that was unknown is left known: ``M21``, ``G90``, ``G0``,
+    ``G21``. Feed rate and feed mode are not touched."""
+    keep_motion = modes.motion == 0 or (
+        modes.motion == 1 and modes.inverse_time is False and bool(modes.feed)
+    )
+    words = ["M21", "G91"]
+    if modes.inches is None:
+        words.append("G21")
+    if not keep_motion:
+        words.append("G0")
+    back = ["M20"] if modes.cartesian is True else []
+    if modes.relative is not True:
+        back.append("G90")
+    after = replace(
+        modes,
+        cartesian=modes.cartesian is True,
+        relative=modes.relative is True,
+        motion=modes.motion if keep_motion else 0,
+        inches=modes.inches is True,
+    )
+    return LockProbe(" ".join([*words, "X0"]), " ".join(back) or None, after)
 
 
 _Six = tuple[float, float, float, float, float, float]

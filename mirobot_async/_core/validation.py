@@ -534,16 +534,19 @@ def check_line(
     return line_problems(parse_line(line), firmware=firmware, state=state)
 
 
-def check_program(lines: Iterable[str | bytes], *, firmware: str = "2021") -> list[tuple[int, str]]:
-    """Check the lines of a G-code file in order, from power-on state, as they are streamed
-    (``mirobot run``): a line that would end elsewhere than when the lines are sent one at a
-    time, each after the arm stopped, is reported with the fix (see
-    :class:`~mirobot_async._core.modal.Chaining`).
+def check_program(
+    lines: Iterable[str | bytes], *, firmware: str = "2021", start: MotionModes | None = None
+) -> list[tuple[int, str]]:
+    """Check the lines of a G-code file in order, as they are streamed (``mirobot run``), from
+    the modes ``start`` (default: power-on; :data:`~mirobot_async._core.modal.HOMED` for a
+    program run right after homing, whose feed rate is then 0): a line that would end elsewhere
+    than when the lines are sent one at a time, each after the arm stopped, is reported with
+    the fix (see :class:`~mirobot_async._core.modal.Chaining`).
 
     Returns (1-based line number, problem) pairs; modal words carry over between lines.
     """
     profile = check_firmware(firmware)
-    state = ModalState()
+    state = ModalState() if start is None else ModalState.of(start, Chaining())
     found: list[tuple[int, str]] = []
     for number, line in enumerate(lines, start=1):
         found.extend(

@@ -48,6 +48,10 @@ TRACE_HEADER = ["timestamp", "state", "j1", "j2", "j3", "j4", "j5", "j6", "rail"
 TRACE_HEADER += ["x", "y", "z", "rx", "ry", "rz", "pump", "valve", "time_scale"]
 FAST = ("--time-scale", "0")  # every move of the embedded emulator completes at once
 LOCKED = "the arm is locked: run `mirobot home` or pass --home"
+LOCKED_PROBED = (
+    "the arm is locked (a zero-length move got 'Locked status of each axis!'): "
+    "run `mirobot home` or pass --home"
+)
 
 
 def emulator_stats(emulator: SyncEmulatorProcess) -> dict[str, int]:
@@ -445,6 +449,81 @@ def test_run_and_move_on_a_locked_arm_send_nothing_and_say_so_once(
             assert after["lines_in"] == before["lines_in"]  # not one line was sent
             sent = after["bytes_in"] - before["bytes_in"]
             assert sent == after["status_requests_in"] - before["status_requests_in"]  # only "?"
+
+
+@pytest.mark.parametrize("firmware", ["classic", "2021"])
+def test_run_on_an_arm_locked_in_idle_is_refused_before_its_first_motion_line(
+    cli: Cli, tmp_path: Path, mirobot_emulator_pool: EmulatorPool, firmware: str
+) -> None:
+    """The status does not show the lock (classic after power-on, 2021 after ``$X``): the
+    pre-flight's zero-length move finds it; the program is refused whole with the way out,
+    and runs once the arm is homed."""
+    from mirobot_async.sync import Mirobot as SyncMirobot
+
+    program = tmp_path / "p.gcode"
+    program.write_text("M21 G90 G0 X10\nG0 X20\n")
+    with mirobot_emulator_pool.lend(firmware, 0) as emulator:
+        if firmware == "2021":
+            with SyncMirobot.connect(emulator.url) as arm:
+                arm.clear_alarm()  # $X: Idle, still locked
+        before = emulator_stats(emulator)
+        proc = cli("run", str(program), "--port", emulator.url)
+        after = emulator_stats(emulator)
+        assert proc.returncode == 1
+        assert error_line(proc) == "mirobot: error: " + LOCKED_PROBED
+        assert proc.stdout == ""
+        assert after["lines_in"] - before["lines_in"] == 2  # the probe and its G90: no program
+        assert cli("home", "--port", emulator.url).returncode == 0
+        proc = cli("run", str(program), "--port", emulator.url)
+        assert proc.returncode == 0, proc.stderr
+        assert close_to(parse_table(proc.stdout).joints, [20, 0, 0, 0, 0, 0], tol=0.01)
+
+
+def test_run_home_refuses_a_g1_without_feed_before_homing(
+    cli: Cli, tmp_path: Path, mirobot_emulator_pool: EmulatorPool
+) -> None:
+    """After homing the feed rate is 0: the check judges from there (not from power-on's 200),
+    so the program is refused whole before a byte, homing included."""
+    program = tmp_path / "nofeed.gcode"
+    program.write_text("M21 G90 G0 X10\nG1 X20\n")
+    assert cli("check", str(program)).returncode == 0  # from power-on: feed 200
+    with mirobot_emulator_pool.lend(time_scale=0) as emulator:
+        before = emulator_stats(emulator)
+        proc = cli("run", str(program), "--port", emulator.url, "--home")
+        after = emulator_stats(emulator)
+    assert proc.returncode == 1
+    assert f"{program}:2: G1 X20: no feed rate in effect" in proc.stderr
+    assert error_line(proc).endswith("nothing was sent (--no-check sends it anyway)")
+    assert after["lines_in"] - before["lines_in"] <= 1  # at most "$$": no $H, no program
+    proc = cli("run", str(program), *FAST)  # the embedded arm is homed by default: the same
+    assert proc.returncode == 1
+    assert "no feed rate in effect" in proc.stderr
+
+
+@pytest.mark.parametrize("firmware", ["classic", "2021"])
+def test_check_and_run_flag_a_cartesian_target_the_arm_cannot_reach(
+    cli: Cli, tmp_path: Path, mirobot_emulator_pool: EmulatorPool, firmware: str
+) -> None:
+    """The firmware's inverse kinematics on the targets the program gives whole (absolute, or
+    relative after a known one); a target whose start is unknown is not judged."""
+    program = tmp_path / "far.gcode"
+    program.write_text(
+        "M20 G90 G0 X500 ; start unknown: not judged\nG0 X200 Y0 Z200 A0 B0 C0\nG91 G0 X300\n"
+    )
+    proc = cli("check", str(program), "--firmware", firmware)
+    assert proc.returncode == 1
+    assert proc.stdout.splitlines() == [
+        f"{program}:3: the Cartesian target X500 Y0 Z200 A0 B0 C0 is unreachable: the "
+        "firmware's inverse kinematics has no solution and drops the move ('GOAL OUT OF "
+        "WORKSPACE')"
+    ]
+    with mirobot_emulator_pool.lend(firmware, 0) as emulator:  # run refuses it whole
+        before = emulator_stats(emulator)
+        proc = cli("run", str(program), "--port", emulator.url, "--home")
+        after = emulator_stats(emulator)
+    assert proc.returncode == 1
+    assert "nothing was sent" in error_line(proc)
+    assert after["lines_in"] - before["lines_in"] <= 1  # at most "$$"
 
 
 def test_run_checks_the_whole_program_before_sending_anything(

@@ -103,3 +103,30 @@ def test_mcp_without_the_sdk_says_how_to_install_it(
     assert last.startswith("mirobot: error: mirobot mcp needs the MCP SDK: pip install ")
     assert "'mirobot-async[mcp]'" in last
     assert "virtual Mirobot" not in result.stderr  # said before anything was started
+
+
+def test_check_with_an_envelope_says_what_run_says(
+    cli: Cli, tmp_path: Path, mirobot_emulator_pool: EmulatorPool
+) -> None:
+    """``check --envelope`` offline: the line run's envelope check refuses, with run's reason."""
+    program = tmp_path / "leaves.gcode"
+    program.write_text(LEAVING)
+    offline = cli("check", str(program), "--envelope", ENVELOPE)
+    assert offline.returncode == 1
+    assert offline.stdout.splitlines() == [
+        f"{program}:2: G1 X200 Y0 Z5 F1000: target z=5.000 mm is below the envelope's minimum "
+        "z=20 mm (line 2)"
+    ]
+    assert f"{program} leaves the safety envelope at line 2" in offline.stderr
+    assert cli("check", str(program)).returncode == 0  # without the envelope: nothing to say
+    with mirobot_emulator_pool.lend(time_scale=0) as emulator:
+        assert cli("home", "--port", emulator.url).returncode == 0
+        online = cli("run", str(program), "--port", emulator.url, "--envelope", ENVELOPE)
+    assert online.returncode == 1
+    said = next(line for line in online.stderr.splitlines() if line.startswith(f"{program}:2:"))
+    reason = offline.stdout.splitlines()[0].split(": ", 2)[2]
+    assert said.startswith(f"{program}:2: G1 X200 Y0 Z5 F1000: ")
+    assert reason.split(" (line 2)")[0] in said
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[box]\nz = [300, 20]\n")
+    assert cli("check", str(program), "--envelope", str(bad)).returncode == 2

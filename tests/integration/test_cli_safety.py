@@ -199,7 +199,8 @@ def test_a_held_arm_is_refused_by_the_pre_flight_check(
         assert cli("unlock", "--port", emulator.url).returncode == 0
         moving = spawn("move", "joints", "j1=100", "--port", emulator.url, "--speed", "300")
         try:
-            wait_for(lambda: stats(emulator)["lines_in"] >= 3, 20, "the move to be sent")
+            # $X, M50; the pre-flight's lock probe and its G90; then the move
+            wait_for(lambda: stats(emulator)["lines_in"] >= 5, 20, "the move to be sent")
             moving.send_signal(signal.SIGINT)
             _, err = moving.communicate(timeout=20)
         finally:

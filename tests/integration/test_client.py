@@ -359,6 +359,31 @@ async def test_locked_axes_refuse_motion(arm: Mirobot, profile: str) -> None:
     assert (await arm.status()).joints == (0.0,) * 6
 
 
+async def test_axes_locked_finds_the_lock_without_moving_and_keeps_the_modes(
+    arm: Mirobot, profile: str
+) -> None:
+    """The status does not show the lock (classic after power-on, 2021 after ``$X``): the
+    zero-length probe finds it, moves nothing, and the modes it leaves are the ones the client
+    tracks and the firmware reports (``$G``, ``Motion_MODE``)."""
+    assert await arm.axes_locked()  # 2021: Alarm (nothing sent); classic: Idle, probed
+    if profile == "2021":
+        await arm.clear_alarm()
+        assert (await arm.status()).state is State.IDLE
+        assert await arm.axes_locked()  # still locked after $X
+    assert (await arm.status()).joints == (0.0,) * 6
+    await arm.unlock()
+    assert not await arm.axes_locked()
+    await arm.send("M20 G91 G21 G1 Z-1 F300")  # the modes known: Cartesian, relative, G1 F300
+    before = await arm.wait_idle()
+    modes = arm._guard.modes
+    assert (modes.cartesian, modes.relative, modes.motion, modes.feed) == (True, True, 1, 300.0)
+    assert not await arm.axes_locked()
+    assert arm._guard.modes == modes
+    after = await arm.status()
+    assert (after.joints, after.motion_mode) == (before.joints, 1)  # not a step; still M20
+    assert (await arm.send("$G"))[0].startswith("[G1 G54 G17 G21 G91 G94 M0 M5 M9 T0 F300.")
+
+
 async def test_refusals(ready_arm: Mirobot) -> None:
     arm = ready_arm
     # soft limit: the builders refuse out-of-range absolute targets, so use raw and relative
