@@ -25,12 +25,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Final
 
-from mirobot_async._client.condition import (
-    HOMING_LINE_RE,
-    HomingCycle,
-    RobotCondition,
-    homing_bound,
-)
+from mirobot_async._client.condition import HomingCycle, RobotCondition, homing_bound
 from mirobot_async._client.deadline import clip
 from mirobot_async._client.guard import EnvelopeGuard, NullGuard, Tracked
 from mirobot_async._client.poller import StatusPoller
@@ -119,13 +114,17 @@ class ReplyWatch:
 
     # ---- what the scheduler tells ----
 
-    def written(self, slot: Slot, now: float, dwell: float | None) -> None:
-        """``slot``'s line was written at ``now`` (``dwell``: its ``G4`` seconds)."""
+    def written(self, slot: Slot, now: float) -> None:
+        """``slot``'s line was written at ``now``: a homing line starts the silent search, a
+        ``G4`` holds the robot for its dwell (both read from the line's one parse)."""
         self._last_write = now
-        text = slot.pending.line.decode("ascii", "replace").replace(" ", "").upper()
-        if HOMING_LINE_RE.match(text):
+        parsed = slot.parsed
+        if parsed is None:
+            return
+        kind = parsed.homing_kind
+        if kind is not None:
             condition = self._condition
-            bound = homing_bound(text, condition.homing_rates, condition.homing_bounds)
+            bound = homing_bound(kind, condition.homing_rates, condition.homing_bounds)
             condition.homing = HomingCycle(slot.command, now, bound)
             self._homing_line = slot.pending.id
             _log.info(
@@ -133,6 +132,7 @@ class ReplyWatch:
                 slot.command,
                 bound,
             )
+        dwell = parsed.dwell_seconds
         if dwell is not None and dwell > 0:
             slot.dwell = dwell
             self._dwell_until = max(self._dwell_until, now) + dwell

@@ -393,8 +393,8 @@ class LineScheduler:
                         continue
                     if should_stop is not None and should_stop():
                         raise StreamStopped  # a reply received meanwhile stopped it
-                    slot = self._write(data, command, exclusive, parsed.dwell_seconds)
-                    slot.watch, slot.parsed = watch, parsed  # no reply can come before this
+                    slot = self._write(data, command, exclusive, parsed)
+                    slot.watch = watch  # no reply can come before this
                     slot.tracked = guard.track_written(
                         slot.pending.id,
                         command,
@@ -407,16 +407,16 @@ class LineScheduler:
                     return slot
                 await self.wait_progress(deadline)
 
-    def _write(self, data: bytes, command: str, exclusive: bool, dwell: float | None) -> Slot:
+    def _write(self, data: bytes, command: str, exclusive: bool, parsed: ParsedLine) -> Slot:
         """Register ``data`` with the state machine and write it (synchronous: no gap)."""
         assert self._loop is not None
         pending = self._wire.write_line(data)
         now = self._loop.time()
-        slot = Slot(pending, command, self._loop.create_future(), now)
+        slot = Slot(pending, command, self._loop.create_future(), now, parsed=parsed)
         self.slots[pending.id] = slot
         if exclusive:
             self._barrier = pending.id
-        self.watch.written(slot, now, dwell)
+        self.watch.written(slot, now)
         return slot
 
     async def learn_position(self, command: str, deadline: float | None) -> None:

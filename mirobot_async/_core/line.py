@@ -460,8 +460,21 @@ class ParsedLine:
 
     @property
     def is_homing(self) -> bool:
-        """Any ``$H...`` line (the firmware homes for every variant it accepts)."""
+        """Any ``$H...`` line (the firmware homes for every variant it accepts), comments and
+        blanks dropped as the firmware drops them: ``(x)$H`` homes as ``$H`` does."""
         return self.dollar is not None and self.dollar.kind == "homing"
+
+    @property
+    def homing_kind(self) -> Literal["$H", "$HH"] | None:
+        """Which homing search the line starts (``None``: not a homing line): ``"$H"``, every
+        axis at once (also the 2021 ``$H0``..``$H7``, one axis), or ``"$HH"``, one group after
+        another (also ``$HE`` and any other ``$H...``: the longest, when unknown)."""
+        if not self.is_homing:
+            return None
+        text = self.text
+        if text == "$H" or (len(text) == 3 and "0" <= text[2] <= "7"):
+            return "$H"
+        return "$HH"
 
     @property
     def clears_alarm(self) -> bool:
