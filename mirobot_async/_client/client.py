@@ -142,12 +142,12 @@ from mirobot_async._client.parts import (
 )
 from mirobot_async._client.path_commands import PathCommands, PathError
 from mirobot_async._client.router import url_text
+from mirobot_async._client.scheduler import SendRules
 from mirobot_async._client.status_commands import StatusCommands
 from mirobot_async._client.streaming import LineResult, Stream, StreamResult
 from mirobot_async._client.transport import Implementation
 from mirobot_async._client.wire import ClientStats, Transport, TransportOpener, serial_opener
-from mirobot_async._core.line import parse_line
-from mirobot_async._core.protocol import encode_line
+from mirobot_async._core.outgoing import OutgoingLine, encode_line
 from mirobot_async._core.replies import StatusReport
 from mirobot_async.errors import MirobotConnectionError, MirobotTimeoutError, MirobotUsageError
 
@@ -522,22 +522,14 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
         the reply is consumed and discarded.
         """
         data = encode_line(line, self._wire.rx_buffer_size)
-        parsed = parse_line(data)
+        outgoing = OutgoingLine.of(data, f"send({data.decode('ascii')!r})")
         if timeout == DEFAULT_TIMEOUT:
-            timeout = default_reply_timeout(parsed)
+            timeout = default_reply_timeout(outgoing.parsed)
         deadline = deadline_after(self._running_loop(), timeout)
-        what = f"send({data.decode('ascii')!r})"
         if not validate:
-            _log.warning("%s is sent WITHOUT validation (validate=False)", what)
-        return await self._command(
-            data,
-            deadline=deadline,
-            timeout=timeout,
-            check_envelope=check_envelope,
-            what=what,
-            validate=validate,
-            parsed=parsed,
-        )
+            _log.warning("%s is sent WITHOUT validation (validate=False)", outgoing.what)
+        rules = SendRules(check_envelope=check_envelope, validate=validate)
+        return await self._command(outgoing, deadline=deadline, timeout=timeout, rules=rules)
 
     def stream(
         self,

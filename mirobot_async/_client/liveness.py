@@ -36,6 +36,7 @@ from mirobot_async.errors import MirobotTimeoutError
 
 if TYPE_CHECKING:
     from mirobot_async._core.line import ParsedLine
+    from mirobot_async._core.outgoing import OutgoingLine
     from mirobot_async._safety.envelope import LineCheck
 
 __all__ = ["DWELL_CLOCK_SLACK", "QUIET", "ReplyWatch", "Slot"]
@@ -56,7 +57,7 @@ class Slot:
     """A line written to the robot and owed a reply; ``fut`` is cancelled if the caller leaves."""
 
     pending: PendingLine
-    command: str
+    line: OutgoingLine  # the line as the caller made it: bytes, one parse, label
     fut: asyncio.Future[Outcome]
     sent_at: float
     tracked: Tracked | None = None  # what the envelope guard assumed when it was written
@@ -64,7 +65,16 @@ class Slot:
     reply_epoch: int = -1  # the reset epoch when its reply came (a line may run after a reset)
     # Called synchronously when the reply (or failure) is settled, before anything else runs.
     watch: Callable[[Slot], None] | None = None
-    parsed: ParsedLine | None = None  # the line's one parse: its ok settles facts (condition)
+
+    @property
+    def command(self) -> str:
+        """The line's text, as errors quote it."""
+        return self.line.command
+
+    @property
+    def parsed(self) -> ParsedLine:
+        """The line's one parse."""
+        return self.line.parsed
 
     @property
     def check(self) -> LineCheck | None:
@@ -119,8 +129,6 @@ class ReplyWatch:
         ``G4`` holds the robot for its dwell (both read from the line's one parse)."""
         self._last_write = now
         parsed = slot.parsed
-        if parsed is None:
-            return
         kind = parsed.homing_kind
         if kind is not None:
             condition = self._condition

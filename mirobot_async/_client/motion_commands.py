@@ -18,11 +18,12 @@ from mirobot_async._client.completion import Target
 from mirobot_async._client.condition import RobotCondition
 from mirobot_async._client.deadline import deadline_after
 from mirobot_async._client.parts import DEFAULT_TIMEOUT, HOME_TIMEOUT, MOVE_TIMEOUT, ClientParts
-from mirobot_async._client.scheduler import Slot, StreamStopped
+from mirobot_async._client.scheduler import SendRules, Slot, StreamStopped
 from mirobot_async._core import gcode
 from mirobot_async._core.acceptance import update_modes
 from mirobot_async._core.line import ParsedLine, parse_line
 from mirobot_async._core.modal import Chaining, MotionModes
+from mirobot_async._core.outgoing import OutgoingLine
 from mirobot_async._core.replies import StatusReport
 from mirobot_async.errors import MirobotUsageError
 
@@ -32,6 +33,8 @@ if TYPE_CHECKING:
 __all__ = ["ARM_STOPPED", "MotionCommands", "absolute_pose", "write_move"]
 
 ARM_STOPPED: Final = b"G4 P0"
+_STOPPED: Final = ARM_STOPPED.decode("ascii")
+_MOTION: Final = SendRules(motion=True)
 """Written before a move whose mode word would restart it from where the moving arm is: the
 firmware answers a dwell only once its planner is empty, and reads the next line after it."""
 _ATTEMPTS: Final = 3
@@ -329,19 +332,16 @@ async def write_move(
     for _attempt in range(_ATTEMPTS):
         mode_word = _needs_mode_word(parts, build, cartesian, follow)
         data = build(mode_word).rstrip(b"\n")
-        command = data.decode("ascii").strip()
-        parsed = parse_line(data)
+        command = data.decode("ascii")
+        line = OutgoingLine.of(data, f"{what} {command!r}")
+        parsed = line.parsed
         firmware = parts._condition.firmware
         barrier: Slot | None = None
         if _restarts(guard.chain, guard.modes, [parsed, *follow], firmware):
-            barrier = await parts._lines.submit(
-                ARM_STOPPED,
-                ARM_STOPPED.decode("ascii"),
-                deadline=deadline,
-                timeout=timeout,
-                motion=False,
-                what=f"{ARM_STOPPED.decode('ascii')!r} (the arm stops before {command!r})",
+            stopped = OutgoingLine.of(
+                ARM_STOPPED, f"{_STOPPED!r} (the arm stops before {command!r})"
             )
+            barrier = await parts._lines.submit(stopped, deadline=deadline, timeout=timeout)
 
         def changed(mode_word: bool = mode_word, parsed: ParsedLine = parsed) -> bool:
             stated = _needs_mode_word(parts, build, cartesian, follow)
@@ -352,14 +352,7 @@ async def write_move(
 
         try:
             return await parts._lines.submit(
-                data,
-                command,
-                deadline=deadline,
-                timeout=timeout,
-                motion=True,
-                what=f"{what} {command!r}",
-                parsed=parsed,
-                should_stop=changed,
+                line, deadline=deadline, timeout=timeout, rules=_MOTION, should_stop=changed
             )
         except StreamStopped:
             continue  # another line changed the mode meanwhile: build it again
