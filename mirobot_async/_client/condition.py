@@ -159,8 +159,6 @@ class RobotCondition:
         self.reset_requested = False
         self.resetting = 0  # reset() calls awaiting their banner: no line is written meanwhile
         self.banner_started = -math.inf
-        # The 2021 base offset $41..$43 from the last $$ listing (None: unknown or changed since).
-        self.base_offset: tuple[float, float, float] | None = None
         self._banner_waiters: list[tuple[float, asyncio.Future[_BannerResult]]] = []
         # The homing line in flight (the robot answers no "?" meanwhile), if any.
         self.homing: HomingCycle | None = None
@@ -272,10 +270,8 @@ class RobotCondition:
 
     def learn_firmware_from_settings(self, numbers: Iterable[int]) -> None:
         """A ``$$`` listing (numbers, or a mapping to values): ``$29`` exists only on the 2021
-        firmware; ``$41..$43`` is the base offset."""
+        firmware; ``$24``/``$25`` are the homing rates."""
         values = set(numbers)
-        if isinstance(numbers, Mapping) and all(n in numbers for n in (41, 42, 43)):
-            self.base_offset = (float(numbers[41]), float(numbers[42]), float(numbers[43]))
         if isinstance(numbers, Mapping) and all(n in numbers for n in (24, 25)):
             self.homing_rates = (float(numbers[24]), float(numbers[25]))
         if not values:
@@ -328,8 +324,6 @@ class RobotCondition:
             self.learn_build_info(reply.output)
         if parsed.clears_alarm:
             self.unlocked()
-        if parsed.changes_base_offset:
-            self.base_offset = None
         dollar = parsed.dollar
         if dollar is not None and dollar.kind == "setting" and dollar.number in (24, 25):
             if dollar.value is not None:

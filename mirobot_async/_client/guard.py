@@ -20,7 +20,12 @@ from dataclasses import replace
 from typing import TYPE_CHECKING, Final, Protocol
 
 from mirobot_async._client.condition import RobotCondition
-from mirobot_async._client.null_guard import QUIET, NullGuard, Tracked
+from mirobot_async._client.null_guard import (
+    QUIET,
+    NullGuard,
+    Tracked,
+    base_offset_from_settings,
+)
 from mirobot_async._client.wire import ClientStats
 from mirobot_async._core.acceptance import line_fate, modes_after_refusal, update_modes
 from mirobot_async._core.line import ParsedLine
@@ -31,7 +36,6 @@ from mirobot_async._safety.firmware_memory import (
     PARSER_UNKNOWN,
     Offset,
     WorkCoordinates,
-    changes_base_offset,
     parse_startup_lines,
     reset_modes,
     soft_limits_from_settings,
@@ -134,8 +138,6 @@ class EnvelopeGuard:
         self._state: MachineState = MachineState(
             MotionModes.unknown(), startup_lines=None, work_offset=None, linear_g1=None
         )
-        self._base_offset: tuple[float, float, float] | None = None  # learned from $$ (2021)
-        self._gate_lift: float | None = None
         self._soft_read = False  # $20 and $130..$146 known (state.soft_limits, None if off)
         self._work = WorkCoordinates()  # $#, $G
         self.epoch = 0  # bumped when the prediction or the modes are invalidated
@@ -165,6 +167,14 @@ class EnvelopeGuard:
         return self._state.modes
 
     @property
+    def base_offset(self) -> tuple[float, float, float] | None:
+        """The 2021 base offset ``$41..$43`` as predicted after every line written (from a
+        ``$$`` listing, then the lines that set it; ``None``: unknown; zero on classic)."""
+        if self._condition.firmware == "classic":
+            return (0.0, 0.0, 0.0)
+        return self._state.base_offset
+
+    @property
     def parser_apart(self) -> bool:
         """The firmware's parser is not where the arm is, or unknown (a locked refusal moved it):
         the client's own moves restate M20/M21, which re-reads the arm's position."""
@@ -178,7 +188,7 @@ class EnvelopeGuard:
         if not self._soft_read:
             return True
         return self._condition.firmware == "2021" and (
-            self._base_offset is None or self._state.linear_g1 is None
+            self._state.base_offset is None or self._state.linear_g1 is None
         )
 
     def wanted_queries(self) -> tuple[str, ...]:
@@ -223,10 +233,6 @@ class EnvelopeGuard:
         state = replace(self._state, work_offset=self._work_offset(parsed))
         if firmware == "classic":  # no base offset, no gate moves, M20 G1 in joint space
             return replace(state, base_offset=(0.0, 0.0, 0.0), gate_lift=None, firmware=firmware)
-        if state.base_offset is None and self._base_offset is not None:
-            state = replace(state, base_offset=self._base_offset)
-        if state.gate_lift is None and self._gate_lift is not None:
-            state = replace(state, gate_lift=self._gate_lift)
         return replace(state, firmware=firmware)
 
     def _predict(self, parsed: ParsedLine, state: MachineState, what: str | None) -> MachineState:
@@ -312,13 +318,11 @@ class EnvelopeGuard:
             self._state = replace(self._state, soft_limits=soft)
         if 35 in settings:
             self._state = replace(self._state, linear_g1=settings[35] != 0)
-        if all(n in settings for n in (41, 42, 43)):
-            offset = (float(settings[41]), float(settings[42]), float(settings[43]))
-            self._base_offset = offset
+        offset = base_offset_from_settings(settings)
+        if offset is not None:
             self._state = replace(self._state, base_offset=offset)
         if 49 in settings:
-            self._gate_lift = float(settings[49])
-            self._state = replace(self._state, gate_lift=self._gate_lift)
+            self._state = replace(self._state, gate_lift=float(settings[49]))
 
     def track_written(
         self,
@@ -382,9 +386,10 @@ class EnvelopeGuard:
     def _forget_stored(self, parsed: ParsedLine) -> None:
         """An unchecked line that may change what the firmware stores: read it again."""
         dollar = parsed.dollar
-        if changes_base_offset(parsed):
-            self._state = replace(self._state, base_offset=None, gate_lift=None)
-            self._base_offset = self._gate_lift = None
+        if parsed.changes_base_offset:
+            self._state = replace(self._state, base_offset=None)
+        if parsed.changes_setting(49):
+            self._state = replace(self._state, gate_lift=None)
         if dollar is not None and dollar.kind in ("restore", "unknown"):
             self._soft_read = False
             self._state = replace(self._state, linear_g1=None, soft_limits=None)

@@ -15,8 +15,8 @@ from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Final
 
 from mirobot_async._client.completion import Target
-from mirobot_async._client.condition import RobotCondition
 from mirobot_async._client.deadline import deadline_after
+from mirobot_async._client.guard import EnvelopeGuard, NullGuard
 from mirobot_async._client.parts import DEFAULT_TIMEOUT, HOME_TIMEOUT, MOVE_TIMEOUT, ClientParts
 from mirobot_async._client.scheduler import SendRules, Slot, StreamStopped
 from mirobot_async._core import gcode
@@ -245,7 +245,7 @@ class MotionCommands(ClientParts):
 
         def target(base: StatusReport | None, check: LineCheck | None) -> Target:
             if not relative:
-                return Target(pose=absolute_pose(values, check, self._condition))
+                return Target(pose=absolute_pose(values, check, self._guard))
             if check is not None and check.pose is not None:
                 pose = tuple(
                     None if v is None else p for v, p in zip(values, check.pose, strict=True)
@@ -400,18 +400,16 @@ def _restarts(
 
 
 def absolute_pose(
-    values: tuple[float | None, ...], check: LineCheck | None, condition: RobotCondition
+    values: tuple[float | None, ...], check: LineCheck | None, guard: EnvelopeGuard | NullGuard
 ) -> tuple[float | None, ...]:
     """Where an absolute ``M20`` move reads back: the firmware adds the 2021 base offset
-    ``$41..$43`` to X/Y/Z. Known from the envelope's prediction, a ``$$`` listing, or zero on a
-    classic arm; otherwise X/Y/Z are not checked (completion: ``Idle`` after the arm moved)."""
-    if check is not None and check.base_offset is not None:
-        offset: tuple[float, ...] = check.base_offset
-    elif condition.firmware == "classic":
-        offset = (0.0, 0.0, 0.0)
-    elif condition.base_offset is not None:
-        offset = condition.base_offset
-    else:
+    ``$41..$43`` to X/Y/Z. Known from the envelope's verdict on the line, else from the guard
+    (the one store: a ``$$`` listing, zero on a classic arm); otherwise X/Y/Z are not checked
+    (completion: ``Idle`` after the arm moved)."""
+    offset = check.base_offset if check is not None else None
+    if offset is None:
+        offset = guard.base_offset
+    if offset is None:
         return (None, None, None, *values[3:])
     xyz = tuple(None if v is None else v + o for v, o in zip(values[:3], offset, strict=True))
     return (*xyz, *values[3:])

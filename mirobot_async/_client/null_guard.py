@@ -21,10 +21,17 @@ if TYPE_CHECKING:
     from mirobot_async._safety.envelope import Envelope
     from mirobot_async._safety.prediction import MachineState
 
-__all__ = ["QUIET", "NullGuard", "Tracked"]
+__all__ = ["QUIET", "NullGuard", "Tracked", "base_offset_from_settings"]
 
 QUIET: Final = frozenset({State.IDLE, State.ALARM, State.CHECK})
 """States in which nothing moves."""
+
+
+def base_offset_from_settings(settings: Mapping[int, float]) -> tuple[float, float, float] | None:
+    """The 2021 base offset ``$41..$43`` in a ``$$`` listing, if it lists all three."""
+    if all(n in settings for n in (41, 42, 43)):
+        return (float(settings[41]), float(settings[42]), float(settings[43]))
+    return None
 
 
 @dataclass(frozen=True, slots=True)
@@ -55,6 +62,7 @@ class NullGuard:
         self._modes = MotionModes.unknown()
         self.chain = Chaining()  # which joints may still move, which a mode word re-read
         self._last_line_id: int | None = None  # the last line written
+        self._base_offset: tuple[float, float, float] | None = None
 
     @property
     def envelope(self) -> Envelope | None:
@@ -65,6 +73,14 @@ class NullGuard:
     def modes(self) -> MotionModes:
         """The modal words stated by the lines written since connect (``None``: unknown)."""
         return self._modes
+
+    @property
+    def base_offset(self) -> tuple[float, float, float] | None:
+        """The 2021 base offset ``$41..$43`` from the last ``$$`` listing (``None``: unknown,
+        or a line written since may have changed it; zero on classic)."""
+        if self._firmware == "classic":
+            return (0.0, 0.0, 0.0)
+        return self._base_offset
 
     wants_settings = False  # no settings are needed
 
@@ -101,7 +117,10 @@ class NullGuard:
             self.chain = self.chain.at_rest()
 
     def adopt_settings(self, settings: Mapping[int, float]) -> None:
-        """Nothing to predict."""
+        """A ``$$`` listing: the base offset (for where an absolute ``M20`` move reads back)."""
+        offset = base_offset_from_settings(settings)
+        if offset is not None:
+            self._base_offset = offset
 
     def track_written(
         self,
@@ -118,6 +137,8 @@ class NullGuard:
         or that the firmware will refuse), as the firmware leaves them, accepted or refused."""
         self.chain = self.chain.after(parsed, self._modes)
         self._last_line_id = line_id
+        if parsed.changes_base_offset:
+            self._base_offset = None  # read again by the next $$
         if parsed.kind == "empty":
             return None
         before = self._modes

@@ -484,16 +484,22 @@ class ParsedLine:
             return self.dollar.kind in ("unlock", "homing")
         return self.kind == "gcode" and self.syntax_error is None and 50 in self.m_codes
 
-    @property
-    def changes_base_offset(self) -> bool:
-        """The line may change the 2021 base offset ``$41..$43`` (such a setting, in any form
-        the firmware reads as one, or ``$RST=...`` restoring the defaults)."""
+    def changes_setting(self, *numbers: int) -> bool:
+        """The line may change one of the settings ``numbers`` (``$N=...`` in any form the
+        firmware reads as one of them, ``$RST=...`` restoring the defaults, or a ``$`` line
+        this parse cannot classify: conservatively, yes)."""
         dollar = self.dollar
         if dollar is None:
             return False
-        return dollar.kind == "restore" or (
-            dollar.kind == "setting" and dollar.number in (41, 42, 43)
-        )
+        if dollar.kind in ("restore", "unknown"):
+            return True
+        return dollar.kind == "setting" and dollar.number in numbers
+
+    @property
+    def changes_base_offset(self) -> bool:
+        """The line may change the 2021 base offset ``$41..$43`` (:meth:`changes_setting`):
+        the one rule of the client and the envelope."""
+        return self.changes_setting(41, 42, 43)
 
     @property
     def queues_motion(self) -> bool:

@@ -36,7 +36,6 @@ __all__ = [
     "ParserPosition",
     "WorkCoordinates",
     "apply_startup_lines",
-    "changes_base_offset",
     "changes_work_offsets",
     "parse_coordinate_system",
     "parse_startup_lines",
@@ -126,16 +125,6 @@ def parse_coordinate_system(output: Iterable[str]) -> int | None:
             if len(codes) == 1:
                 return codes[0]
     return None
-
-
-def changes_base_offset(parsed: ParsedLine) -> bool:
-    """An unchecked ``$`` line that may change the base offset or the gate lift."""
-    dollar = parsed.dollar
-    if dollar is None:
-        return False
-    if dollar.kind in ("restore", "unknown"):
-        return True
-    return dollar.kind == "setting" and dollar.number in (41, 42, 43, 49)
 
 
 def changes_work_offsets(text: str) -> bool:

@@ -19,6 +19,7 @@ from mirobot_async.bus._ledger import forwarded_line
         ("$43.4=1", True),
         ("$RST=$", True),
         ("$RST=*", True),
+        ("$41=", True),  # not classified: conservatively, it may
         ("$44=1", False),
         ("$4=1", False),
         ("$$", False),
