@@ -17,11 +17,12 @@ from __future__ import annotations
 import logging
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
-from typing import TYPE_CHECKING, Final, Protocol
+from typing import TYPE_CHECKING, Final
 
 from mirobot_async._client.condition import RobotCondition
 from mirobot_async._client.null_guard import (
     QUIET,
+    LineFollower,
     NullGuard,
     Tracked,
     base_offset_from_settings,
@@ -56,7 +57,6 @@ if TYPE_CHECKING:  # imported when an envelope is used (it needs numpy)
 __all__ = [
     "NEED_POSITION",
     "EnvelopeGuard",
-    "Guard",
     "NeedPosition",
     "NullGuard",
     "PathRefused",
@@ -79,56 +79,13 @@ class NeedPosition:
 NEED_POSITION: Final = NeedPosition()
 
 
-class Guard(Protocol):
-    """What the scheduler and the facade use (:class:`EnvelopeGuard` or :class:`NullGuard`)."""
-
-    epoch: int
-    chain: Chaining
-    parser_apart: bool  # the parser's position is not the arm's (a move restates M20/M21)
-
-    @property
-    def envelope(self) -> Envelope | None: ...
-    @property
-    def modes(self) -> MotionModes: ...
-    @property
-    def wants_settings(self) -> bool: ...
-    def wanted_queries(self) -> tuple[str, ...]: ...
-    def adopt_query(self, query: str, output: Sequence[str] | None) -> None: ...
-    def modal_state(self) -> ModalState: ...
-    def needs_firmware(self, parsed: ParsedLine) -> bool: ...
-    def verdict(self, parsed: ParsedLine, what: str | None) -> LineCheck | NeedPosition | None: ...
-    def preview(self, lines: Sequence[ParsedLine]) -> list[LineCheck] | NeedPosition: ...
-    def adopt_status(self, report: StatusReport) -> None: ...
-    def adopt_settings(self, settings: Mapping[int, float]) -> None: ...
-    def track_written(
-        self,
-        line_id: int,
-        command: str,
-        parsed: ParsedLine,
-        verdict: LineCheck | None,
-        *,
-        checked: bool,
-        what: str | None,
-        warn_unchecked: bool,
-    ) -> Tracked | None: ...
-    def line_failed(
-        self,
-        tracked: Tracked,
-        *,
-        rejected: bool,
-        reason: RefusalReason | None = None,
-        error: str | None = None,
-    ) -> None: ...
-    def forget(self, why: str) -> None: ...
-    def warn_stream_unchecked(self) -> None: ...
-
-
-class EnvelopeGuard:
+class EnvelopeGuard(LineFollower):
     """Checks lines against ``envelope`` and predicts where they leave the arm."""
 
     def __init__(self, envelope: Envelope, condition: RobotCondition, stats: ClientStats) -> None:
         from mirobot_async._safety.prediction import MachineState
 
+        super().__init__()
         self._envelope = envelope
         self._classic: Envelope | None = None  # the envelope with dh=DH_CLASSIC
         self._condition = condition
@@ -141,11 +98,8 @@ class EnvelopeGuard:
         self._soft_read = False  # $20 and $130..$146 known (state.soft_limits, None if off)
         self._work = WorkCoordinates()  # $#, $G
         self.epoch = 0  # bumped when the prediction or the modes are invalidated
-        self._last_line_id: int | None = None
         self._moves = False  # whether the last prediction moves the arm
         self._verdicts: tuple[LineCheck, MachineState] | None = None  # the last verdict's state
-        self.chain = Chaining()
-        """Which joints may still move, which the parser took from a mode word (every line)."""
 
     @property
     def envelope(self) -> Envelope:
@@ -209,7 +163,7 @@ class EnvelopeGuard:
     def modal_state(self) -> ModalState:
         """The modal words :mod:`~mirobot_async._core.validation` needs, as predicted (a new
         object)."""
-        return ModalState.of(self._state.modes, self.chain)
+        return ModalState.of(self._state.modes, self._chain)
 
     def needs_firmware(self, parsed: ParsedLine) -> bool:
         """True when the firmware (the kinematic model) or, for a line with axis words, what the
@@ -250,7 +204,7 @@ class EnvelopeGuard:
         :data:`NEED_POSITION`; raises :class:`MirobotUsageError` ("refused by the safety
         envelope ...; nothing was sent") for a line it refuses."""
         state = self._machine(parsed)
-        chained = self.chain.problem(parsed, state.modes, self._condition.firmware)
+        chained = self._chain.problem(parsed, state.modes, self._condition.firmware)
         if chained is not None:  # the prediction would not be what the firmware does
             self._stats.envelope_refusals += 1
             shown = parsed.source.strip() or parsed.text
@@ -298,7 +252,7 @@ class EnvelopeGuard:
     def adopt_status(self, report: StatusReport) -> None:
         """A status at rest with nothing in flight: where the arm is (unless predicted)."""
         if report.state in _QUIET:
-            self.chain = self.chain.at_rest()
+            self._chain = self._chain.at_rest()
         state = self._state
         if state.joints is not None or report.state not in _QUIET:
             return
@@ -339,8 +293,8 @@ class EnvelopeGuard:
         before = self._state
         after: MachineState | None = None
         firmware = self._condition.firmware
-        restarts = self.chain.problem(parsed, before.modes, firmware) is not None
-        self.chain = self.chain.after(parsed, before.modes, firmware)
+        restarts = self._chain.problem(parsed, before.modes, firmware) is not None
+        self._chain = self._chain.after(parsed, before.modes, firmware)
         fate = line_fate(parsed, before.modes, firmware)
         if fate.accepted is False:  # unchecked: the firmware will refuse it; nothing moves
             self._state = _after_refusal(before, fate.modes)
@@ -488,11 +442,11 @@ class EnvelopeGuard:
             self._work.reinitialised(lines, ran=ran is not False)
             self._forget(reset_modes(lines, ran=ran))
             self._state = replace(self._state, parser=None)
-            self.chain = Chaining()
+            self._chain = Chaining()
             return
         modes = {"lost": MotionModes.unknown()}.get(why)
         if why == "lost":
-            self.chain = self.chain.moved_anything()
+            self._chain = self._chain.moved_anything()
         self._forget(modes)
         self._state = replace(self._state, parser=PARSER_UNKNOWN)
 

@@ -70,7 +70,6 @@ class MotionCommands(ClientParts):
         baseline = await self._lines.baseline(deadline) if use_baseline else None
         epoch, alarm_epoch = condition.reset_epoch, condition.alarm_epoch
         slot = await write_move(self, build, cartesian, deadline, timeout, what)
-        written = self._guard.chain
         await self._lines.await_slot(slot, deadline, timeout)
         if not wait:
             return None
@@ -86,8 +85,7 @@ class MotionCommands(ClientParts):
             epoch=epoch,
             alarm_epoch=alarm_epoch,
         )
-        if self._guard.chain is written:  # nothing written since: the arm is at rest
-            self._guard.chain = written.at_rest()
+        self._guard.move_completed(slot.pending.id)
         return report
 
     async def move_joints(

@@ -209,24 +209,11 @@ class LineScheduler:
         self.watch.replied(event.line.id, acknowledged=isinstance(event, LineAcknowledged))
         slot = self._take(event.line.id)
         if slot is None:
+            self._guard.line_answered(None, None, event)
             return
         self._poller.on_line_reply(slot.sent_at)
         self._condition.on_line_answered(slot.parsed, event)
-        guard = self._guard
-        if (
-            isinstance(guard, NullGuard)
-            and isinstance(event, LineAcknowledged)
-            and event.refusal is not None
-            and slot.parsed is not None
-        ):
-            # "ok" but dropped: the parser's position may have moved, the arm did not (an
-            # envelope guard follows the parser's position itself: line_failed)
-            guard.chain = guard.chain.after_refusal(slot.parsed)
-        if slot.tracked is not None:
-            if isinstance(event, LineRejected):
-                self._guard.line_failed(slot.tracked, rejected=True, error=event.text)
-            elif (refused := event.refusal) is not None:
-                self._guard.line_failed(slot.tracked, rejected=False, reason=refused.reason)
+        self._guard.line_answered(slot.parsed, slot.tracked, event)
         if slot.fut.done():
             stats.replies_discarded += 1
             _log.debug("discarding the reply to %r (its caller left)", slot.command)
