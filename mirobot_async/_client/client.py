@@ -72,7 +72,7 @@ Safety envelope
 **every line** before it is written, at the moment it would be written (under the send lock, so the
 checks follow the order of the lines on the wire): structured moves (``move_joints``,
 ``move_pose``), raw :meth:`Mirobot.send` lines and every :meth:`Mirobot.stream` line are parsed
-with :meth:`Envelope.check_line <mirobot_async._safety.envelope.Envelope.check_line>` against the
+with :func:`~mirobot_async._safety.prediction.predict` against the
 modal state (:class:`~mirobot_async._safety.envelope.MotionModes`, tracked over every line written)
 and the predicted position. A violating line raises :class:`~mirobot_async.errors.MirobotUsageError`
 naming the bound, and nothing of it is written (no line; at most a ``?`` to learn the position).

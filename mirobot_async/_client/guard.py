@@ -40,7 +40,6 @@ from mirobot_async._safety.firmware_memory import (
     parse_startup_lines,
     reset_modes,
     soft_limits_from_settings,
-    state_after_refusal,
 )
 from mirobot_async.errors import (
     EnvelopeRefusedError,
@@ -421,6 +420,8 @@ class EnvelopeGuard(LineFollower):
             self._state = before if modes == before.modes else _after_refusal(before, modes)
             self._work.coordinate = tracked.coordinate
         elif last:
+            from mirobot_async._safety.prediction import state_after_refusal
+
             state = replace(self._state, joints=before.joints, pose=before.pose, rail=before.rail)
             self._state = state_after_refusal(state, before, tracked.check, reason)
         else:

@@ -8,6 +8,7 @@ import time
 
 import numpy as np
 import pytest
+from envelope_lines import check_envelope_line
 
 from mirobot_async._core.modal import HOMED, MotionModes
 from mirobot_async._safety.envelope import Envelope
@@ -245,4 +246,4 @@ def test_envelope_check_line_raises_usage_errors_only() -> None:
     env = Envelope(z=(0, None))
     for line in ("M20 G90 G1 A99999999999 F100", "M20 G90 G1 A300000 F100"):
         with pytest.raises(MirobotUsageError):
-            env.check_line(line, HOME)
+            check_envelope_line(env, line, HOME)

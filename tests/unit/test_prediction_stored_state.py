@@ -21,10 +21,15 @@ from mirobot_async._safety.firmware_memory import (
     parse_work_offsets,
     reset_modes,
     soft_limit_ranges,
-    state_after_refusal,
     work_offset,
 )
-from mirobot_async._safety.prediction import MachineState, Prediction, Refusal, predict
+from mirobot_async._safety.prediction import (
+    MachineState,
+    Prediction,
+    Refusal,
+    predict,
+    state_after_refusal,
+)
 from mirobot_async.errors import RefusalReason
 from mirobot_async.kinematics import DH_CLASSIC, forward
 
