@@ -125,7 +125,7 @@ import asyncio
 import logging
 from collections.abc import AsyncIterable, Callable, Generator, Iterable
 from os import PathLike
-from typing import TYPE_CHECKING, Any, overload
+from typing import TYPE_CHECKING, Any
 
 from mirobot_async._client.accessories import AccessoryCommands
 from mirobot_async._client.condition import Firmware
@@ -153,7 +153,6 @@ from mirobot_async.errors import MirobotConnectionError, MirobotTimeoutError, Mi
 
 if TYPE_CHECKING:  # imported when an envelope is used (it needs numpy)
     from mirobot_async._safety.envelope import Envelope
-    from mirobot_async.bus._controller_bus import SingleArmConnector
 
 __all__ = [
     "CONNECT_TIMEOUT",
@@ -209,7 +208,6 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
 
     # ---- lifecycle ----
 
-    @overload
     @classmethod
     def connect(
         cls,
@@ -223,44 +221,8 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
         probe: bool = True,
         exclusive: bool = True,
         open_transport: TransportOpener | None = None,
-        address: None = None,
         record: str | PathLike[str] | None = None,
-    ) -> Connector: ...
-
-    @overload
-    @classmethod
-    def connect(
-        cls,
-        url: str,
-        *,
-        firmware: Firmware | None = None,
-        timeout: float | None = CONNECT_TIMEOUT,
-        envelope: Envelope | None = None,
-        implementation: Implementation = "fast",
-        status_timeout: float = STATUS_TIMEOUT,
-        probe: bool = True,
-        exclusive: bool = True,
-        open_transport: TransportOpener | None = None,
-        address: int,
-        record: str | PathLike[str] | None = None,
-    ) -> SingleArmConnector: ...
-
-    @classmethod
-    def connect(
-        cls,
-        url: str,
-        *,
-        firmware: Firmware | None = None,
-        timeout: float | None = CONNECT_TIMEOUT,
-        envelope: Envelope | None = None,
-        implementation: Implementation = "fast",
-        status_timeout: float = STATUS_TIMEOUT,
-        probe: bool = True,
-        exclusive: bool = True,
-        open_transport: TransportOpener | None = None,
-        address: int | None = None,
-        record: str | PathLike[str] | None = None,
-    ) -> Connector | SingleArmConnector:
+    ) -> Connector:
         """Open ``url`` (device, pty path, ``socket://host:port``, ``loop://``) at 115200 8N1.
 
         Use as ``async with Mirobot.connect(url) as arm:`` (closed at the end of the block) or
@@ -288,30 +250,14 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
         path, busy port) or when nothing answers the probe within ``timeout`` seconds.
         Cancellation closes the port.
 
-        ``address`` (1..): the arm behind a multi-robot controller at that address on the bus
-        at ``url`` (:func:`mirobot_async.bus.connect`); use it as ``async with`` only (the bus
-        is closed with the arm); ``implementation``, ``exclusive`` and ``open_transport`` are
-        then not used. Raises :class:`~mirobot_async.bus.NodeSilentError` when no node answers
-        there.
+        An arm behind a multi-robot controller on an RS485 bus is reached with
+        :func:`mirobot_async.bus.connect` (``bus.connect(url, address=N)``).
 
         ``record`` (a file name): a tape of the connection is appended to it as it goes (JSON
         Lines, ``docs/tapes.md``): every byte written and line received, with their instants,
         after a header naming the link kind (no host or path), the banner and the firmware
         family. The file is closed with the connection (also when the connect fails).
         """
-        if address is not None:
-            from mirobot_async.bus import connect as connect_on_bus
-
-            return connect_on_bus(
-                url,
-                address=address,
-                firmware=firmware,
-                timeout=timeout,
-                envelope=envelope,
-                status_timeout=status_timeout,
-                probe=probe,
-                record=record,
-            )
         arm = cls(
             firmware=firmware,
             envelope=envelope,

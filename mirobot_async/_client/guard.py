@@ -21,8 +21,10 @@ from typing import TYPE_CHECKING, Final
 
 from mirobot_async._client.condition import RobotCondition
 from mirobot_async._client.null_guard import (
+    NEED_POSITION,
     QUIET,
     LineFollower,
+    NeedPosition,
     NullGuard,
     Tracked,
     base_offset_from_settings,
@@ -66,16 +68,6 @@ __all__ = [
 _log = logging.getLogger("mirobot_async.client")
 
 _QUIET: Final = QUIET
-
-
-class NeedPosition:
-    """The line moves the arm and no position is predicted: learn one first."""
-
-    def __repr__(self) -> str:
-        return "NEED_POSITION"
-
-
-NEED_POSITION: Final = NeedPosition()
 
 
 class EnvelopeGuard(LineFollower):

@@ -25,14 +25,31 @@ from mirobot_async._core.validation import ModalState
 from mirobot_async.errors import RefusalReason
 
 if TYPE_CHECKING:
-    from mirobot_async._client.guard import NeedPosition
     from mirobot_async._safety.envelope import Envelope
     from mirobot_async._safety.prediction import MachineState
 
-__all__ = ["QUIET", "LineFollower", "NullGuard", "Tracked", "base_offset_from_settings"]
+__all__ = [
+    "NEED_POSITION",
+    "QUIET",
+    "LineFollower",
+    "NeedPosition",
+    "NullGuard",
+    "Tracked",
+    "base_offset_from_settings",
+]
 
 QUIET: Final = frozenset({State.IDLE, State.ALARM, State.CHECK})
 """States in which nothing moves."""
+
+
+class NeedPosition:
+    """The line moves the arm and no position is predicted: learn one first."""
+
+    def __repr__(self) -> str:
+        return "NEED_POSITION"
+
+
+NEED_POSITION: Final = NeedPosition()
 
 
 def base_offset_from_settings(settings: Mapping[int, float]) -> tuple[float, float, float] | None:
