@@ -22,6 +22,7 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
+from mirobot_async._version import __version__ as __version__
 from mirobot_async.errors import (
     EnvelopeRefusedError,
     MirobotAlarmError,
@@ -98,8 +99,6 @@ __all__ = [
     "parse_status",
     "start_emulator",
 ]
-
-__version__ = "0.1.0"
 
 _LAZY: dict[str, str] = {
     "ClientStats": "mirobot_async._client.client",
