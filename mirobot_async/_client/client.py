@@ -127,7 +127,6 @@ from collections.abc import AsyncIterable, Callable, Generator, Iterable
 from os import PathLike
 from typing import TYPE_CHECKING, Any
 
-from mirobot_async._client.accessories import AccessoryCommands
 from mirobot_async._client.condition import Firmware
 from mirobot_async._client.deadline import check_timeout, deadline_after
 from mirobot_async._client.motion_commands import MotionCommands
@@ -143,8 +142,10 @@ from mirobot_async._client.parts import (
 from mirobot_async._client.path_commands import PathCommands, PathError
 from mirobot_async._client.router import url_text
 from mirobot_async._client.scheduler import SendRules
+from mirobot_async._client.setting_commands import SettingCommands
 from mirobot_async._client.status_commands import StatusCommands
 from mirobot_async._client.streaming import LineResult, Stream, StreamResult
+from mirobot_async._client.tool_commands import ToolCommands
 from mirobot_async._client.transport import Implementation
 from mirobot_async._client.wire import ClientStats, Transport, TransportOpener, serial_opener
 from mirobot_async._core.outgoing import OutgoingLine, encode_line
@@ -193,7 +194,7 @@ class Connector:
         await self._arm.close()
 
 
-class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
+class Mirobot(MotionCommands, PathCommands, StatusCommands, ToolCommands, SettingCommands):
     """An asyncio connection to one Mirobot. Open it with :meth:`connect`.
 
     All methods may be called concurrently from many tasks; lines go out in call order and each

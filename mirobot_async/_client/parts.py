@@ -6,7 +6,8 @@ r"""The parts of one client connection, wired together: the base of the :class:`
                                                                \-> router (events in)
 
 and offers the facade's command mixins (:mod:`~mirobot_async._client.status_commands`,
-:mod:`~mirobot_async._client.motion_commands`, :mod:`~mirobot_async._client.accessories`) what they
+:mod:`~mirobot_async._client.motion_commands`, :mod:`~mirobot_async._client.tool_commands`,
+:mod:`~mirobot_async._client.setting_commands`) what they
 share: sending one line and awaiting its reply, the firmware profile, the timing knobs.
 """
 

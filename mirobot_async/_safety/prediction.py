@@ -1,9 +1,9 @@
 """Default-deny prediction of a raw line's effect, checked against a safety envelope.
 
 :func:`predict` takes one :class:`~mirobot_async._core.line.ParsedLine` and what is known of the
-machine (:class:`MachineState`: modal words, position, base offset) and returns either a
-:class:`Refusal` naming the line and the reason, or the :class:`Prediction` of the exact effect:
-the state after the line, having checked the whole path against the envelope. A line is let
+machine (:class:`MachineState`: modal words, position, base offset) and returns either an
+:class:`EnvelopeRefusal` naming the line and the reason, or the :class:`Prediction` of the exact
+effect: the state after the line, having checked the whole path against the envelope. A line is let
 through only when its effect is modelled; everything else is refused:
 
 - numbers the firmware reads differently from their text, odd ``G``/``M`` forms, repeated
@@ -63,10 +63,10 @@ __all__ = [
     "HARMLESS_SETTINGS",
     "MAX_AXIS_VALUE",
     "PARSER_UNKNOWN",
+    "EnvelopeRefusal",
     "MachineState",
     "ParserPosition",
     "Prediction",
-    "Refusal",
     "combine",
     "predict",
     "state_after_refusal",
@@ -168,7 +168,7 @@ class Prediction:
 
 
 @dataclass(frozen=True, slots=True)
-class Refusal:
+class EnvelopeRefusal:
     """A line the envelope refuses: it leaves the envelope or cannot be predicted."""
 
     line: ParsedLine
@@ -194,7 +194,7 @@ def predict(
     state: MachineState,
     *,
     what: str | None = None,
-) -> Prediction | Refusal:
+) -> Prediction | EnvelopeRefusal:
     """Predict and check one line (see the module docstring); never raises for the line."""
     parsed = line if isinstance(line, ParsedLine) else parse_line(line)
     name = _what(parsed, what)
@@ -208,7 +208,7 @@ def predict(
         text = str(exc)
         if name not in text:
             text = f"{text} ({name})"
-        return Refusal(parsed, text)
+        return EnvelopeRefusal(parsed, text)
 
 
 # --------------------------------------------------------------------------------------------

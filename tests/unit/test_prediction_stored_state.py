@@ -24,9 +24,9 @@ from mirobot_async._safety.firmware_memory import (
     work_offset,
 )
 from mirobot_async._safety.prediction import (
+    EnvelopeRefusal,
     MachineState,
     Prediction,
-    Refusal,
     predict,
     state_after_refusal,
 )
@@ -41,13 +41,13 @@ STATE = MachineState(JOINT, HOME, rail=0.0, base_offset=(0.0, 0.0, 0.0), firmwar
 SOFT = (1.0, 350, 36, 360, 1000, 160, 70, 60, 350, 205, 360, 1000, 20, 30, 170)
 
 
-def passed(result: Prediction | Refusal) -> MachineState:
+def passed(result: Prediction | EnvelopeRefusal) -> MachineState:
     assert isinstance(result, Prediction), result
     return result.state
 
 
-def refused(result: Prediction | Refusal, *words: str) -> str:
-    assert isinstance(result, Refusal), result
+def refused(result: Prediction | EnvelopeRefusal, *words: str) -> str:
+    assert isinstance(result, EnvelopeRefusal), result
     for word in words:
         assert word in result.reason, result.reason
     return result.reason
