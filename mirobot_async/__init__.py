@@ -22,6 +22,7 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
+from mirobot_async._version import __version__ as __version__
 from mirobot_async.errors import (
     EnvelopeRefusedError,
     MirobotAlarmError,
@@ -49,7 +50,7 @@ if TYPE_CHECKING:
         Stream,
         StreamResult,
     )
-    from mirobot_async._client.condition import Firmware
+    from mirobot_async._client.condition import Firmware, HomingCycle
     from mirobot_async._client.path_commands import Point
     from mirobot_async._client.transport import Implementation
     from mirobot_async._client.wire import DataCallback, LostCallback, Transport, TransportOpener
@@ -66,6 +67,7 @@ __all__ = [
     "Envelope",
     "EnvelopeRefusedError",
     "Firmware",
+    "HomingCycle",
     "Implementation",
     "InvalidLineError",
     "LineCheck",
@@ -99,8 +101,6 @@ __all__ = [
     "start_emulator",
 ]
 
-__version__ = "0.1.0"
-
 _LAZY: dict[str, str] = {
     "ClientStats": "mirobot_async._client.client",
     "Connector": "mirobot_async._client.client",
@@ -110,6 +110,7 @@ _LAZY: dict[str, str] = {
     "Stream": "mirobot_async._client.client",
     "StreamResult": "mirobot_async._client.client",
     "Firmware": "mirobot_async._client.condition",
+    "HomingCycle": "mirobot_async._client.condition",
     "Point": "mirobot_async._client.path_commands",
     "Implementation": "mirobot_async._client.transport",
     "DataCallback": "mirobot_async._client.wire",

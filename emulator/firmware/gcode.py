@@ -15,7 +15,7 @@ from .machine import Machine, Pending
 from .modal import ModalState
 from .offsets import ZERO7, with_values
 from .scanner import AXIS_WORDS, GBlock, scan
-from .validation import MM_PER_INCH, CheckedLine, check_line
+from .validation import MM_PER_INCH, CheckedLine, check_block
 
 
 def waits_for_motion(line: CheckedLine, modal: ModalState) -> bool:
@@ -78,7 +78,7 @@ class GcodeExecutor:
         # oracle: a line with M20 or M21 first sets the parser's position to the machine's
         # (where the arm is now, not where queued motion ends)
         origin = m.machine_position() if scanned.coord_mode is not None else m.modal.joints
-        checked = check_line(scanned, m.modal, origin, m.geometry, m.work)
+        checked = check_block(scanned, m.modal, origin, m.geometry, m.work)
         if isinstance(checked, int):
             self._early_effects(scanned)
             m.error(checked)

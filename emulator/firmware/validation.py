@@ -51,7 +51,7 @@ _L_AND_P_WORDS: Final = frozenset("LP")
 _AXIS_INDEX: Final = {letter: k for k, letter in enumerate(AXIS_WORDS)}
 
 
-def check_line(
+def check_block(
     g: GBlock, modal: ModalState, q0: Vec7, geometry: Geometry, work: WorkOffsets
 ) -> CheckedLine | int:
     """GRBL's error checks of ``g`` in the order of its parser; ``q0`` the parser's joints,

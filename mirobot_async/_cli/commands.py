@@ -79,9 +79,9 @@ __all__ = [
     "cmd_unlock",
     "cmd_urdf",
     "cmd_view",
+    "emulator_main",
     "joint_targets",
     "pose_targets",
-    "run_emulator",
     "trace_interval",
 ]
 
@@ -537,10 +537,10 @@ async def cmd_mcp(args: argparse.Namespace) -> int:
 def cmd_emulator(args: argparse.Namespace) -> int:
     """``mirobot emulator ...``: the ``mirobot-emulator`` command (normally dispatched by
     :func:`~mirobot_async._cli.main` before argparse sees the arguments)."""
-    return run_emulator(args.arguments)
+    return emulator_main(args.arguments)
 
 
-def run_emulator(argv: Sequence[str]) -> int:
+def emulator_main(argv: Sequence[str]) -> int:
     """Run ``mirobot-emulator ARGV`` in this process; returns its exit status."""
     # Imported by name: the emulator is a separate top-level package.
     emulator = importlib.import_module("mirobot_emulator.__main__")

@@ -14,7 +14,7 @@ import sys
 from collections.abc import Awaitable, Callable, Iterator, Sequence
 
 from mirobot_async._cli.arguments import build_parser
-from mirobot_async._cli.commands import run_emulator
+from mirobot_async._cli.commands import emulator_main
 from mirobot_async._cli.exits import (
     EXIT_FAILED,
     EXIT_INTERRUPTED,
@@ -95,7 +95,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     arguments = list(sys.argv[1:] if argv is None else argv)
     emulator_args = _emulator_argv(arguments)
     if emulator_args is not None:
-        return run_emulator(emulator_args)
+        return emulator_main(emulator_args)
     args = build_parser().parse_args(arguments)
     verbose: int = getattr(args, "verbose", 0)
     with _logging_to_stderr(verbose):

@@ -72,7 +72,7 @@ Safety envelope
 **every line** before it is written, at the moment it would be written (under the send lock, so the
 checks follow the order of the lines on the wire): structured moves (``move_joints``,
 ``move_pose``), raw :meth:`Mirobot.send` lines and every :meth:`Mirobot.stream` line are parsed
-with :meth:`Envelope.check_line <mirobot_async._safety.envelope.Envelope.check_line>` against the
+with :func:`~mirobot_async._safety.prediction.predict` against the
 modal state (:class:`~mirobot_async._safety.envelope.MotionModes`, tracked over every line written)
 and the predicted position. A violating line raises :class:`~mirobot_async.errors.MirobotUsageError`
 naming the bound, and nothing of it is written (no line; at most a ``?`` to learn the position).
@@ -125,9 +125,8 @@ import asyncio
 import logging
 from collections.abc import AsyncIterable, Callable, Generator, Iterable
 from os import PathLike
-from typing import TYPE_CHECKING, Any, overload
+from typing import TYPE_CHECKING, Any
 
-from mirobot_async._client.accessories import AccessoryCommands
 from mirobot_async._client.condition import Firmware
 from mirobot_async._client.deadline import check_timeout, deadline_after
 from mirobot_async._client.motion_commands import MotionCommands
@@ -142,18 +141,19 @@ from mirobot_async._client.parts import (
 )
 from mirobot_async._client.path_commands import PathCommands, PathError
 from mirobot_async._client.router import url_text
+from mirobot_async._client.scheduler import SendRules
+from mirobot_async._client.setting_commands import SettingCommands
 from mirobot_async._client.status_commands import StatusCommands
 from mirobot_async._client.streaming import LineResult, Stream, StreamResult
+from mirobot_async._client.tool_commands import ToolCommands
 from mirobot_async._client.transport import Implementation
 from mirobot_async._client.wire import ClientStats, Transport, TransportOpener, serial_opener
-from mirobot_async._core.line import parse_line
-from mirobot_async._core.protocol import encode_line
+from mirobot_async._core.outgoing import OutgoingLine, encode_line
 from mirobot_async._core.replies import StatusReport
 from mirobot_async.errors import MirobotConnectionError, MirobotTimeoutError, MirobotUsageError
 
 if TYPE_CHECKING:  # imported when an envelope is used (it needs numpy)
     from mirobot_async._safety.envelope import Envelope
-    from mirobot_async.bus._controller_bus import SingleArmConnector
 
 __all__ = [
     "CONNECT_TIMEOUT",
@@ -194,7 +194,7 @@ class Connector:
         await self._arm.close()
 
 
-class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
+class Mirobot(MotionCommands, PathCommands, StatusCommands, ToolCommands, SettingCommands):
     """An asyncio connection to one Mirobot. Open it with :meth:`connect`.
 
     All methods may be called concurrently from many tasks; lines go out in call order and each
@@ -209,7 +209,6 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
 
     # ---- lifecycle ----
 
-    @overload
     @classmethod
     def connect(
         cls,
@@ -223,44 +222,8 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
         probe: bool = True,
         exclusive: bool = True,
         open_transport: TransportOpener | None = None,
-        address: None = None,
         record: str | PathLike[str] | None = None,
-    ) -> Connector: ...
-
-    @overload
-    @classmethod
-    def connect(
-        cls,
-        url: str,
-        *,
-        firmware: Firmware | None = None,
-        timeout: float | None = CONNECT_TIMEOUT,
-        envelope: Envelope | None = None,
-        implementation: Implementation = "fast",
-        status_timeout: float = STATUS_TIMEOUT,
-        probe: bool = True,
-        exclusive: bool = True,
-        open_transport: TransportOpener | None = None,
-        address: int,
-        record: str | PathLike[str] | None = None,
-    ) -> SingleArmConnector: ...
-
-    @classmethod
-    def connect(
-        cls,
-        url: str,
-        *,
-        firmware: Firmware | None = None,
-        timeout: float | None = CONNECT_TIMEOUT,
-        envelope: Envelope | None = None,
-        implementation: Implementation = "fast",
-        status_timeout: float = STATUS_TIMEOUT,
-        probe: bool = True,
-        exclusive: bool = True,
-        open_transport: TransportOpener | None = None,
-        address: int | None = None,
-        record: str | PathLike[str] | None = None,
-    ) -> Connector | SingleArmConnector:
+    ) -> Connector:
         """Open ``url`` (device, pty path, ``socket://host:port``, ``loop://``) at 115200 8N1.
 
         Use as ``async with Mirobot.connect(url) as arm:`` (closed at the end of the block) or
@@ -288,30 +251,14 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
         path, busy port) or when nothing answers the probe within ``timeout`` seconds.
         Cancellation closes the port.
 
-        ``address`` (1..): the arm behind a multi-robot controller at that address on the bus
-        at ``url`` (:func:`mirobot_async.bus.connect`); use it as ``async with`` only (the bus
-        is closed with the arm); ``implementation``, ``exclusive`` and ``open_transport`` are
-        then not used. Raises :class:`~mirobot_async.bus.NodeSilentError` when no node answers
-        there.
+        An arm behind a multi-robot controller on an RS485 bus is reached with
+        :func:`mirobot_async.bus.connect` (``bus.connect(url, address=N)``).
 
         ``record`` (a file name): a tape of the connection is appended to it as it goes (JSON
         Lines, ``docs/tapes.md``): every byte written and line received, with their instants,
         after a header naming the link kind (no host or path), the banner and the firmware
         family. The file is closed with the connection (also when the connect fails).
         """
-        if address is not None:
-            from mirobot_async.bus import connect as connect_on_bus
-
-            return connect_on_bus(
-                url,
-                address=address,
-                firmware=firmware,
-                timeout=timeout,
-                envelope=envelope,
-                status_timeout=status_timeout,
-                probe=probe,
-                record=record,
-            )
         arm = cls(
             firmware=firmware,
             envelope=envelope,
@@ -522,22 +469,14 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, AccessoryCommands):
         the reply is consumed and discarded.
         """
         data = encode_line(line, self._wire.rx_buffer_size)
-        parsed = parse_line(data)
+        outgoing = OutgoingLine.of(data, f"send({data.decode('ascii')!r})")
         if timeout == DEFAULT_TIMEOUT:
-            timeout = default_reply_timeout(parsed)
+            timeout = default_reply_timeout(outgoing.parsed)
         deadline = deadline_after(self._running_loop(), timeout)
-        what = f"send({data.decode('ascii')!r})"
         if not validate:
-            _log.warning("%s is sent WITHOUT validation (validate=False)", what)
-        return await self._command(
-            data,
-            deadline=deadline,
-            timeout=timeout,
-            check_envelope=check_envelope,
-            what=what,
-            validate=validate,
-            parsed=parsed,
-        )
+            _log.warning("%s is sent WITHOUT validation (validate=False)", outgoing.what)
+        rules = SendRules(check_envelope=check_envelope, validate=validate)
+        return await self._command(outgoing, deadline=deadline, timeout=timeout, rules=rules)
 
     def stream(
         self,

@@ -28,7 +28,6 @@ from mirobot_async.errors import (
 __all__ = [
     "HOMING_BOUND",
     "HOMING_DEFAULT_RATES",
-    "HOMING_LINE_RE",
     "REFUSAL_ALARMS",
     "RESET_ONLY_ALARMS",
     "Firmware",
@@ -66,31 +65,29 @@ _VERSION_RE: Final = re.compile(r"Robot\s+(\d{8})(\S*)")
 
 _BannerResult = tuple[str, ...] | BaseException
 
-HOMING_LINE_RE: Final = re.compile(r"^\$H")
-"""The homing lines: ``$H``, ``$HH``, the 2021 ``$H0``..``$H7``, ``$HE``, and any other ``$H...``
-(the firmware may home for it; a refused one is answered at once, which ends the wait)."""
 HOMING_BOUND: Final = {"$H": 45.0, "$HH": 120.0}
 """The longest a homing line can stay unanswered at the default homing rates (seconds): the
 firmware answers nothing, not even ``?``, until its switch search ends (oracle). Measured
 searches: ``$H`` 8.2 s (oracle), 10-15 s on real arms (PROTOCOL.md 6.2), the 2021 ``$H0`` with
 its rail 1.5 times longer; ``$HH`` 29.1 s (oracle). The bounds are three to four times those;
-``$H0``..``$H7`` use the ``$H`` bound; ``$HE`` (one group after another) and any other
-``$H...`` the ``$HH`` one."""
+which of the two a line takes is :attr:`ParsedLine.homing_kind
+<mirobot_async._core.line.ParsedLine.homing_kind>` (``$H0``..``$H7`` the ``$H`` bound; ``$HE``
+and any other ``$H...`` the ``$HH`` one)."""
 HOMING_DEFAULT_RATES: Final = (1500.0, 2000.0)
 """The homing feed ``$24`` and seek ``$25`` (deg/min) the bounds were measured at (both
 profiles' defaults): slower rates stretch the bound in proportion."""
 
 
 def homing_bound(
-    command: str,
+    kind: Literal["$H", "$HH"],
     rates: tuple[float, float] | None = None,
     bounds: Mapping[str, float] = HOMING_BOUND,
 ) -> float:
-    """Seconds the homing line ``command`` may go unanswered: ``bounds`` (default
+    """Seconds a homing search of ``kind`` (:attr:`ParsedLine.homing_kind
+    <mirobot_async._core.line.ParsedLine.homing_kind>`) may go unanswered: ``bounds`` (default
     :data:`HOMING_BOUND`), stretched when the homing feed or seek (``rates``: ``$24``, ``$25``;
     ``None``: the defaults) is slower than :data:`HOMING_DEFAULT_RATES`."""
-    together = command == "$H" or (len(command) == 3 and "0" <= command[2] <= "7")
-    base = bounds["$H" if together else "$HH"]
+    base = bounds[kind]
     if rates is None:
         return base
     stretch = max(
@@ -162,8 +159,6 @@ class RobotCondition:
         self.reset_requested = False
         self.resetting = 0  # reset() calls awaiting their banner: no line is written meanwhile
         self.banner_started = -math.inf
-        # The 2021 base offset $41..$43 from the last $$ listing (None: unknown or changed since).
-        self.base_offset: tuple[float, float, float] | None = None
         self._banner_waiters: list[tuple[float, asyncio.Future[_BannerResult]]] = []
         # The homing line in flight (the robot answers no "?" meanwhile), if any.
         self.homing: HomingCycle | None = None
@@ -275,10 +270,8 @@ class RobotCondition:
 
     def learn_firmware_from_settings(self, numbers: Iterable[int]) -> None:
         """A ``$$`` listing (numbers, or a mapping to values): ``$29`` exists only on the 2021
-        firmware; ``$41..$43`` is the base offset."""
+        firmware; ``$24``/``$25`` are the homing rates."""
         values = set(numbers)
-        if isinstance(numbers, Mapping) and all(n in numbers for n in (41, 42, 43)):
-            self.base_offset = (float(numbers[41]), float(numbers[42]), float(numbers[43]))
         if isinstance(numbers, Mapping) and all(n in numbers for n in (24, 25)):
             self.homing_rates = (float(numbers[24]), float(numbers[25]))
         if not values:
@@ -331,8 +324,6 @@ class RobotCondition:
             self.learn_build_info(reply.output)
         if parsed.clears_alarm:
             self.unlocked()
-        if parsed.changes_base_offset:
-            self.base_offset = None
         dollar = parsed.dollar
         if dollar is not None and dollar.kind == "setting" and dollar.number in (24, 25):
             if dollar.value is not None:

@@ -17,10 +17,18 @@ from __future__ import annotations
 import logging
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
-from typing import TYPE_CHECKING, Final, Protocol
+from typing import TYPE_CHECKING, Final
 
 from mirobot_async._client.condition import RobotCondition
-from mirobot_async._client.null_guard import QUIET, NullGuard, Tracked
+from mirobot_async._client.null_guard import (
+    NEED_POSITION,
+    QUIET,
+    LineFollower,
+    NeedPosition,
+    NullGuard,
+    Tracked,
+    base_offset_from_settings,
+)
 from mirobot_async._client.wire import ClientStats
 from mirobot_async._core.acceptance import line_fate, modes_after_refusal, update_modes
 from mirobot_async._core.line import ParsedLine
@@ -31,11 +39,9 @@ from mirobot_async._safety.firmware_memory import (
     PARSER_UNKNOWN,
     Offset,
     WorkCoordinates,
-    changes_base_offset,
     parse_startup_lines,
     reset_modes,
     soft_limits_from_settings,
-    state_after_refusal,
 )
 from mirobot_async.errors import (
     EnvelopeRefusedError,
@@ -52,7 +58,6 @@ if TYPE_CHECKING:  # imported when an envelope is used (it needs numpy)
 __all__ = [
     "NEED_POSITION",
     "EnvelopeGuard",
-    "Guard",
     "NeedPosition",
     "NullGuard",
     "PathRefused",
@@ -65,66 +70,13 @@ _log = logging.getLogger("mirobot_async.client")
 _QUIET: Final = QUIET
 
 
-class NeedPosition:
-    """The line moves the arm and no position is predicted: learn one first."""
-
-    def __repr__(self) -> str:
-        return "NEED_POSITION"
-
-
-NEED_POSITION: Final = NeedPosition()
-
-
-class Guard(Protocol):
-    """What the scheduler and the facade use (:class:`EnvelopeGuard` or :class:`NullGuard`)."""
-
-    epoch: int
-    chain: Chaining
-    parser_apart: bool  # the parser's position is not the arm's (a move restates M20/M21)
-
-    @property
-    def envelope(self) -> Envelope | None: ...
-    @property
-    def modes(self) -> MotionModes: ...
-    @property
-    def wants_settings(self) -> bool: ...
-    def wanted_queries(self) -> tuple[str, ...]: ...
-    def adopt_query(self, query: str, output: Sequence[str] | None) -> None: ...
-    def modal_state(self) -> ModalState: ...
-    def needs_firmware(self, parsed: ParsedLine) -> bool: ...
-    def verdict(self, parsed: ParsedLine, what: str | None) -> LineCheck | NeedPosition | None: ...
-    def preview(self, lines: Sequence[ParsedLine]) -> list[LineCheck] | NeedPosition: ...
-    def adopt_status(self, report: StatusReport) -> None: ...
-    def adopt_settings(self, settings: Mapping[int, float]) -> None: ...
-    def track_written(
-        self,
-        line_id: int,
-        command: str,
-        parsed: ParsedLine,
-        verdict: LineCheck | None,
-        *,
-        checked: bool,
-        what: str | None,
-        warn_unchecked: bool,
-    ) -> Tracked | None: ...
-    def line_failed(
-        self,
-        tracked: Tracked,
-        *,
-        rejected: bool,
-        reason: RefusalReason | None = None,
-        error: str | None = None,
-    ) -> None: ...
-    def forget(self, why: str) -> None: ...
-    def warn_stream_unchecked(self) -> None: ...
-
-
-class EnvelopeGuard:
+class EnvelopeGuard(LineFollower):
     """Checks lines against ``envelope`` and predicts where they leave the arm."""
 
     def __init__(self, envelope: Envelope, condition: RobotCondition, stats: ClientStats) -> None:
         from mirobot_async._safety.prediction import MachineState
 
+        super().__init__()
         self._envelope = envelope
         self._classic: Envelope | None = None  # the envelope with dh=DH_CLASSIC
         self._condition = condition
@@ -134,16 +86,11 @@ class EnvelopeGuard:
         self._state: MachineState = MachineState(
             MotionModes.unknown(), startup_lines=None, work_offset=None, linear_g1=None
         )
-        self._base_offset: tuple[float, float, float] | None = None  # learned from $$ (2021)
-        self._gate_lift: float | None = None
         self._soft_read = False  # $20 and $130..$146 known (state.soft_limits, None if off)
         self._work = WorkCoordinates()  # $#, $G
         self.epoch = 0  # bumped when the prediction or the modes are invalidated
-        self._last_line_id: int | None = None
         self._moves = False  # whether the last prediction moves the arm
         self._verdicts: tuple[LineCheck, MachineState] | None = None  # the last verdict's state
-        self.chain = Chaining()
-        """Which joints may still move, which the parser took from a mode word (every line)."""
 
     @property
     def envelope(self) -> Envelope:
@@ -165,6 +112,14 @@ class EnvelopeGuard:
         return self._state.modes
 
     @property
+    def base_offset(self) -> tuple[float, float, float] | None:
+        """The 2021 base offset ``$41..$43`` as predicted after every line written (from a
+        ``$$`` listing, then the lines that set it; ``None``: unknown; zero on classic)."""
+        if self._condition.firmware == "classic":
+            return (0.0, 0.0, 0.0)
+        return self._state.base_offset
+
+    @property
     def parser_apart(self) -> bool:
         """The firmware's parser is not where the arm is, or unknown (a locked refusal moved it):
         the client's own moves restate M20/M21, which re-reads the arm's position."""
@@ -178,7 +133,7 @@ class EnvelopeGuard:
         if not self._soft_read:
             return True
         return self._condition.firmware == "2021" and (
-            self._base_offset is None or self._state.linear_g1 is None
+            self._state.base_offset is None or self._state.linear_g1 is None
         )
 
     def wanted_queries(self) -> tuple[str, ...]:
@@ -199,7 +154,7 @@ class EnvelopeGuard:
     def modal_state(self) -> ModalState:
         """The modal words :mod:`~mirobot_async._core.validation` needs, as predicted (a new
         object)."""
-        return ModalState.of(self._state.modes, self.chain)
+        return ModalState.of(self._state.modes, self._chain)
 
     def needs_firmware(self, parsed: ParsedLine) -> bool:
         """True when the firmware (the kinematic model) or, for a line with axis words, what the
@@ -223,10 +178,6 @@ class EnvelopeGuard:
         state = replace(self._state, work_offset=self._work_offset(parsed))
         if firmware == "classic":  # no base offset, no gate moves, M20 G1 in joint space
             return replace(state, base_offset=(0.0, 0.0, 0.0), gate_lift=None, firmware=firmware)
-        if state.base_offset is None and self._base_offset is not None:
-            state = replace(state, base_offset=self._base_offset)
-        if state.gate_lift is None and self._gate_lift is not None:
-            state = replace(state, gate_lift=self._gate_lift)
         return replace(state, firmware=firmware)
 
     def _predict(self, parsed: ParsedLine, state: MachineState, what: str | None) -> MachineState:
@@ -244,7 +195,7 @@ class EnvelopeGuard:
         :data:`NEED_POSITION`; raises :class:`MirobotUsageError` ("refused by the safety
         envelope ...; nothing was sent") for a line it refuses."""
         state = self._machine(parsed)
-        chained = self.chain.problem(parsed, state.modes, self._condition.firmware)
+        chained = self._chain.problem(parsed, state.modes, self._condition.firmware)
         if chained is not None:  # the prediction would not be what the firmware does
             self._stats.envelope_refusals += 1
             shown = parsed.source.strip() or parsed.text
@@ -292,7 +243,7 @@ class EnvelopeGuard:
     def adopt_status(self, report: StatusReport) -> None:
         """A status at rest with nothing in flight: where the arm is (unless predicted)."""
         if report.state in _QUIET:
-            self.chain = self.chain.at_rest()
+            self._chain = self._chain.at_rest()
         state = self._state
         if state.joints is not None or report.state not in _QUIET:
             return
@@ -312,13 +263,11 @@ class EnvelopeGuard:
             self._state = replace(self._state, soft_limits=soft)
         if 35 in settings:
             self._state = replace(self._state, linear_g1=settings[35] != 0)
-        if all(n in settings for n in (41, 42, 43)):
-            offset = (float(settings[41]), float(settings[42]), float(settings[43]))
-            self._base_offset = offset
+        offset = base_offset_from_settings(settings)
+        if offset is not None:
             self._state = replace(self._state, base_offset=offset)
         if 49 in settings:
-            self._gate_lift = float(settings[49])
-            self._state = replace(self._state, gate_lift=self._gate_lift)
+            self._state = replace(self._state, gate_lift=float(settings[49]))
 
     def track_written(
         self,
@@ -335,8 +284,8 @@ class EnvelopeGuard:
         before = self._state
         after: MachineState | None = None
         firmware = self._condition.firmware
-        restarts = self.chain.problem(parsed, before.modes, firmware) is not None
-        self.chain = self.chain.after(parsed, before.modes, firmware)
+        restarts = self._chain.problem(parsed, before.modes, firmware) is not None
+        self._chain = self._chain.after(parsed, before.modes, firmware)
         fate = line_fate(parsed, before.modes, firmware)
         if fate.accepted is False:  # unchecked: the firmware will refuse it; nothing moves
             self._state = _after_refusal(before, fate.modes)
@@ -382,9 +331,10 @@ class EnvelopeGuard:
     def _forget_stored(self, parsed: ParsedLine) -> None:
         """An unchecked line that may change what the firmware stores: read it again."""
         dollar = parsed.dollar
-        if changes_base_offset(parsed):
-            self._state = replace(self._state, base_offset=None, gate_lift=None)
-            self._base_offset = self._gate_lift = None
+        if parsed.changes_base_offset:
+            self._state = replace(self._state, base_offset=None)
+        if parsed.changes_setting(49):
+            self._state = replace(self._state, gate_lift=None)
         if dollar is not None and dollar.kind in ("restore", "unknown"):
             self._soft_read = False
             self._state = replace(self._state, linear_g1=None, soft_limits=None)
@@ -462,6 +412,8 @@ class EnvelopeGuard:
             self._state = before if modes == before.modes else _after_refusal(before, modes)
             self._work.coordinate = tracked.coordinate
         elif last:
+            from mirobot_async._safety.prediction import state_after_refusal
+
             state = replace(self._state, joints=before.joints, pose=before.pose, rail=before.rail)
             self._state = state_after_refusal(state, before, tracked.check, reason)
         else:
@@ -483,11 +435,11 @@ class EnvelopeGuard:
             self._work.reinitialised(lines, ran=ran is not False)
             self._forget(reset_modes(lines, ran=ran))
             self._state = replace(self._state, parser=None)
-            self.chain = Chaining()
+            self._chain = Chaining()
             return
         modes = {"lost": MotionModes.unknown()}.get(why)
         if why == "lost":
-            self.chain = self.chain.moved_anything()
+            self._chain = self._chain.moved_anything()
         self._forget(modes)
         self._state = replace(self._state, parser=PARSER_UNKNOWN)
 

@@ -25,12 +25,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Final
 
-from mirobot_async._client.condition import (
-    HOMING_LINE_RE,
-    HomingCycle,
-    RobotCondition,
-    homing_bound,
-)
+from mirobot_async._client.condition import HomingCycle, RobotCondition, homing_bound
 from mirobot_async._client.deadline import clip
 from mirobot_async._client.guard import EnvelopeGuard, NullGuard, Tracked
 from mirobot_async._client.poller import StatusPoller
@@ -41,6 +36,7 @@ from mirobot_async.errors import MirobotTimeoutError
 
 if TYPE_CHECKING:
     from mirobot_async._core.line import ParsedLine
+    from mirobot_async._core.outgoing import OutgoingLine
     from mirobot_async._safety.envelope import LineCheck
 
 __all__ = ["DWELL_CLOCK_SLACK", "QUIET", "ReplyWatch", "Slot"]
@@ -61,7 +57,7 @@ class Slot:
     """A line written to the robot and owed a reply; ``fut`` is cancelled if the caller leaves."""
 
     pending: PendingLine
-    command: str
+    line: OutgoingLine  # the line as the caller made it: bytes, one parse, label
     fut: asyncio.Future[Outcome]
     sent_at: float
     tracked: Tracked | None = None  # what the envelope guard assumed when it was written
@@ -69,7 +65,16 @@ class Slot:
     reply_epoch: int = -1  # the reset epoch when its reply came (a line may run after a reset)
     # Called synchronously when the reply (or failure) is settled, before anything else runs.
     watch: Callable[[Slot], None] | None = None
-    parsed: ParsedLine | None = None  # the line's one parse: its ok settles facts (condition)
+
+    @property
+    def command(self) -> str:
+        """The line's text, as errors quote it."""
+        return self.line.command
+
+    @property
+    def parsed(self) -> ParsedLine:
+        """The line's one parse."""
+        return self.line.parsed
 
     @property
     def check(self) -> LineCheck | None:
@@ -119,13 +124,15 @@ class ReplyWatch:
 
     # ---- what the scheduler tells ----
 
-    def written(self, slot: Slot, now: float, dwell: float | None) -> None:
-        """``slot``'s line was written at ``now`` (``dwell``: its ``G4`` seconds)."""
+    def written(self, slot: Slot, now: float) -> None:
+        """``slot``'s line was written at ``now``: a homing line starts the silent search, a
+        ``G4`` holds the robot for its dwell (both read from the line's one parse)."""
         self._last_write = now
-        text = slot.pending.line.decode("ascii", "replace").replace(" ", "").upper()
-        if HOMING_LINE_RE.match(text):
+        parsed = slot.parsed
+        kind = parsed.homing_kind
+        if kind is not None:
             condition = self._condition
-            bound = homing_bound(text, condition.homing_rates, condition.homing_bounds)
+            bound = homing_bound(kind, condition.homing_rates, condition.homing_bounds)
             condition.homing = HomingCycle(slot.command, now, bound)
             self._homing_line = slot.pending.id
             _log.info(
@@ -133,6 +140,7 @@ class ReplyWatch:
                 slot.command,
                 bound,
             )
+        dwell = parsed.dwell_seconds
         if dwell is not None and dwell > 0:
             slot.dwell = dwell
             self._dwell_until = max(self._dwell_until, now) + dwell

@@ -15,14 +15,15 @@ from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Final
 
 from mirobot_async._client.completion import RELATIVE_JOINT_TOLERANCE, Target
-from mirobot_async._client.condition import RobotCondition
 from mirobot_async._client.deadline import deadline_after
+from mirobot_async._client.guard import EnvelopeGuard, NullGuard
 from mirobot_async._client.parts import DEFAULT_TIMEOUT, HOME_TIMEOUT, MOVE_TIMEOUT, ClientParts
-from mirobot_async._client.scheduler import Slot, StreamStopped
+from mirobot_async._client.scheduler import SendRules, Slot, StreamStopped
 from mirobot_async._core import gcode
 from mirobot_async._core.acceptance import update_modes
 from mirobot_async._core.line import ParsedLine, parse_line
 from mirobot_async._core.modal import Chaining, MotionModes
+from mirobot_async._core.outgoing import OutgoingLine
 from mirobot_async._core.replies import StatusReport
 from mirobot_async.errors import MirobotUsageError
 
@@ -32,6 +33,8 @@ if TYPE_CHECKING:
 __all__ = ["ARM_STOPPED", "MotionCommands", "absolute_pose", "write_move"]
 
 ARM_STOPPED: Final = b"G4 P0"
+_STOPPED: Final = ARM_STOPPED.decode("ascii")
+_MOTION: Final = SendRules(motion=True)
 """Written before a move whose mode word would restart it from where the moving arm is: the
 firmware answers a dwell only once its planner is empty, and reads the next line after it."""
 _ATTEMPTS: Final = 3
@@ -67,7 +70,6 @@ class MotionCommands(ClientParts):
         baseline = await self._lines.baseline(deadline) if use_baseline else None
         epoch, alarm_epoch = condition.reset_epoch, condition.alarm_epoch
         slot = await write_move(self, build, cartesian, deadline, timeout, what)
-        written = self._guard.chain
         await self._lines.await_slot(slot, deadline, timeout)
         if not wait:
             return None
@@ -83,8 +85,7 @@ class MotionCommands(ClientParts):
             epoch=epoch,
             alarm_epoch=alarm_epoch,
         )
-        if self._guard.chain is written:  # nothing written since: the arm is at rest
-            self._guard.chain = written.at_rest()
+        self._guard.move_completed(slot.pending.id)
         return report
 
     async def move_joints(
@@ -242,7 +243,7 @@ class MotionCommands(ClientParts):
 
         def target(base: StatusReport | None, check: LineCheck | None) -> Target:
             if not relative:
-                return Target(pose=absolute_pose(values, check, self._condition))
+                return Target(pose=absolute_pose(values, check, self._guard))
             if check is not None and check.pose is not None:
                 pose = tuple(
                     None if v is None else p for v, p in zip(values, check.pose, strict=True)
@@ -329,19 +330,16 @@ async def write_move(
     for _attempt in range(_ATTEMPTS):
         mode_word = _needs_mode_word(parts, build, cartesian, follow)
         data = build(mode_word).rstrip(b"\n")
-        command = data.decode("ascii").strip()
-        parsed = parse_line(data)
+        command = data.decode("ascii")
+        line = OutgoingLine.of(data, f"{what} {command!r}")
+        parsed = line.parsed
         firmware = parts._condition.firmware
         barrier: Slot | None = None
         if _restarts(guard.chain, guard.modes, [parsed, *follow], firmware):
-            barrier = await parts._lines.submit(
-                ARM_STOPPED,
-                ARM_STOPPED.decode("ascii"),
-                deadline=deadline,
-                timeout=timeout,
-                motion=False,
-                what=f"{ARM_STOPPED.decode('ascii')!r} (the arm stops before {command!r})",
+            stopped = OutgoingLine.of(
+                ARM_STOPPED, f"{_STOPPED!r} (the arm stops before {command!r})"
             )
+            barrier = await parts._lines.submit(stopped, deadline=deadline, timeout=timeout)
 
         def changed(mode_word: bool = mode_word, parsed: ParsedLine = parsed) -> bool:
             stated = _needs_mode_word(parts, build, cartesian, follow)
@@ -352,14 +350,7 @@ async def write_move(
 
         try:
             return await parts._lines.submit(
-                data,
-                command,
-                deadline=deadline,
-                timeout=timeout,
-                motion=True,
-                what=f"{what} {command!r}",
-                parsed=parsed,
-                should_stop=changed,
+                line, deadline=deadline, timeout=timeout, rules=_MOTION, should_stop=changed
             )
         except StreamStopped:
             continue  # another line changed the mode meanwhile: build it again
@@ -407,18 +398,16 @@ def _restarts(
 
 
 def absolute_pose(
-    values: tuple[float | None, ...], check: LineCheck | None, condition: RobotCondition
+    values: tuple[float | None, ...], check: LineCheck | None, guard: EnvelopeGuard | NullGuard
 ) -> tuple[float | None, ...]:
     """Where an absolute ``M20`` move reads back: the firmware adds the 2021 base offset
-    ``$41..$43`` to X/Y/Z. Known from the envelope's prediction, a ``$$`` listing, or zero on a
-    classic arm; otherwise X/Y/Z are not checked (completion: ``Idle`` after the arm moved)."""
-    if check is not None and check.base_offset is not None:
-        offset: tuple[float, ...] = check.base_offset
-    elif condition.firmware == "classic":
-        offset = (0.0, 0.0, 0.0)
-    elif condition.base_offset is not None:
-        offset = condition.base_offset
-    else:
+    ``$41..$43`` to X/Y/Z. Known from the envelope's verdict on the line, else from the guard
+    (the one store: a ``$$`` listing, zero on a classic arm); otherwise X/Y/Z are not checked
+    (completion: ``Idle`` after the arm moved)."""
+    offset = check.base_offset if check is not None else None
+    if offset is None:
+        offset = guard.base_offset
+    if offset is None:
         return (None, None, None, *values[3:])
     xyz = tuple(None if v is None else v + o for v, o in zip(values[:3], offset, strict=True))
     return (*xyz, *values[3:])

@@ -1,6 +1,13 @@
-"""What the client follows of each line written without an envelope (:class:`NullGuard`), and
-what a guard keeps of a line to undo its prediction if the firmware refuses it
-(:class:`Tracked`). No I/O here."""
+"""What the client follows of each line written without an envelope (:class:`NullGuard`), what
+a guard keeps of a line to undo its prediction if the firmware refuses it (:class:`Tracked`),
+and what both guards own alike (:class:`LineFollower`: the chaining). No I/O here.
+
+The guard of a connection is the one owner of what follows from the lines written: the modal
+words, the chaining, the base offset (and, with an envelope, the predicted position). The
+scheduler, the router and the motion commands *tell* it what happened (:meth:`track_written`,
+:meth:`~LineFollower.line_answered`, :meth:`~LineFollower.arm_at_rest`,
+:meth:`~LineFollower.move_completed`, ``forget``) and ask it what follows; none assigns its
+fields."""
 
 from __future__ import annotations
 
@@ -10,6 +17,7 @@ from typing import TYPE_CHECKING, Final
 
 from mirobot_async._client.condition import RobotCondition
 from mirobot_async._core.acceptance import line_fate, modes_after_refusal
+from mirobot_async._core.events import LineAcknowledged, LineRejected
 from mirobot_async._core.line import ParsedLine
 from mirobot_async._core.modal import Chaining, LineCheck, MotionModes
 from mirobot_async._core.replies import State, StatusReport
@@ -17,14 +25,38 @@ from mirobot_async._core.validation import ModalState
 from mirobot_async.errors import RefusalReason
 
 if TYPE_CHECKING:
-    from mirobot_async._client.guard import NeedPosition
     from mirobot_async._safety.envelope import Envelope
     from mirobot_async._safety.prediction import MachineState
 
-__all__ = ["QUIET", "NullGuard", "Tracked"]
+__all__ = [
+    "NEED_POSITION",
+    "QUIET",
+    "LineFollower",
+    "NeedPosition",
+    "NullGuard",
+    "Tracked",
+    "base_offset_from_settings",
+]
 
 QUIET: Final = frozenset({State.IDLE, State.ALARM, State.CHECK})
 """States in which nothing moves."""
+
+
+class NeedPosition:
+    """The line moves the arm and no position is predicted: learn one first."""
+
+    def __repr__(self) -> str:
+        return "NEED_POSITION"
+
+
+NEED_POSITION: Final = NeedPosition()
+
+
+def base_offset_from_settings(settings: Mapping[int, float]) -> tuple[float, float, float] | None:
+    """The 2021 base offset ``$41..$43`` in a ``$$`` listing, if it lists all three."""
+    if all(n in settings for n in (41, 42, 43)):
+        return (float(settings[41]), float(settings[42]), float(settings[43]))
+    return None
 
 
 @dataclass(frozen=True, slots=True)
@@ -43,7 +75,68 @@ class Tracked:
     refusal_expected: bool = False  # the firmware's refusal was predicted (and followed)
 
 
-class NullGuard:
+class LineFollower:
+    """What both guards own alike: the chaining (which joints may still move, which the parser
+    took from a mode word) and the newest line written; told, never assigned."""
+
+    def __init__(self) -> None:
+        self._chain = Chaining()
+        self._last_line_id: int | None = None  # the newest line written
+
+    @property
+    def chain(self) -> Chaining:
+        """Which joints may still move, which the parser took from a mode word (every line)."""
+        return self._chain
+
+    def arm_at_rest(self) -> None:
+        """A status printed after the last line's reply shows the arm quiet with nothing in
+        flight (GRBL starts queued motion before it answers a ``?``): a mode word now restarts
+        from where the motion ended."""
+        self._chain = self._chain.at_rest()
+
+    def move_completed(self, line_id: int) -> None:
+        """The motion of line ``line_id`` was seen to end (``wait=True``): the arm is at rest
+        if nothing was written after it."""
+        if line_id == self._last_line_id:
+            self._chain = self._chain.at_rest()
+
+    def line_answered(
+        self,
+        parsed: ParsedLine | None,
+        tracked: Tracked | None,
+        reply: LineAcknowledged | LineRejected,
+    ) -> None:
+        """The robot answered a line (``parsed``, ``tracked`` when the guard kept what it
+        assumed; ``None`` for a line no caller waits for): undo what the reply contradicts."""
+        refusal = reply.refusal if isinstance(reply, LineAcknowledged) else None
+        if refusal is not None and refusal.reason is RefusalReason.LOCKED:
+            # a locked arm moves nothing: every line before this one was refused too
+            self._chain = self._chain.at_rest()
+        if refusal is not None and parsed is not None:
+            self._refused(parsed)
+        if tracked is None:
+            return
+        if isinstance(reply, LineRejected):
+            self.line_failed(tracked, rejected=True, error=reply.text)
+        elif refusal is not None:
+            self.line_failed(tracked, rejected=False, reason=refusal.reason)
+
+    def _refused(self, parsed: ParsedLine) -> None:
+        """``parsed`` was answered ``ok`` but dropped."""
+
+    def line_failed(
+        self,
+        tracked: Tracked,
+        *,
+        rejected: bool,
+        reason: RefusalReason | None = None,
+        error: str | None = None,
+    ) -> None:
+        """A line the guard tracked was rejected (``rejected``) or its motion refused."""
+        raise NotImplementedError
+
+
+class NullGuard(LineFollower):
     """No envelope: every line passes, no position is predicted; only the modal words
     (``M20``/``M21``, ``G90``/``G91``) are followed, for the validation of raw lines."""
 
@@ -51,10 +144,10 @@ class NullGuard:
     parser_apart = False
 
     def __init__(self, condition: RobotCondition | None = None) -> None:
+        super().__init__()
         self._condition = condition
         self._modes = MotionModes.unknown()
-        self.chain = Chaining()  # which joints may still move, which a mode word re-read
-        self._last_line_id: int | None = None  # the last line written
+        self._base_offset: tuple[float, float, float] | None = None
 
     @property
     def envelope(self) -> Envelope | None:
@@ -65,6 +158,14 @@ class NullGuard:
     def modes(self) -> MotionModes:
         """The modal words stated by the lines written since connect (``None``: unknown)."""
         return self._modes
+
+    @property
+    def base_offset(self) -> tuple[float, float, float] | None:
+        """The 2021 base offset ``$41..$43`` from the last ``$$`` listing (``None``: unknown,
+        or a line written since may have changed it; zero on classic)."""
+        if self._firmware == "classic":
+            return (0.0, 0.0, 0.0)
+        return self._base_offset
 
     wants_settings = False  # no settings are needed
 
@@ -77,7 +178,7 @@ class NullGuard:
 
     def modal_state(self) -> ModalState:
         """The modal words stated by the lines written since connect (unknown before)."""
-        return ModalState.of(self._modes, self.chain)
+        return ModalState.of(self._modes, self._chain)
 
     @property
     def _firmware(self) -> str | None:
@@ -98,10 +199,13 @@ class NullGuard:
     def adopt_status(self, report: StatusReport) -> None:
         """A status at rest with nothing in flight: no motion is queued."""
         if report.state in QUIET:
-            self.chain = self.chain.at_rest()
+            self._chain = self._chain.at_rest()
 
     def adopt_settings(self, settings: Mapping[int, float]) -> None:
-        """Nothing to predict."""
+        """A ``$$`` listing: the base offset (for where an absolute ``M20`` move reads back)."""
+        offset = base_offset_from_settings(settings)
+        if offset is not None:
+            self._base_offset = offset
 
     def track_written(
         self,
@@ -116,8 +220,10 @@ class NullGuard:
     ) -> Tracked | None:
         """Follow the line's modal words and chaining (tracked: a line that changed the modes
         or that the firmware will refuse), as the firmware leaves them, accepted or refused."""
-        self.chain = self.chain.after(parsed, self._modes)
+        self._chain = self._chain.after(parsed, self._modes)
         self._last_line_id = line_id
+        if parsed.changes_base_offset:
+            self._base_offset = None  # read again by the next $$
         if parsed.kind == "empty":
             return None
         before = self._modes
@@ -129,6 +235,11 @@ class NullGuard:
             line_id, None, None, False, True, 0, None, before, parsed,
             refusal_expected=fate.accepted is False,
         )  # fmt: skip
+
+    def _refused(self, parsed: ParsedLine) -> None:
+        """``ok`` but dropped: the parser's position may have moved, the arm did not (an
+        envelope guard follows the parser's position itself: :meth:`line_failed`)."""
+        self._chain = self._chain.after_refusal(parsed)
 
     def line_failed(
         self,
@@ -154,7 +265,7 @@ class NullGuard:
         self._last_line_id = None
         if why in ("reset", "lost"):
             self._modes = MotionModes() if why == "reset" else MotionModes.unknown()
-            self.chain = Chaining() if why == "reset" else self.chain.moved_anything()
+            self._chain = Chaining() if why == "reset" else self._chain.moved_anything()
 
     def warn_stream_unchecked(self) -> None:
         """No envelope, nothing to warn about."""

@@ -6,7 +6,8 @@ r"""The parts of one client connection, wired together: the base of the :class:`
                                                                \-> router (events in)
 
 and offers the facade's command mixins (:mod:`~mirobot_async._client.status_commands`,
-:mod:`~mirobot_async._client.motion_commands`, :mod:`~mirobot_async._client.accessories`) what they
+:mod:`~mirobot_async._client.motion_commands`, :mod:`~mirobot_async._client.tool_commands`,
+:mod:`~mirobot_async._client.setting_commands`) what they
 share: sending one line and awaiting its reply, the firmware profile, the timing knobs.
 """
 
@@ -22,11 +23,12 @@ from mirobot_async._client.deadline import deadline_after
 from mirobot_async._client.guard import make_guard
 from mirobot_async._client.poller import StatusPoller
 from mirobot_async._client.router import EventRouter
-from mirobot_async._client.scheduler import LineScheduler
+from mirobot_async._client.scheduler import PLAIN, LineScheduler, SendRules
 from mirobot_async._client.transport import Implementation
 from mirobot_async._client.wire import ClientStats, Wire
 from mirobot_async._core import gcode
-from mirobot_async._core.line import ParsedLine, parse_line
+from mirobot_async._core.line import ParsedLine
+from mirobot_async._core.outgoing import OutgoingLine
 from mirobot_async._core.replies import parse_setting_line
 from mirobot_async.errors import (
     MirobotAlarmError,
@@ -63,6 +65,9 @@ RESET_TIMEOUT: Final = 10.0
 """Default ``timeout`` of :meth:`Mirobot.reset` (the banner after ``%``)."""
 CONNECT_TIMEOUT: Final = 5.0
 """Default ``timeout`` of :meth:`Mirobot.connect` (opening the port and the first status)."""
+
+_AT_REST: Final = SendRules(idle=True)
+"""The ``$`` queries of the firmware profile: written with the arm at rest (``Not idle``)."""
 
 
 def default_reply_timeout(parsed: ParsedLine) -> float:
@@ -207,37 +212,17 @@ class ClientParts:
 
     async def _command(
         self,
-        data: bytes,
+        data: bytes | OutgoingLine,
         *,
         deadline: float | None,
         timeout: float | None,
-        motion: bool = False,
-        check_envelope: bool = True,
-        what: str | None = None,
-        idle: bool = False,
-        validate: bool = False,
-        parsed: ParsedLine | None = None,
+        rules: SendRules = PLAIN,
     ) -> tuple[str, ...]:
-        """Send one line and return its output; raise what its reply means (``idle``: write it
-        only when the robot is at rest; ``validate``: refuse what the firmware would refuse or
-        misread; see :meth:`LineScheduler.submit`). The line is parsed once: ``parsed`` (the
-        caller's parse of ``data``), or here."""
-        data = data.rstrip(b"\n")
-        command = data.decode("ascii")
-        if parsed is None:
-            parsed = parse_line(data)
-        slot = await self._lines.submit(
-            data,
-            command,
-            deadline=deadline,
-            timeout=timeout,
-            motion=motion,
-            check_envelope=check_envelope,
-            what=what,
-            idle=idle,
-            parsed=parsed,
-            validate=validate,
-        )
+        """Send one line and return its output; raise what its reply means (``rules``: see
+        :meth:`LineScheduler.submit`). ``data`` is the caller's :class:`OutgoingLine` (its one
+        parse), or the bytes of one made here."""
+        line = data if isinstance(data, OutgoingLine) else OutgoingLine.of(data)
+        slot = await self._lines.submit(line, deadline=deadline, timeout=timeout, rules=rules)
         return await self._lines.await_slot(slot, deadline, timeout)
 
     async def _command_within(self, data: bytes, timeout: float | None) -> tuple[str, ...]:
@@ -256,7 +241,7 @@ class ClientParts:
             output: tuple[str, ...] | None
             try:
                 output = await self._command(
-                    query.encode("ascii"), deadline=deadline, timeout=timeout, idle=True
+                    query.encode("ascii"), deadline=deadline, timeout=timeout, rules=_AT_REST
                 )
             except MirobotAlarmError:
                 raise
@@ -281,7 +266,10 @@ class ClientParts:
         self, deadline: float | None, timeout: float | None, *, idle: bool = False
     ) -> dict[int, float]:
         output = await self._command(
-            gcode.settings_dump(), deadline=deadline, timeout=timeout, idle=idle
+            gcode.settings_dump(),
+            deadline=deadline,
+            timeout=timeout,
+            rules=_AT_REST if idle else PLAIN,
         )
         values: dict[int, float] = {}
         for line in output:

@@ -147,7 +147,7 @@ class PathCommands(ClientParts):
             target = Target(joints=(*last[:6], *(None,) * (6 - len(last[:6]))), rail=rail)
         else:
             padded = (*last, *(None,) * (6 - len(last)))
-            target = Target(pose=absolute_pose(padded, checks[-1] if checks else None, condition))
+            target = Target(pose=absolute_pose(padded, checks[-1] if checks else None, self._guard))
         return await self._completion.wait(
             f"path of {len(points)} points",
             target,

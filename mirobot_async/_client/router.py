@@ -33,7 +33,7 @@ from mirobot_async._core.protocol import (
     UnsolicitedText,
 )
 from mirobot_async._core.replies import ReplyKind, State
-from mirobot_async.errors import MirobotAlarmError, MirobotLinkLostError, RefusalReason
+from mirobot_async.errors import MirobotAlarmError, MirobotLinkLostError
 
 _AT_REST = frozenset({State.IDLE, State.ALARM})
 
@@ -99,13 +99,9 @@ class EventRouter:
             if event.report.state in _AT_REST and not self._wire.conn.pending_count:
                 # printed after the last line's reply: nothing is queued (GRBL starts queued
                 # motion before it answers a ?), so a mode word now restarts from the end
-                self._guard.chain = self._guard.chain.at_rest()
+                self._guard.arm_at_rest()
             return
         if isinstance(event, LineAcknowledged | LineRejected):
-            refusal = event.refusal if isinstance(event, LineAcknowledged) else None
-            if refusal is not None and refusal.reason is RefusalReason.LOCKED:
-                # a locked arm moves nothing: every line before this one was refused too
-                self._guard.chain = self._guard.chain.at_rest()
             self._lines.on_reply(event)
         elif isinstance(event, StatusCorrupted):
             self._poller.on_corrupted(event.reason)

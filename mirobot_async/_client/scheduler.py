@@ -13,6 +13,7 @@ from __future__ import annotations
 import asyncio
 import logging
 from collections.abc import Awaitable, Callable
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Final
 
 from mirobot_async._client.condition import RobotCondition
@@ -21,7 +22,8 @@ from mirobot_async._client.guard import EnvelopeGuard, NeedPosition, NullGuard
 from mirobot_async._client.liveness import QUIET, ReplyWatch, Slot
 from mirobot_async._client.poller import StatusPoller
 from mirobot_async._client.wire import Wire
-from mirobot_async._core.line import ParsedLine, parse_line
+from mirobot_async._core.line import ParsedLine
+from mirobot_async._core.outgoing import OutgoingLine
 from mirobot_async._core.protocol import (
     DoubtResolved,
     Event,
@@ -50,13 +52,33 @@ from mirobot_async.errors import (
 if TYPE_CHECKING:
     from mirobot_async._safety.envelope import LineCheck
 
-__all__ = ["QUIET", "LineScheduler", "Slot", "StreamStopped"]
+__all__ = ["PLAIN", "QUIET", "LineScheduler", "SendRules", "Slot", "StreamStopped"]
 
 _log = logging.getLogger("mirobot_async.client")
 
 _PROFILES: Final = ("2021", "classic")
 
 Outcome = LineAcknowledged | LineRejected | BaseException
+
+
+@dataclass(frozen=True, slots=True)
+class SendRules:
+    """How a call sends its line: what may refuse it, what is checked before it is written."""
+
+    motion: bool = False
+    """A motion call: refused while an alarm is remembered (not only a reset-only one)."""
+    check_envelope: bool = True
+    """Check the line against the safety envelope (``False``: sent unchecked, with a WARNING)."""
+    warn_unchecked: bool = True
+    """Log an unchecked line at WARNING (``False``: DEBUG, the caller warned once already)."""
+    idle: bool = False
+    """Write it only with nothing in flight and the arm at rest (``$$``)."""
+    validate: bool = False
+    """Refuse what the firmware would refuse or misread (``validate_line``)."""
+
+
+PLAIN: Final = SendRules()
+"""A one-line call's rules: not a motion, envelope checked, not validated."""
 
 
 class StreamStopped(Exception):
@@ -187,24 +209,11 @@ class LineScheduler:
         self.watch.replied(event.line.id, acknowledged=isinstance(event, LineAcknowledged))
         slot = self._take(event.line.id)
         if slot is None:
+            self._guard.line_answered(None, None, event)
             return
         self._poller.on_line_reply(slot.sent_at)
         self._condition.on_line_answered(slot.parsed, event)
-        guard = self._guard
-        if (
-            isinstance(guard, NullGuard)
-            and isinstance(event, LineAcknowledged)
-            and event.refusal is not None
-            and slot.parsed is not None
-        ):
-            # "ok" but dropped: the parser's position may have moved, the arm did not (an
-            # envelope guard follows the parser's position itself: line_failed)
-            guard.chain = guard.chain.after_refusal(slot.parsed)
-        if slot.tracked is not None:
-            if isinstance(event, LineRejected):
-                self._guard.line_failed(slot.tracked, rejected=True, error=event.text)
-            elif (refused := event.refusal) is not None:
-                self._guard.line_failed(slot.tracked, rejected=False, reason=refused.reason)
+        self._guard.line_answered(slot.parsed, slot.tracked, event)
         if slot.fut.done():
             stats.replies_discarded += 1
             _log.debug("discarding the reply to %r (its caller left)", slot.command)
@@ -293,64 +302,59 @@ class LineScheduler:
 
     async def submit(
         self,
-        data: bytes,
-        command: str,
+        line: OutgoingLine,
         *,
         deadline: float | None,
         timeout: float | None,
-        motion: bool,
-        check_envelope: bool = True,
-        what: str | None = None,
-        warn_unchecked: bool = True,
+        rules: SendRules = PLAIN,
         should_stop: Callable[[], bool] | None = None,
         watch: Callable[[Slot], None] | None = None,
-        idle: bool = False,
-        parsed: ParsedLine | None = None,
-        validate: bool = False,
         judged_from: ModalState | None = None,
     ) -> Slot:
-        """Wait for this line's turn and for room in the receive buffer, then write it.
+        """Wait for ``line``'s turn and for room in the receive buffer, then write it; its slot
+        keeps ``line`` (the guard, the validation, the ``$`` barrier, the homing search and the
+        dwell all read its one parse).
 
-        ``parsed`` is ``data`` parsed once (``parse_line``; parsed here when omitted): the guard,
-        the validation, the ``$`` barrier and the dwell all read it. With ``validate`` the line
-        is judged by ``validate_line`` (modal state as the guard predicts it) right before it
-        would be written: a problem raises ``InvalidLineError`` and nothing is written. A line
-        already found free of problems from ``judged_from`` (a stream judged whole before it
-        began) is not judged again when the guard predicts that same state.
+        With ``rules.validate`` the line is judged by ``validate_line`` (modal state as the
+        guard predicts it) right before it would be written: a problem raises
+        ``InvalidLineError`` and nothing is written. A line already found free of problems from
+        ``judged_from`` (a stream judged whole before it began) is not judged again when the
+        guard predicts that same state.
 
         ``should_stop`` (a stream's) is asked right before the write, with no await in between:
         if true, :class:`StreamStopped` is raised and nothing is written. ``watch`` is set on the
         slot as the line is written (see :attr:`Slot.watch`).
 
-        The envelope guard checks the line under the send lock, against the position and modes
-        predicted from every line written before it, again if they were invalidated while it
-        waited; a violation raises MirobotUsageError and nothing of the line is written.
+        The envelope guard checks the line under the send lock (``rules.check_envelope``),
+        against the position and modes predicted from every line written before it, again if
+        they were invalidated while it waited; a violation raises MirobotUsageError and nothing
+        of the line is written.
 
-        With ``idle`` the line is written only when nothing is in flight and a status received
-        since shows the robot at rest (the firmware refuses ``$$`` with ``Not idle`` while the
-        arm moves); nothing else is written in between (the send lock is held).
+        With ``rules.idle`` the line is written only when nothing is in flight and a status
+        received since shows the robot at rest (the firmware refuses ``$$`` with ``Not idle``
+        while the arm moves); nothing else is written in between (the send lock is held).
 
         After a homing line's ``ok`` nothing is written until a status received since shows the
         arm at rest: the firmware zeroes the position when the return move ends, and a line
         queued behind that move is lost (oracle: a ``G0 X10`` sent right after the ``ok`` of
         ``$H`` ends at 0).
         """
+        command, parsed, what = line.command, line.parsed, line.what
+        motion, validate = rules.motion, rules.validate
         condition, guard = self._condition, self._guard
         condition.check_sendable(command, motion=motion)
-        if parsed is None:
-            parsed = parse_line(data)
         unknown = condition.firmware is None
         if guard.needs_firmware(parsed) or (
             validate and unknown and not _judged(judged_from, guard) and _disagree(parsed, guard)
         ):
             await self.require_firmware(deadline, timeout)
         exclusive = parsed.kind == "dollar"
-        nbytes = len(data) + 1
+        nbytes = len(line.data) + 1
         epoch = condition.reset_epoch
         verdict: LineCheck | None = None
         checked_epoch: int | None = None
         room = f"room in the robot's receive buffer to send {command!r}"
-        checking = check_envelope and guard.envelope is not None
+        checking = rules.check_envelope and guard.envelope is not None
         at_rest = False
         async with within(deadline, room, timeout, command=command) as limit, self._send_lock:
             while True:
@@ -383,7 +387,7 @@ class LineScheduler:
                     limit.what = room
                     continue
                 if self._ready(exclusive, nbytes):
-                    if idle and not at_rest:
+                    if rules.idle and not at_rest:
                         limit.what = f"the robot to be at rest before sending {command!r}"
                         report, _ = await self._poller.fetch(
                             fresh=False, timeout=clip(self.status_timeout, deadline, self._now())
@@ -393,30 +397,30 @@ class LineScheduler:
                         continue
                     if should_stop is not None and should_stop():
                         raise StreamStopped  # a reply received meanwhile stopped it
-                    slot = self._write(data, command, exclusive, parsed.dwell_seconds)
-                    slot.watch, slot.parsed = watch, parsed  # no reply can come before this
+                    slot = self._write(line, exclusive)
+                    slot.watch = watch  # no reply can come before this
                     slot.tracked = guard.track_written(
                         slot.pending.id,
                         command,
                         parsed,
                         verdict,
-                        checked=check_envelope,
+                        checked=rules.check_envelope,
                         what=what,
-                        warn_unchecked=warn_unchecked,
+                        warn_unchecked=rules.warn_unchecked,
                     )
                     return slot
                 await self.wait_progress(deadline)
 
-    def _write(self, data: bytes, command: str, exclusive: bool, dwell: float | None) -> Slot:
-        """Register ``data`` with the state machine and write it (synchronous: no gap)."""
+    def _write(self, line: OutgoingLine, exclusive: bool) -> Slot:
+        """Register ``line`` with the state machine and write it (synchronous: no gap)."""
         assert self._loop is not None
-        pending = self._wire.write_line(data)
+        pending = self._wire.write_line(line.data)
         now = self._loop.time()
-        slot = Slot(pending, command, self._loop.create_future(), now)
+        slot = Slot(pending, line, self._loop.create_future(), now)
         self.slots[pending.id] = slot
         if exclusive:
             self._barrier = pending.id
-        self.watch.written(slot, now, dwell)
+        self.watch.written(slot, now)
         return slot
 
     async def learn_position(self, command: str, deadline: float | None) -> None:

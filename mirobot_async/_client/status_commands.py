@@ -7,11 +7,13 @@ from __future__ import annotations
 import asyncio
 import contextlib
 from collections.abc import AsyncGenerator, AsyncIterator
+from typing import Final
 
 from mirobot_async._client.deadline import check_timeout, deadline_after, within
 from mirobot_async._client.parts import MOVE_TIMEOUT, RESET_TIMEOUT, STATUS_TIMEOUT, ClientParts
-from mirobot_async._client.scheduler import QUIET
+from mirobot_async._client.scheduler import QUIET, SendRules
 from mirobot_async._core.modal import lock_probe
+from mirobot_async._core.outgoing import OutgoingLine
 from mirobot_async._core.replies import State, StatusReport
 from mirobot_async.errors import (
     MirobotAlarmError,
@@ -20,6 +22,9 @@ from mirobot_async.errors import (
     MotionRefusedError,
     RefusalReason,
 )
+
+_PROBE: Final = SendRules(idle=True, validate=True)
+"""The lock probe's lines: at rest, judged as the firmware would."""
 
 STANDING_SECONDS = 0.25
 """A held arm stands once its reports show the same motor steps for this long: braking at the
@@ -127,8 +132,8 @@ class StatusCommands(ClientParts):
         locked = False
         try:
             await self._command(
-                probe.line.encode("ascii"),
-                deadline=deadline, timeout=timeout, idle=True, validate=True, what=what,
+                OutgoingLine.of(probe.line.encode("ascii"), what),
+                deadline=deadline, timeout=timeout, rules=_PROBE,
             )  # fmt: skip
         except MotionRefusedError as err:
             if err.reason is not RefusalReason.LOCKED:
@@ -136,8 +141,8 @@ class StatusCommands(ClientParts):
             locked = True
         if probe.restore is not None:
             await self._command(
-                probe.restore.encode("ascii"),
-                deadline=deadline, timeout=timeout, idle=True, validate=True, what=what,
+                OutgoingLine.of(probe.restore.encode("ascii"), what),
+                deadline=deadline, timeout=timeout, rules=_PROBE,
             )  # fmt: skip
         return locked
 

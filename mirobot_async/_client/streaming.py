@@ -27,8 +27,9 @@ from typing import Any, Final
 from mirobot_async._client.condition import RobotCondition
 from mirobot_async._client.deadline import deadline_after
 from mirobot_async._client.guard import EnvelopeGuard, NullGuard
-from mirobot_async._client.scheduler import LineScheduler, Slot, StreamStopped
+from mirobot_async._client.scheduler import LineScheduler, SendRules, Slot, StreamStopped
 from mirobot_async._core.line import ParsedLine, parse_line
+from mirobot_async._core.outgoing import OutgoingLine
 from mirobot_async._core.protocol import LineRejected, encode_line
 from mirobot_async._core.stream_verdict import judge_stream
 from mirobot_async._core.validation import InvalidLineError, ModalState
@@ -48,6 +49,7 @@ _END: Final = object()
 _FATAL = (MirobotResetError, MirobotAlarmError, MirobotTimeoutError)
 
 MOTION_BARRIER: Final = b"G4 P0\n"
+_BARRIER_RULES: Final = SendRules(warn_unchecked=False)
 """Written after a ``wait=True`` stream's last line: the firmware answers a dwell only once its
 planner is empty (GRBL's G4; oracle: the ``ok`` comes as the arm stops), so its ``ok`` is the end
 of the motion for 4 bytes of output, where a status report costs about 190."""
@@ -130,8 +132,7 @@ class _StreamRun:
     continue_on_error: bool
     deadline: float | None
     timeout: float | None
-    check_envelope: bool
-    validate: bool
+    rules: SendRules  # how its lines are sent (envelope, validation; warned once, not per line)
     result: StreamResult
     queue: deque[_Queued] = field(default_factory=deque)
     wake: asyncio.Event = field(default_factory=asyncio.Event)
@@ -193,20 +194,15 @@ class _StreamRun:
                     continue  # a blank line
                 command = data.decode("ascii")
                 parsed, judged_from = self._judged(number, command)
+                line = OutgoingLine.of(data, f"stream line {number} {command!r}", parsed=parsed)
                 try:
                     slot = await self.scheduler.submit(
-                        data,
-                        command,
+                        line,
                         deadline=self.deadline,
                         timeout=self.timeout,
-                        motion=False,
-                        check_envelope=self.check_envelope,
-                        validate=self.validate,
-                        what=f"stream line {number} {command!r}",
-                        warn_unchecked=False,
+                        rules=self.rules,
                         should_stop=self.should_stop,
                         watch=self.watch,
-                        parsed=parsed,
                         judged_from=judged_from,
                     )
                 except StreamStopped:
@@ -248,13 +244,10 @@ class _StreamRun:
         command = MOTION_BARRIER.decode("ascii").strip()
         try:
             self.barrier = await self.scheduler.submit(
-                MOTION_BARRIER,
-                command,
+                OutgoingLine.of(MOTION_BARRIER, f"{command!r} (the end of the stream's motion)"),
                 deadline=self.deadline,
                 timeout=self.timeout,
-                motion=False,
-                what=f"{command!r} (the end of the stream's motion)",
-                warn_unchecked=False,
+                rules=_BARRIER_RULES,
                 should_stop=self.should_stop,
             )
         except StreamStopped:
@@ -400,8 +393,9 @@ class Stream:
             self._continue,
             deadline,
             self._timeout,
-            self._check_envelope,
-            self._validate,
+            SendRules(
+                check_envelope=self._check_envelope, validate=self._validate, warn_unchecked=False
+            ),
             self.result,
             reset_epoch=condition.reset_epoch,
             alarm_epoch=condition.alarm_epoch,

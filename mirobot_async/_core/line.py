@@ -460,8 +460,21 @@ class ParsedLine:
 
     @property
     def is_homing(self) -> bool:
-        """Any ``$H...`` line (the firmware homes for every variant it accepts)."""
+        """Any ``$H...`` line (the firmware homes for every variant it accepts), comments and
+        blanks dropped as the firmware drops them: ``(x)$H`` homes as ``$H`` does."""
         return self.dollar is not None and self.dollar.kind == "homing"
+
+    @property
+    def homing_kind(self) -> Literal["$H", "$HH"] | None:
+        """Which homing search the line starts (``None``: not a homing line): ``"$H"``, every
+        axis at once (also the 2021 ``$H0``..``$H7``, one axis), or ``"$HH"``, one group after
+        another (also ``$HE`` and any other ``$H...``: the longest, when unknown)."""
+        if not self.is_homing:
+            return None
+        text = self.text
+        if text == "$H" or (len(text) == 3 and "0" <= text[2] <= "7"):
+            return "$H"
+        return "$HH"
 
     @property
     def clears_alarm(self) -> bool:
@@ -471,16 +484,22 @@ class ParsedLine:
             return self.dollar.kind in ("unlock", "homing")
         return self.kind == "gcode" and self.syntax_error is None and 50 in self.m_codes
 
-    @property
-    def changes_base_offset(self) -> bool:
-        """The line may change the 2021 base offset ``$41..$43`` (such a setting, in any form
-        the firmware reads as one, or ``$RST=...`` restoring the defaults)."""
+    def changes_setting(self, *numbers: int) -> bool:
+        """The line may change one of the settings ``numbers`` (``$N=...`` in any form the
+        firmware reads as one of them, ``$RST=...`` restoring the defaults, or a ``$`` line
+        this parse cannot classify: conservatively, yes)."""
         dollar = self.dollar
         if dollar is None:
             return False
-        return dollar.kind == "restore" or (
-            dollar.kind == "setting" and dollar.number in (41, 42, 43)
-        )
+        if dollar.kind in ("restore", "unknown"):
+            return True
+        return dollar.kind == "setting" and dollar.number in numbers
+
+    @property
+    def changes_base_offset(self) -> bool:
+        """The line may change the 2021 base offset ``$41..$43`` (:meth:`changes_setting`):
+        the one rule of the client and the envelope."""
+        return self.changes_setting(41, 42, 43)
 
     @property
     def queues_motion(self) -> bool:

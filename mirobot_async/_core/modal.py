@@ -189,7 +189,8 @@ _Six = tuple[float, float, float, float, float, float]
 
 @dataclass(frozen=True, slots=True)
 class LineCheck:
-    """The result of :meth:`Envelope.check_line`: the new modes and where the arm ends up.
+    """The envelope's verdict on a line (:func:`~mirobot_async._safety.prediction.predict`, as
+    the client's guard reads it): the new modes and where the arm ends up.
 
     ``joints``/``pose``/``rail`` are the target when computable, else the current values passed in
     (for lines that do not move) or ``None`` (unknown, e.g. after homing). ``base_offset`` is

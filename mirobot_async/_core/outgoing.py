@@ -1,18 +1,23 @@
-"""The one check of an outgoing command line's bytes (PURE: no I/O).
+"""An outgoing command line: the one check of its bytes, and the one object that carries it
+(PURE: no I/O).
 
 :func:`encode_line` is used by :meth:`MirobotConnection.send_line
 <mirobot_async._core.protocol.MirobotConnection.send_line>` and by the client before anything is
 written: a line is one ASCII line without the realtime bytes, short enough for the robot's
-receive buffer.
+receive buffer. :class:`OutgoingLine` is what the client makes of it once (its bytes, its one
+parse, its label) and hands unchanged from ``send()``/``stream()``/a command to the line's reply
+slot: every fact about the line is read from that parse, never from its text again.
 """
 
 from __future__ import annotations
 
 import re
+from dataclasses import dataclass
 
+from mirobot_async._core.line import ParsedLine, parse_line
 from mirobot_async.errors import MirobotUsageError
 
-__all__ = ["encode_line"]
+__all__ = ["OutgoingLine", "encode_line"]
 
 # Bytes that a command line may not contain: line ends (a line is one line) and the realtime bytes,
 # which the firmware takes out of the stream wherever they are, even inside a comment (PROTOCOL.md
@@ -74,3 +79,27 @@ def encode_line(line: object, rx_buffer_size: int = 128, *, strip: bool = True) 
             f"robot's {rx_buffer_size}-byte receive buffer"
         )
     return data
+
+
+@dataclass(frozen=True, slots=True)
+class OutgoingLine:
+    """One command line on its way to the robot, made once (:meth:`of`) and never re-read."""
+
+    data: bytes
+    """The bytes written, without the line end (checked by :func:`encode_line`)."""
+    command: str
+    """``data`` as text: how errors and logs quote the line."""
+    parsed: ParsedLine
+    """The line's one parse: homing, dwell, ``$`` barrier, modes, validation, envelope."""
+    what: str | None = None
+    """The label of messages about it (``send('G0 X1')``, ``stream line 3 ...``)."""
+
+    @classmethod
+    def of(
+        cls, data: bytes, what: str | None = None, *, parsed: ParsedLine | None = None
+    ) -> OutgoingLine:
+        """``data`` (one trailing ``\\n`` dropped) with its parse: ``parsed`` when the caller
+        parsed exactly these bytes already (a stream judged before it began), else parsed
+        here."""
+        data = data.rstrip(b"\n")
+        return cls(data, data.decode("ascii"), parse_line(data) if parsed is None else parsed, what)

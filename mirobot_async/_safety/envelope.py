@@ -28,8 +28,8 @@ violated bound, and returns ``None`` when the move is allowed):
   inside and, along the way, it never goes farther outside any bound than where it started.
 - **Relative moves** (``G91``) are checked against the last known position, which the caller
   passes (``current_joints`` / ``current_pose``); without it they are refused.
-- **Raw lines** (``Mirobot.send``, ``stream``) are checked **default-deny** by
-  :meth:`Envelope.check_line` (:func:`mirobot_async._safety.prediction.predict`): a line is let
+- **Raw lines** (``Mirobot.send``, ``stream``) are checked **default-deny** by the client's
+  guard with :func:`mirobot_async._safety.prediction.predict`: a line is let
   through only when its exact effect is predicted from the modal state (:class:`MotionModes`:
   M20/M21, G90/G91, G0..G5, G20/G21, any of them possibly unknown), the position, the 2021 base
   offset ``$41..$43`` and what the firmware stores (work offsets, startup lines, soft limits,
@@ -92,8 +92,6 @@ __all__ = [
     "MotionModes",
     "update_modes",
 ]
-
-_POWER_ON: Final = MotionModes()
 
 Bound: TypeAlias = tuple[float | None, float | None]
 """``(low, high)``; ``None`` on a side means no bound on that side."""
@@ -504,41 +502,3 @@ class Envelope:
             raise MirobotUsageError(f"{plan} ({what})")
         samples = arc_samples(plan, a, b, self._bounded(plan.intervals, what))
         self._check_pose_samples(samples, what, "arc")
-
-    # ----------------------------------------------------------------------------------------
-    # Raw lines
-
-    def check_line(
-        self,
-        line: str | bytes,
-        current_joints: Sequence[float] | None,
-        current_pose: Sequence[float] | None = None,
-        modes: MotionModes = _POWER_ON,
-        *,
-        current_rail: float | None = None,
-        what: str | None = None,
-        base_offset: tuple[float, float, float] | None = (0.0, 0.0, 0.0),
-        gate_lift: float | None = None,
-        firmware: str | None = "2021",
-    ) -> LineCheck:
-        """Check one raw line against the envelope, given the last known position and ``modes``.
-
-        Default-deny (:func:`mirobot_async._safety.prediction.predict`): returns the modes after
-        the line and the target (see :class:`LineCheck`); raises MirobotUsageError when the move
-        leaves the envelope or its effect cannot be predicted. ``current_pose`` defaults to the
-        forward kinematics of ``current_joints``; ``base_offset`` is the arm's ``$41..$43``
-        (``None``: unknown, absolute ``M20`` moves are then refused), ``gate_lift`` its ``$49``.
-        """
-        from .prediction import MachineState, Prediction, predict
-
-        joints = None if current_joints is None else _joints6(current_joints, "current joints")
-        pose = None if current_pose is None else _pose6(current_pose, "current pose")
-        rail = None if current_rail is None else _real(current_rail, "current rail")
-        state = MachineState(modes, joints, pose, rail, base_offset, gate_lift, firmware)
-        result = predict(self, line, state, what=what)
-        if not isinstance(result, Prediction):
-            raise result.error()
-        after = result.state
-        return LineCheck(
-            after.modes, result.moves, after.joints, after.pose, after.rail, after.base_offset
-        )

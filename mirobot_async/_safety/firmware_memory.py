@@ -15,16 +15,12 @@ from __future__ import annotations
 
 import re
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Final, TypeAlias
+from dataclasses import dataclass, field
+from typing import Final, TypeAlias
 
 from mirobot_async._core.acceptance import merge_unknown, update_modes
 from mirobot_async._core.line import ParsedLine, parse_line
-from mirobot_async._core.modal import LineCheck, MotionModes
-from mirobot_async.errors import RefusalReason
-
-if TYPE_CHECKING:
-    from mirobot_async._safety.prediction import MachineState
+from mirobot_async._core.modal import MotionModes
 
 Joints: TypeAlias = tuple[float, float, float, float, float, float]
 
@@ -36,14 +32,12 @@ __all__ = [
     "ParserPosition",
     "WorkCoordinates",
     "apply_startup_lines",
-    "changes_base_offset",
     "changes_work_offsets",
     "parse_coordinate_system",
     "parse_startup_lines",
     "parse_work_offsets",
     "soft_limit_ranges",
     "soft_limits_from_settings",
-    "state_after_refusal",
     "work_offset",
 ]
 
@@ -126,16 +120,6 @@ def parse_coordinate_system(output: Iterable[str]) -> int | None:
             if len(codes) == 1:
                 return codes[0]
     return None
-
-
-def changes_base_offset(parsed: ParsedLine) -> bool:
-    """An unchecked ``$`` line that may change the base offset or the gate lift."""
-    dollar = parsed.dollar
-    if dollar is None:
-        return False
-    if dollar.kind in ("restore", "unknown"):
-        return True
-    return dollar.kind == "setting" and dollar.number in (41, 42, 43, 49)
 
 
 def changes_work_offsets(text: str) -> bool:
@@ -229,31 +213,6 @@ def work_offset(
         a[5] + b[5],
         a[6] + b[6],
     )
-
-
-def state_after_refusal(
-    state: MachineState,
-    before: MachineState,
-    check: LineCheck | None,
-    reason: RefusalReason | None,
-) -> MachineState:
-    """``state`` (the arm back where ``before`` had it) after the firmware dropped the motion
-    of the line predicted as ``check``, with the parser where the firmware leaves it (oracle):
-    a soft limit leaves it; locked, a joint-mode line moves it to the refused target, and a
-    Cartesian one (or an unreachable Cartesian target) moves the commanded pose; anything
-    else leaves it unknown."""
-    state = replace(state, parser=before.parser)
-    if reason is RefusalReason.SOFT_LIMIT:
-        return state
-    if check is None:
-        return replace(state, parser=PARSER_UNKNOWN)
-    if check.modes.cartesian:
-        if reason in (RefusalReason.LOCKED, RefusalReason.UNREACHABLE) and check.pose is not None:
-            return replace(state, pose=check.pose, parser=None)
-        return replace(state, parser=PARSER_UNKNOWN)
-    if reason is RefusalReason.LOCKED and check.joints is not None:
-        return replace(state, parser=ParserPosition(check.joints, check.rail))
-    return replace(state, parser=PARSER_UNKNOWN)
 
 
 @dataclass

@@ -1,9 +1,9 @@
 """Default-deny prediction of a raw line's effect, checked against a safety envelope.
 
 :func:`predict` takes one :class:`~mirobot_async._core.line.ParsedLine` and what is known of the
-machine (:class:`MachineState`: modal words, position, base offset) and returns either a
-:class:`Refusal` naming the line and the reason, or the :class:`Prediction` of the exact effect:
-the state after the line, having checked the whole path against the envelope. A line is let
+machine (:class:`MachineState`: modal words, position, base offset) and returns either an
+:class:`EnvelopeRefusal` naming the line and the reason, or the :class:`Prediction` of the exact
+effect: the state after the line, having checked the whole path against the envelope. A line is let
 through only when its effect is modelled; everything else is refused:
 
 - numbers the firmware reads differently from their text, odd ``G``/``M`` forms, repeated
@@ -40,7 +40,7 @@ from typing import TYPE_CHECKING, Final
 
 from mirobot_async._core.acceptance import ARC_START_UNKNOWN, line_fate
 from mirobot_async._core.line import CodeWord, ParsedLine, parse_line
-from mirobot_async._core.modal import HOMED, MotionModes, modes_of
+from mirobot_async._core.modal import HOMED, LineCheck, MotionModes, modes_of
 from mirobot_async._safety.cartesian import CartesianEnd, cartesian_path, point_to_point
 from mirobot_async._safety.firmware_memory import (
     PARSER_UNKNOWN,
@@ -53,7 +53,7 @@ from mirobot_async._safety.firmware_memory import (
     with_setting,
 )
 from mirobot_async._safety.paths import as_pose
-from mirobot_async.errors import MirobotUsageError
+from mirobot_async.errors import MirobotUsageError, RefusalReason
 from mirobot_async.kinematics import Joints, Pose, forward
 
 if TYPE_CHECKING:
@@ -63,12 +63,13 @@ __all__ = [
     "HARMLESS_SETTINGS",
     "MAX_AXIS_VALUE",
     "PARSER_UNKNOWN",
+    "EnvelopeRefusal",
     "MachineState",
     "ParserPosition",
     "Prediction",
-    "Refusal",
     "combine",
     "predict",
+    "state_after_refusal",
 ]
 
 MM_PER_INCH: Final = 25.4
@@ -167,7 +168,7 @@ class Prediction:
 
 
 @dataclass(frozen=True, slots=True)
-class Refusal:
+class EnvelopeRefusal:
     """A line the envelope refuses: it leaves the envelope or cannot be predicted."""
 
     line: ParsedLine
@@ -193,7 +194,7 @@ def predict(
     state: MachineState,
     *,
     what: str | None = None,
-) -> Prediction | Refusal:
+) -> Prediction | EnvelopeRefusal:
     """Predict and check one line (see the module docstring); never raises for the line."""
     parsed = line if isinstance(line, ParsedLine) else parse_line(line)
     name = _what(parsed, what)
@@ -207,7 +208,7 @@ def predict(
         text = str(exc)
         if name not in text:
             text = f"{text} ({name})"
-        return Refusal(parsed, text)
+        return EnvelopeRefusal(parsed, text)
 
 
 # --------------------------------------------------------------------------------------------
@@ -554,3 +555,28 @@ def _cartesian(
     return Prediction(
         parsed, after, True, snap=end.snap, samples=end.samples, model_joints=end.model_joints
     )
+
+
+def state_after_refusal(
+    state: MachineState,
+    before: MachineState,
+    check: LineCheck | None,
+    reason: RefusalReason | None,
+) -> MachineState:
+    """``state`` (the arm back where ``before`` had it) after the firmware dropped the motion
+    of the line predicted as ``check``, with the parser where the firmware leaves it (oracle):
+    a soft limit leaves it; locked, a joint-mode line moves it to the refused target, and a
+    Cartesian one (or an unreachable Cartesian target) moves the commanded pose; anything
+    else leaves it unknown."""
+    state = replace(state, parser=before.parser)
+    if reason is RefusalReason.SOFT_LIMIT:
+        return state
+    if check is None:
+        return replace(state, parser=PARSER_UNKNOWN)
+    if check.modes.cartesian:
+        if reason in (RefusalReason.LOCKED, RefusalReason.UNREACHABLE) and check.pose is not None:
+            return replace(state, pose=check.pose, parser=None)
+        return replace(state, parser=PARSER_UNKNOWN)
+    if reason is RefusalReason.LOCKED and check.joints is not None:
+        return replace(state, parser=ParserPosition(check.joints, check.rail))
+    return replace(state, parser=PARSER_UNKNOWN)

@@ -230,7 +230,7 @@ class ArmFacts(Protocol):
 def record_arm(path: str | os.PathLike[str], arm: ArmFacts) -> TapeRecorder:
     """A recorder for a connection (before it opens); its header's facts come from ``arm``
     when written. The wire then :meth:`~TapeRecorder.attach` es it to the open link."""
-    from mirobot_async import __version__
+    from mirobot_async._version import __version__
 
     given = arm.firmware
     recorder: TapeRecorder | None = None

@@ -19,7 +19,7 @@
 * A node that does not answer a status request or a controller command within
   ``BusTiming.answer_timeout`` (0.5 s) raises :class:`NodeSilentError` (a
   :class:`~mirobot_async.MirobotTimeoutError` naming the address); the other arms keep working.
-* :func:`connect` is ``Mirobot.connect(url, address=N)`` for one arm alone on a bus.
+* :func:`connect` (``bus.connect(url, address=N)``) opens a bus for one arm alone on it.
 
 Flow control: an arm answers a motion line when it is queued in its planner (18 blocks), and
 a line sent to a full planner would hold the whole bus until a block ends. So each arm may have

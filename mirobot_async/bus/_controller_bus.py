@@ -318,8 +318,8 @@ def connect(
     probe: bool = True,
     record: str | PathLike[str] | None = None,
 ) -> SingleArmConnector:
-    """One arm behind a controller at ``address`` on the bus at ``url``, as
-    ``Mirobot.connect(url, address=N)`` would be: ``async with connect(url, address=3) as arm``.
+    """One arm behind a controller at ``address`` on the bus at ``url``:
+    ``async with bus.connect(url, address=3) as arm`` (a :class:`~mirobot_async.Mirobot`).
 
     Opens a :class:`ControllerBus` for this one arm and closes it at the end of the block
     (an ``async with`` only: the bus must be closed with the arm). The options are those of

@@ -24,10 +24,11 @@ import enum
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Literal
 
 from mirobot_async._core.line import parse_line
 
-__all__ = ["Kind", "NodeLedger", "Owed", "is_final", "is_status", "may_move"]
+__all__ = ["Kind", "NodeLedger", "Owed", "forwarded_line", "is_final", "is_status"]
 
 
 def is_final(text: str) -> bool:
@@ -41,12 +42,11 @@ def is_status(text: str) -> bool:
     return text.startswith("<")
 
 
-def may_move(line: str) -> bool:
-    """Whether a line may put a block in the arm's planner (an axis word or a ``G4`` dwell, as
-    the one parse of the line reads it: :attr:`ParsedLine.queues_motion
-    <mirobot_async._core.line.ParsedLine.queues_motion>`); ``$`` commands do not (``$H`` is answered
-    when homing ends, whatever the planner holds)."""
-    return parse_line(line).queues_motion
+def forwarded_line(text: str, ends: int) -> Owed:
+    """A line forwarded to the arm, owed ``ends`` final replies; what it may occupy (the
+    planner, a homing search) is read from its one parse."""
+    parsed = parse_line(text)
+    return Owed(Kind.LINE, text, ends, moves=parsed.queues_motion, homing_kind=parsed.homing_kind)
 
 
 class Kind(enum.Enum):
@@ -76,7 +76,12 @@ class Owed:
     sent_at: float = 0.0
     answered_before: int = 0
     moves: bool = True
-    """A LINE that may occupy the arm's planner (see :func:`may_move`)."""
+    """A LINE that may put a block in the arm's planner (an axis word or a ``G4`` dwell:
+    :attr:`ParsedLine.queues_motion <mirobot_async._core.line.ParsedLine.queues_motion>`; ``$``
+    commands do not: ``$H`` is answered when homing ends, whatever the planner holds)."""
+    homing_kind: Literal["$H", "$HH"] | None = None
+    """A LINE that starts a homing search (:attr:`ParsedLine.homing_kind
+    <mirobot_async._core.line.ParsedLine.homing_kind>`): the arm answers no ``?`` meanwhile."""
     copies: int = 1
     """A status request of the client: how many of its ``?`` it stands for (those written
     while it waited to be sent; its report, printed after all of them, answers each)."""

@@ -28,9 +28,9 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from mirobot_async._client.condition import HOMING_BOUND, HOMING_LINE_RE, homing_bound
+from mirobot_async._client.condition import HOMING_BOUND, homing_bound
 from mirobot_async._client.transport import SerialLink
-from mirobot_async.bus._ledger import Kind, NodeLedger, Owed, may_move
+from mirobot_async.bus._ledger import Kind, NodeLedger, Owed, forwarded_line
 from mirobot_async.errors import (
     MirobotLinkLostError,
     MirobotUsageError,
@@ -190,8 +190,7 @@ class LinkSide:
     def submit_line(self, address: int, line: bytes) -> None:
         """A line for the arm (``line`` without its line end), after its queued lines."""
         self._check_open()
-        text = line.decode("ascii", "replace")
-        owed = Owed(Kind.LINE, text, self.ends, moves=may_move(text))
+        owed = forwarded_line(line.decode("ascii", "replace"), self.ends)
         self.node(address).lines.append(_Request(owed, self._wire(address, line)))
         self._wake.set()
 
@@ -251,8 +250,7 @@ class LinkSide:
     def homing_started(self, address: int, mode: int) -> None:
         """The controller at ``address`` homes its arm (``O105=<mode>``; 9 and 10 home one
         axis or group after another: the ``$HH`` bound, else the ``$H`` one)."""
-        command = "$HH" if mode in (9, 10) else "$H"
-        bound = homing_bound(command, None, self.timing.homing_bounds)
+        bound = homing_bound("$HH" if mode in (9, 10) else "$H", None, self.timing.homing_bounds)
         self.node(address).homing_until = self._loop.time() + bound
         self._wake.set()
 
@@ -427,9 +425,9 @@ class LinkSide:
             return node.homing_until
         for owed in node.ledger.owed:
             if owed.kind is Kind.LINE and owed.main_final_pending:
-                text = owed.command.replace(" ", "").upper()
-                if HOMING_LINE_RE.match(text):
-                    return owed.sent_at + homing_bound(text, None, self.timing.homing_bounds)
+                if owed.homing_kind is not None:
+                    bounds = self.timing.homing_bounds
+                    return owed.sent_at + homing_bound(owed.homing_kind, None, bounds)
                 return None
         return None
 

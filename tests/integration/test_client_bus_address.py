@@ -1,4 +1,4 @@
-"""``Mirobot.connect(url, address=N)``: an arm behind a multi-robot controller on a bus emulator
+"""``bus.connect(url, address=N)``: an arm behind a multi-robot controller on a bus emulator
 (the launcher approach of ``test_bus_client.py``: a real emulator process on a real pty)."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from mirobot_async import Mirobot, State
+from mirobot_async import State, bus
 from mirobot_async.bus import NodeSilentError
 
 pytestmark = pytest.mark.timeout(60)
@@ -59,18 +59,18 @@ def bus_path(tmp_path: Path) -> Iterator[str]:
 
 
 async def test_connect_with_an_address_reaches_that_arm(bus_path: str) -> None:
-    async with Mirobot.connect(bus_path, address=2) as arm:
+    async with bus.connect(bus_path, address=2) as arm:
         await arm.unlock()
         report = await arm.move_joints(j1=12, speed=2000)
         assert report is not None and report.state is State.IDLE
         assert report.joints[0] == pytest.approx(12, abs=0.05)
-    async with Mirobot.connect(bus_path, address=1) as other:
+    async with bus.connect(bus_path, address=1) as other:
         assert (await other.status()).joints[0] == pytest.approx(0, abs=0.05)
 
 
 async def test_connect_to_a_missing_address_names_it(bus_path: str) -> None:
     with pytest.raises(NodeSilentError):
-        async with Mirobot.connect(bus_path, address=7, timeout=2):
+        async with bus.connect(bus_path, address=7, timeout=2):
             pass
 
 
@@ -80,7 +80,7 @@ async def test_connect_with_an_address_records_that_arms_tape(
     from mirobot_async._tapes.format import Written, read_tapes
 
     path = tmp_path / "bus.jsonl"
-    async with Mirobot.connect(bus_path, address=2, record=path) as arm:
+    async with bus.connect(bus_path, address=2, record=path) as arm:
         await arm.unlock()
     [tape] = read_tapes(path)
     assert tape.header["link"] == "bus" and tape.header["source"] == "device"

@@ -65,6 +65,16 @@ async def test_send_home_line_waits_for_its_reply(arm: Mirobot, profile: str) ->
     assert at_zero(await arm.wait_idle())
 
 
+async def test_a_home_line_with_a_comment_waits_like_the_bare_one(
+    arm: Mirobot, profile: str
+) -> None:
+    # The firmware drops the comment: "(x)$H" homes as "$H" does, silent through the search,
+    # so the call waits for its reply instead of taking the silence for a dead link.
+    output = await arm.send("(x)$H")
+    assert any("hom" in line for line in output), output
+    assert at_zero(await arm.wait_idle())
+
+
 async def test_streamed_home_then_a_move(arm: Mirobot, profile: str) -> None:
     result = await arm.stream(["$H", "M21 G90 G0 X10 F2000"], wait=True)
     assert result.ok, result

@@ -14,6 +14,7 @@ from dataclasses import replace
 import numpy as np
 import numpy.typing as npt
 import pytest
+from envelope_lines import check_envelope_line
 from hypothesis import assume, event, given, settings
 from hypothesis import strategies as st
 
@@ -499,10 +500,10 @@ def test_linear_path_recovery_from_outside() -> None:
     env = Envelope(z=(150, None))
     env.check_linear_path(low, high)
     low_joints = inverse(low, DH_2021, "firmware")
-    got = env.check_line("M20 G90 G1 Z200 F100", low_joints, low)
+    got = check_envelope_line(env, "M20 G90 G1 Z200 F100", low_joints, low)
     assert got.pose == high and got.joints is not None
     with pytest.raises(MirobotUsageError, match="minimum z=150"):
-        env.check_line("M20 G90 G1 Z90 F100", low_joints, low)
+        check_envelope_line(env, "M20 G90 G1 Z90 F100", low_joints, low)
     with pytest.raises(MirobotUsageError, match="minimum z=150"):
         env.check_linear_path(low, (260.0, 0.0, 140.0, 0.0, 0.0, 0.0))
     env_j = Envelope(joints={2: (-30, 20)})
@@ -558,7 +559,7 @@ def test_arcs_against_a_fine_reference(
         # 8 significant digits at most: the firmware drops the others
         line = f"M20 G90 G{2 if clockwise else 3} X{end[0]:.4f} Y{end[1]:.4f} Z190 R{radius:.4f}"
         try:
-            got = env.check_line(line, inverse(start, DH_2021, "firmware"), start)
+            got = check_envelope_line(env, line, inverse(start, DH_2021, "firmware"), start)
         except MirobotUsageError as exc:  # rounding to 4 decimals may graze a bound
             assert "mm (line" in str(exc) or "Arc radius" in str(exc), str(exc)
             return
@@ -582,9 +583,9 @@ def test_arc_errors() -> None:
     with pytest.raises(MirobotUsageError, match="radius must be > 0"):
         env.check_arc(a, (210.0, 0.0, 200.0, 0, 0, 0), -10, clockwise=True)
     with pytest.raises(MirobotUsageError, match="needs R"):
-        env.check_line("M20 G2 X210 Y0", HOME)
+        check_envelope_line(env, "M20 G2 X210 Y0", HOME)
     with pytest.raises(MirobotUsageError, match="need the 2021 firmware and M20"):
-        env.check_line("M21 G2 X10 Y0 R20", HOME)
+        check_envelope_line(env, "M21 G2 X10 Y0 R20", HOME)
     # From (200, 0) to (240, 0) with R20: G2 (clockwise seen from above) is the half circle on
     # the +y side, G3 the one on the -y side.
     env_y = Envelope(y=(-10, None))
@@ -624,60 +625,60 @@ def test_lines_that_do_not_move_always_pass() -> None:
         b"M3S0\n",
     ]
     for line in lines:
-        got = env.check_line(line, None, None, modes)
+        got = check_envelope_line(env, line, None, None, modes)
         assert not got.moves, line
         assert got.joints is None and got.pose is None
-    assert env.check_line("G90", HOME, None, modes).modes == MotionModes(True, False, 1)
-    still = env.check_line("M3 S0", HOME)
+    assert check_envelope_line(env, "G90", HOME, None, modes).modes == MotionModes(True, False, 1)
+    still = check_envelope_line(env, "M3 S0", HOME)
     assert still.joints == HOME and still.pose is not None
 
 
 def test_absolute_joint_lines_with_missing_axes() -> None:
     env = Envelope(joints={1: (-50, 50)})
     cur = (10.0, 5.0, -5.0, 1.0, 2.0, 3.0)
-    got = env.check_line("M21 G90 G0 X20 C-4", cur)
+    got = check_envelope_line(env, "M21 G90 G0 X20 C-4", cur)
     assert got.moves
     assert got.joints == (20.0, 5.0, -5.0, 1.0, 2.0, -4.0)
     assert got.modes == MotionModes(cartesian=False, relative=False, motion=0)
     assert got.pose is not None and np.allclose(got.pose[:3], tool_points([got.joints])[0])
     with pytest.raises(MirobotUsageError, match=r"j1=60\.000 is outside the envelope's J1 range"):
-        env.check_line("M21 G90 G1 X60 F100", cur)
+        check_envelope_line(env, "M21 G90 G1 X60 F100", cur)
     # Missing axes without a known position cannot be judged; a full target can.
     with pytest.raises(MirobotUsageError, match="unknown"):
-        env.check_line("X20", None)
-    assert env.check_line("X1Y2Z3A4B5C6", None).joints == (1.0, 2.0, 3.0, 4.0, 5.0, 6.0)
+        check_envelope_line(env, "X20", None)
+    assert check_envelope_line(env, "X1Y2Z3A4B5C6", None).joints == (1.0, 2.0, 3.0, 4.0, 5.0, 6.0)
 
 
 def test_relative_joint_lines() -> None:
     env = Envelope(joints={2: (-30, 40)})
     cur = (10.0, 30.0, 0.0, 0.0, 0.0, 0.0)
-    got = env.check_line("M21 G91 Y5 X-10", cur)
+    got = check_envelope_line(env, "M21 G91 Y5 X-10", cur)
     assert got.joints == (0.0, 35.0, 0.0, 0.0, 0.0, 0.0)
     assert got.modes.relative
     with pytest.raises(MirobotUsageError, match=r"j2=45\.000 .* J2 range -30\.\.40"):
-        env.check_line("Y15", cur, None, got.modes)
+        check_envelope_line(env, "Y15", cur, None, got.modes)
     with pytest.raises(MirobotUsageError, match="relative move needs the current joint"):
-        env.check_line("M21 G91 X1 Y1 Z1 A1 B1 C1", None)
+        check_envelope_line(env, "M21 G91 X1 Y1 Z1 A1 B1 C1", None)
 
 
 def test_cartesian_lines_absolute_and_relative() -> None:
     env = Envelope(z=(150, None))
     modes = MotionModes()
-    got = env.check_line("M20 G90 G0 Z200", HOME, None, modes)  # x, y, orientation stay
+    got = check_envelope_line(env, "M20 G90 G0 Z200", HOME, None, modes)  # x, y, orientation stay
     assert got.pose is not None and np.allclose(got.pose, (198.67, 0, 200, 0, 0, 0))
     assert got.joints is not None
     assert np.allclose(tool_points([got.joints])[0], (198.67, 0, 200), atol=1e-6)
     modes = got.modes
     assert modes == MotionModes(cartesian=True, relative=False, motion=0)
     with pytest.raises(MirobotUsageError, match=r"target z=140\.000 mm is below .* z=150 mm"):
-        env.check_line("Z140", got.joints, got.pose, modes)
-    rel = env.check_line("G91 G1 Z-40 F500", got.joints, got.pose, modes)
+        check_envelope_line(env, "Z140", got.joints, got.pose, modes)
+    rel = check_envelope_line(env, "G91 G1 Z-40 F500", got.joints, got.pose, modes)
     assert rel.pose is not None and math.isclose(rel.pose[2], 160.0)
     assert rel.modes == MotionModes(cartesian=True, relative=True, motion=1, feed=500.0)
     with pytest.raises(MirobotUsageError, match="minimum z=150"):
-        env.check_line("Z-20", rel.joints, rel.pose, rel.modes)  # 160 - 20 = 140
+        check_envelope_line(env, "Z-20", rel.joints, rel.pose, rel.modes)  # 160 - 20 = 140
     with pytest.raises(MirobotUsageError, match="current pose"):
-        env.check_line("G1 X1 Y1 Z200 A0 B0 C0", None, None, rel.modes)
+        check_envelope_line(env, "G1 X1 Y1 Z200 A0 B0 C0", None, None, rel.modes)
 
 
 @SETTINGS
@@ -711,10 +712,10 @@ def test_relative_and_partial_joint_lines_match_check_joints(
         env.check_joints(want, start=cur)
     except MirobotUsageError as exc:
         with pytest.raises(MirobotUsageError) as info:
-            env.check_line(line, cur)
+            check_envelope_line(env, line, cur)
         assert str(info.value).split(" (")[0] == str(exc).split(" (")[0]
         return
-    got = env.check_line(line, cur)
+    got = check_envelope_line(env, line, cur)
     assert got.moves
     assert got.joints is not None and np.allclose(got.joints, want, atol=1e-9)
 
@@ -764,30 +765,30 @@ def test_lines_the_envelope_cannot_judge_are_refused() -> None:
         ("$041.5=1", "write it that way"),
     ]:
         with pytest.raises(MirobotUsageError) as info:
-            env.check_line(line, HOME)
+            check_envelope_line(env, line, HOME)
         assert words in str(info.value), (line, str(info.value))
 
 
 def test_homing_and_zero_move_lines() -> None:
     env = Envelope(z=(240, None))  # the all-zero pose (z=230.72) is below the floor
-    got = env.check_line("$H", HOME, None, MotionModes(True, True, 1))
+    got = check_envelope_line(env, "$H", HOME, None, MotionModes(True, True, 1))
     assert got == LineCheck(HOMED, True, None, None, None)
     with pytest.raises(MirobotUsageError, match="minimum z=240"):
-        env.check_line("$M", (0, -20, -20, 0, 0, 0))
-    ok = Envelope(z=(200, None)).check_line("$M", (0, -20, -20, 0, 0, 0))
+        check_envelope_line(env, "$M", (0, -20, -20, 0, 0, 0))
+    ok = check_envelope_line(Envelope(z=(200, None)), "$M", (0, -20, -20, 0, 0, 0))
     assert ok.moves and ok.joints == HOME
 
 
 def test_rail_lines() -> None:
     env = Envelope(rail=(0, 300))
-    got = env.check_line("M21 G90 D100", HOME, current_rail=50.0)
+    got = check_envelope_line(env, "M21 G90 D100", HOME, current_rail=50.0)
     assert got.rail == 100.0 and got.joints == HOME
-    assert env.check_line("G91 D100", HOME, current_rail=150.0).rail == 250.0
+    assert check_envelope_line(env, "G91 D100", HOME, current_rail=150.0).rail == 250.0
     with pytest.raises(MirobotUsageError, match=r"rail d=350\.000 mm is above"):
-        env.check_line("G91 D200", HOME, current_rail=150.0)
+        check_envelope_line(env, "G91 D200", HOME, current_rail=150.0)
     with pytest.raises(MirobotUsageError, match="current rail"):
-        env.check_line("G91 D1", HOME)
-    assert Envelope().check_line("G91 D1", HOME).moves  # no rail bound: nothing to check
+        check_envelope_line(env, "G91 D1", HOME)
+    assert check_envelope_line(Envelope(), "G91 D1", HOME).moves  # no rail bound: nothing to check
 
 
 def test_tool_offset_moves_the_checked_point() -> None:
@@ -809,12 +810,12 @@ def test_unknown_modes_must_be_stated_in_the_line() -> None:
         ("M21 G90 G0 X10", "units"),
     ]:
         with pytest.raises(MirobotUsageError, match=missing):
-            env.check_line(line, HOME, None, unknown)
-    got = env.check_line("M21 G90 G0 G21 X10", HOME, None, unknown)
+            check_envelope_line(env, line, HOME, None, unknown)
+    got = check_envelope_line(env, "M21 G90 G0 G21 X10", HOME, None, unknown)
     assert got.joints == (10.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     assert got.modes == MotionModes(feed=None)  # (the feed rate is unknown until stated)
     # Lines that do not move pass whatever is unknown, and state what they set.
-    got_modes = env.check_line("G91", None, None, unknown).modes
+    got_modes = check_envelope_line(env, "G91", None, None, unknown).modes
     assert got_modes == MotionModes(None, True, None, None, feed=None)
     assert update_modes("M20", unknown) == MotionModes(True, None, None, None, feed=None)
 
@@ -823,11 +824,11 @@ def test_program_end_resets_distance_and_motion_modes() -> None:
     """GRBL's program end (M2/M30): G90 and G1 (as the emulator's firmware model)."""
     env = Envelope()
     modes = MotionModes(cartesian=False, relative=True, motion=0, inches=True)
-    got = env.check_line("M2", HOME, None, modes)
+    got = check_envelope_line(env, "M2", HOME, None, modes)
     assert not got.moves and got.modes == MotionModes(False, False, 1, inches=True)
     assert update_modes("M30", modes) == MotionModes(False, False, 1, inches=True)
     # A move in the same line still runs with the modes in effect before the program end.
-    moved = env.check_line("X5 M2", HOME, None, replace(modes, inches=False))
+    moved = check_envelope_line(env, "X5 M2", HOME, None, replace(modes, inches=False))
     assert moved.joints == (5.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     assert moved.modes == MotionModes(False, False, 1)
 

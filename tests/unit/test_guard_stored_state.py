@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from mirobot_async._client.condition import Firmware, RobotCondition
-from mirobot_async._client.guard import EnvelopeGuard, Tracked
+from mirobot_async._client.guard import EnvelopeGuard, NullGuard, Tracked
 from mirobot_async._client.wire import ClientStats
 from mirobot_async._core.line import parse_line
 from mirobot_async._core.modal import LineCheck
@@ -104,3 +104,23 @@ def test_an_unchecked_g10_makes_the_offsets_unknown() -> None:
     guard.adopt_status(parse_status(AT_REST))
     with pytest.raises(MirobotUsageError, match="work offset"):
         guard.verdict(parse_line("M21 G90 G0 G21 X10"), None)
+
+
+@pytest.mark.parametrize(
+    ("line", "predicted"),
+    [("$41=5", (5.0, 0.0, 0.0)), ("$042=1", (0.0, 1.0, 0.0)), ("$RST=*", None), ("$41=", None)],
+)
+def test_both_guards_forget_the_base_offset_by_the_same_rule(
+    line: str, predicted: tuple[float, float, float] | None
+) -> None:
+    envelope = ready_guard(firmware="2021")
+    null = NullGuard(RobotCondition("2021"))
+    null.adopt_settings(SETTINGS)
+    assert envelope.base_offset == null.base_offset == (0.0, 0.0, 0.0)
+    for guard in (envelope, null):
+        guard.track_written(
+            9, line, parse_line(line), None, checked=False, what=None, warn_unchecked=False
+        )
+    # the envelope predicts the setting it can follow; what it cannot, neither guard knows
+    assert envelope.base_offset == predicted and null.base_offset is None
+    assert envelope.wants_settings is (predicted is None)

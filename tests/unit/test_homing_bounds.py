@@ -7,7 +7,6 @@ import pytest
 
 from mirobot_async._client.condition import (
     HOMING_BOUND,
-    HOMING_LINE_RE,
     RobotCondition,
     homing_bound,
 )
@@ -18,31 +17,35 @@ from mirobot_async._client.parts import (
     default_reply_timeout,
 )
 from mirobot_async._core.line import parse_line
-from mirobot_async.bus._ledger import Kind, NodeLedger, Owed
+from mirobot_async.bus._ledger import Kind, NodeLedger, Owed, forwarded_line
 
 
 @pytest.mark.parametrize(
     ("line", "homing"),
     [
-        ("$H", True),
-        ("$HH", True),
-        ("$H0", True),
-        ("$H7", True),
-        ("$HE", True),
-        ("$HX", True),
-        ("$X", False),
-        ("G28", False),
+        ("$H", "$H"),
+        ("(x)$H", "$H"),
+        ("$h ; home", "$H"),
+        ("$HH", "$HH"),
+        ("$H0", "$H"),
+        ("$H7", "$H"),
+        ("$HE", "$HH"),
+        ("$HX", "$HH"),
+        ("$H9", "$HH"),
+        ("$X", None),
+        ("G28", None),
+        ("(x)", None),
     ],
 )
-def test_homing_lines(line: str, homing: bool) -> None:
-    assert bool(HOMING_LINE_RE.match(line)) is homing
+def test_homing_lines(line: str, homing: str | None) -> None:
+    parsed = parse_line(line)
+    assert parsed.homing_kind == homing and parsed.is_homing is (homing is not None)
+    assert forwarded_line(line, 1).homing_kind == homing  # the bus reads the same parse
 
 
 def test_bounds_cover_the_measured_searches_with_room() -> None:
     assert homing_bound("$H") == HOMING_BOUND["$H"] >= 3 * 15.0  # real arms: 10-15 s
-    assert homing_bound("$H0") == homing_bound("$H3") == HOMING_BOUND["$H"]
-    assert homing_bound("$HH") == homing_bound("$HE") == HOMING_BOUND["$HH"] >= 4 * 29.11
-    assert homing_bound("$H9") == homing_bound("$HX") == HOMING_BOUND["$HH"]  # unknown: longest
+    assert homing_bound("$HH") == HOMING_BOUND["$HH"] >= 4 * 29.11
 
 
 def test_slower_homing_rates_stretch_the_bound_faster_ones_do_not_shrink_it() -> None:

@@ -8,7 +8,7 @@ import pytest
 
 from mirobot_async._core.line import parse_line
 from mirobot_async._core.replies import parse_setting_line
-from mirobot_async.bus._ledger import may_move
+from mirobot_async.bus._ledger import forwarded_line
 
 
 @pytest.mark.parametrize(
@@ -19,6 +19,7 @@ from mirobot_async.bus._ledger import may_move
         ("$43.4=1", True),
         ("$RST=$", True),
         ("$RST=*", True),
+        ("$41=", True),  # not classified: conservatively, it may
         ("$44=1", False),
         ("$4=1", False),
         ("$$", False),
@@ -49,7 +50,7 @@ def test_which_lines_may_change_the_base_offset(line: str, changes: bool) -> Non
 )
 def test_what_may_fill_the_planner_is_read_from_the_parse(line: str, moves: bool) -> None:
     assert parse_line(line).queues_motion is moves
-    assert may_move(line) is moves
+    assert forwarded_line(line, 1).moves is moves
 
 
 @pytest.mark.parametrize(

@@ -8,10 +8,11 @@ import time
 
 import numpy as np
 import pytest
+from envelope_lines import check_envelope_line
 
 from mirobot_async._core.modal import HOMED, MotionModes
 from mirobot_async._safety.envelope import Envelope
-from mirobot_async._safety.prediction import MachineState, Prediction, Refusal, predict
+from mirobot_async._safety.prediction import EnvelopeRefusal, MachineState, Prediction, predict
 from mirobot_async.errors import MirobotUsageError
 from mirobot_async.kinematics import DH_2021, forward, forward_many
 
@@ -47,8 +48,8 @@ def run(fw: object, line: str, *, watch: Envelope | None = None) -> tuple[list[s
     raise AssertionError(f"{line!r} did not finish: {out}")
 
 
-def refused(result: Prediction | Refusal, *words: str) -> str:
-    assert isinstance(result, Refusal), result
+def refused(result: Prediction | EnvelopeRefusal, *words: str) -> str:
+    assert isinstance(result, EnvelopeRefusal), result
     for word in words:
         assert word in result.reason, result.reason
     return result.reason
@@ -208,7 +209,7 @@ def test_absurd_values_are_refused_quickly(line: str) -> None:
     t0 = time.process_time()  # CPU time: other processes on a loaded machine do not count
     result = predict(env, line, state)
     assert time.process_time() - t0 < 0.1
-    assert isinstance(result, Refusal)
+    assert isinstance(result, EnvelopeRefusal)
 
 
 def _best_of(runs: int, check: object) -> float:
@@ -245,4 +246,4 @@ def test_envelope_check_line_raises_usage_errors_only() -> None:
     env = Envelope(z=(0, None))
     for line in ("M20 G90 G1 A99999999999 F100", "M20 G90 G1 A300000 F100"):
         with pytest.raises(MirobotUsageError):
-            env.check_line(line, HOME)
+            check_envelope_line(env, line, HOME)

@@ -21,10 +21,15 @@ from mirobot_async._safety.firmware_memory import (
     parse_work_offsets,
     reset_modes,
     soft_limit_ranges,
-    state_after_refusal,
     work_offset,
 )
-from mirobot_async._safety.prediction import MachineState, Prediction, Refusal, predict
+from mirobot_async._safety.prediction import (
+    EnvelopeRefusal,
+    MachineState,
+    Prediction,
+    predict,
+    state_after_refusal,
+)
 from mirobot_async.errors import RefusalReason
 from mirobot_async.kinematics import DH_CLASSIC, forward
 
@@ -36,13 +41,13 @@ STATE = MachineState(JOINT, HOME, rail=0.0, base_offset=(0.0, 0.0, 0.0), firmwar
 SOFT = (1.0, 350, 36, 360, 1000, 160, 70, 60, 350, 205, 360, 1000, 20, 30, 170)
 
 
-def passed(result: Prediction | Refusal) -> MachineState:
+def passed(result: Prediction | EnvelopeRefusal) -> MachineState:
     assert isinstance(result, Prediction), result
     return result.state
 
 
-def refused(result: Prediction | Refusal, *words: str) -> str:
-    assert isinstance(result, Refusal), result
+def refused(result: Prediction | EnvelopeRefusal, *words: str) -> str:
+    assert isinstance(result, EnvelopeRefusal), result
     for word in words:
         assert word in result.reason, result.reason
     return result.reason
