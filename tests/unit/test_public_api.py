@@ -158,6 +158,7 @@ PINNED_MEMBERS = {
     ],
     "mirobot_async.Mirobot": [
         "alarm",
+        "axes_locked",
         "banner",
         "blow",
         "bytes_in_flight",
