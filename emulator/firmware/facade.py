@@ -204,20 +204,17 @@ class Firmware(_MachineViews):
         end = self.now + dt
         self._service()
         zero_steps = 0
-        serviced = False
         next_change, next_arrival = planner.time_to_next_change, wire.next_event
-        in_transit = wire.in_transit  # (empty: next_arrival() is None)
         while True:
             now = self.now
-            if m.printed != uart.seen:
-                uart.sync(m.printed, now)  # what the last events printed, printed then
+            uart.sync(m.printed, now)  # what the last events printed, printed then
             step = next_change()
             # the earliest of the planner's change, the parse's end, the next arrival, the boot
             if (at := parser.until) is not None:
                 wait = at - now if at > now else 0.0  # max(at - now, 0.0)
                 if step is None or wait < step:  # min(step, wait)
                     step = wait
-            if (arrival := next_arrival() if in_transit else None) is not None:
+            if (arrival := next_arrival()) is not None:
                 wait = arrival - now if arrival > now else 0.0
                 if step is None or wait < step:
                     step = wait
@@ -229,7 +226,6 @@ class Firmware(_MachineViews):
                 if not math.isinf(end):
                     planner.advance(end - now)  # its clock times the starvations
                     self.now = end
-                    serviced = False
                 break
             left = end - now
             finished = planner.finished
@@ -241,30 +237,25 @@ class Firmware(_MachineViews):
                     self._block_done()
                 if arrival is not None and (due := wire.take_due(self.now)):  # (None: no bytes)
                     self._deliver(due)  # the bytes arrived by ``end``
-                serviced = False
                 break
             planner.advance(step)
             self.now = now = now + step
             zero_steps = zero_steps + 1 if step == 0.0 else 0
-            # serviced: the step's last act was a _service (the same again would change nothing)
-            serviced = planner.finished != finished and self._block_done()
+            if planner.finished != finished:
+                self._block_done()
             if arrival is not None and (due := wire.take_due(self.now)):
                 self._deliver(due)  # before the parse ends: a full ring lost what came meanwhile
-                serviced = False
             if self._boot_until is not None and self._boot_until <= self.now:
                 self._finish_boot()
-                serviced = False
             if parser.until is not None and parser.until <= self.now:
                 self._finish_parse()
-                serviced = False
             if zero_steps > 100_000:  # pragma: no cover - a planner bug, never loop forever
                 break
-        if not serviced:
-            self._service()
+        self._service()
 
-    def _block_done(self) -> bool:
+    def _block_done(self) -> None:
         """After blocks finished: an end of motion if the planner ran empty (before the waiting
-        lines can refill it: ``G4 P0`` between moves), then carry on (True: by :meth:`_service`)."""
+        lines can refill it: ``G4 P0`` between moves), then carry on."""
         m = self._m
         if not m.planner.busy:
             self.motion_end_times.append(self.now)
@@ -274,9 +265,8 @@ class Firmware(_MachineViews):
                 m.rezero = None
         if m.limit_blocks and m.switch_reached():
             self._stall(m.reset_to_continue)
-            return False
+            return
         self._service()
-        return True
 
     def read_output(self) -> bytes:
         """Everything printed since the last call (each line ends ``\\r\\n``)."""
@@ -290,7 +280,7 @@ class Firmware(_MachineViews):
         deadline = self._m.planner.time_to_next_change()
         if deadline is not None:
             deadline += self.now
-        arrival = self._wire.next_event() if self._wire.in_transit else None
+        arrival = self._wire.next_event()
         for at in (self._parser.until, arrival, self._boot_until):
             if at is not None and (deadline is None or at < deadline):
                 deadline = at

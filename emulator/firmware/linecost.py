@@ -64,7 +64,6 @@ and of an empty line (0.06 ms, here :data:`LINE_SECONDS`).
 
 from __future__ import annotations
 
-import functools
 import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -179,7 +178,6 @@ class LineWork:
     """The ``Y``, ``A``, ``B``, ``C`` words' values (None: not in the line)."""
 
 
-@functools.lru_cache(maxsize=1024)
 def line_work(text: str, cartesian_mode: bool) -> LineWork:
     """The work of the filtered line ``text`` with the parser in Cartesian mode (``M20``) or
     not. A cheap textual estimate, not a second parser: a refused line costs what its words
@@ -270,7 +268,6 @@ def line_seconds(m: Machine, line: ReceivedLine, *, waited: bool) -> tuple[float
     return seconds, work
 
 
-@functools.lru_cache(maxsize=256)
 def wait_point_seconds(text: str) -> float:
     """How long after its parse began a line that waits for queued motion (``M3``/``M4``/``M5``
     behind a move) reaches its wait, before which a ``?`` finds the move not started. Oracle,
@@ -278,7 +275,7 @@ def wait_point_seconds(text: str) -> float:
     bytes after its line, ``M4 E65`` 8, ``M3 S500`` 7, ``M4 E40 S500`` 4: the wait comes 0.1 ms
     later per word (with this model's parse start, the first word's time is in the line before;
     ``M21 G90 X5 M3 S1000``: moving 1.3 ms after, here 0.4 ms)."""
-    words = sum(char.isalpha() for char in text)  # (of a line seen lately: from the cache)
+    words = sum(char.isalpha() for char in text)
     return WAIT_WORD_SECONDS * max(words - 1, 0)
 
 
