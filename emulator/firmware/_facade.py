@@ -10,17 +10,17 @@ from typing import Final
 
 from .. import motion
 from ..motion import Vec7
-from . import codes as c
-from .gcode import GcodeExecutor
-from .geometry import switch_pins
-from .linebuffer import RX_BUFFER_SIZE, RX_CAPACITY
-from .linecost import ParserWork, line_seconds, wait_point_seconds
-from .machine import Machine
-from .reports import banner, status_line
-from .scanner import read_float
-from .system import SystemCommands
-from .uart import Transmitter
-from .wire import BYTE_SECONDS, Wire
+from . import _codes as c
+from ._gcode import GcodeExecutor
+from ._geometry import switch_pins
+from ._linebuffer import RX_BUFFER_SIZE, RX_CAPACITY
+from ._linecost import ParserWork, line_seconds, wait_point_seconds
+from ._machine import Machine
+from ._reports import banner, status_line
+from ._scanner import read_float
+from ._system import SystemCommands
+from ._uart import Transmitter
+from ._wire import BYTE_SECONDS, Wire
 
 DEFAULT_HOMING_SECONDS: Final = 10.0
 """Switch search of ``$H`` on 2021 when the constructor is not told otherwise (PROTOCOL 9)."""
@@ -28,7 +28,7 @@ DEFAULT_HOMING_SECONDS: Final = 10.0
 CLASSIC_HOMING_SECONDS: Final = 8.1534
 """Switch search of ``$H`` on classic, from the zero pose: the firmware tapes' search ends
 8.1537 s after ``$H``'s line end was written (a ``Home`` status for a ``?`` meanwhile starts
-2.2 ms later, the reply 5.6 ms later: :data:`.system.HOMED_PLANNING_SECONDS`; then the 2.3 s
+2.2 ms later, the reply 5.6 ms later: :data:`._system.HOMED_PLANNING_SECONDS`; then the 2.3 s
 return move), less this model's 0.3 ms from that byte to the search's start; with the
 simulator's assumed switches (no device log gives a time)."""
 
@@ -150,7 +150,7 @@ class Firmware(_MachineViews):
         self._after_stall: Callable[[], None] | None = None
         """What follows the stall after an alarm (:meth:`_stall`; None: no stall)."""
         self.uart = Transmitter()
-        """The firmware's transmitter; the server sets its ``byte_seconds`` (:mod:`.uart`)."""
+        """The firmware's transmitter; the server sets its ``byte_seconds`` (:mod:`._uart`)."""
         self.settings: dict[int, float] = self._m.settings
         self._gcode = GcodeExecutor(self._m)
         self._system = SystemCommands(self._m, self.reset, self._gcode.execute)
@@ -164,10 +164,10 @@ class Firmware(_MachineViews):
     # public API
 
     def receive(self, data: bytes) -> None:
-        """Bytes from the host, written now: they arrive one byte time apart (:mod:`.wire`;
+        """Bytes from the host, written now: they arrive one byte time apart (:mod:`._wire`;
         run the clock to see their effect). On arrival realtime bytes act at once wherever
         they are; the others enter the 128-byte receive ring (lost when it is full) and
-        complete lines are parsed (:mod:`.linecost`) and executed as soon as the parser is free
+        complete lines are parsed (:mod:`._linecost`) and executed as soon as the parser is free
         (not waiting for the planner, a homing search, a dwell or a hold).
         """
         self._wire.send(bytes(data), self.now)
@@ -354,8 +354,8 @@ class Firmware(_MachineViews):
 
     @property
     def input_deadline(self) -> float | None:
-        """When received bytes next arrive (a line end or realtime byte, :mod:`.wire`), the
-        line being parsed is done (:mod:`.linecost`) or the boot after a reset ends
+        """When received bytes next arrive (a line end or realtime byte, :mod:`._wire`), the
+        line being parsed is done (:mod:`._linecost`) or the boot after a reset ends
         (``BOOT_SECONDS``); None when nothing is in transit, being parsed or booting."""
         times = [self._wire.next_event(), self._parser.until, self._boot_until]
         return min((t for t in times if t is not None), default=None)
@@ -431,7 +431,7 @@ class Firmware(_MachineViews):
         self._parser.begin(m, self.now, seconds)
 
     def _finish_parse(self) -> None:
-        """The parser is done with its line: execute it (:class:`~.linecost.ParserWork`)."""
+        """The parser is done with its line: execute it (:class:`~._linecost.ParserWork`)."""
         m, parser = self._m, self._parser
         line = m.parsing
         m.parsing = None

@@ -3,7 +3,7 @@
 Measured on the oracle (the classic firmware on a simulated 16 MHz ATmega2560, ``-s 0`` with
 ``-l`` logs): bursts of identical lines written at once after an empty line (whose ``ok`` times
 the first byte), ``ok`` to ``ok`` once no more bytes arrive. Bytes arrive one every 100 us
-(:mod:`.wire`), so short lines are paced by the wire and the parse of a line overlaps the
+(:mod:`._wire`), so short lines are paced by the wire and the parse of a line overlaps the
 arrival of the next. Steady gaps, at the start pose (all joints 0) unless said, no block planned:
 
 ======================================  =====================  =====================
@@ -69,12 +69,12 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Final
 
-from .linebuffer import ReceivedLine
+from ._linebuffer import ReceivedLine
 
 if TYPE_CHECKING:
-    from .machine import Machine
-    from .uart import Transmitter
-    from .wire import Wire
+    from ._machine import Machine
+    from ._uart import Transmitter
+    from ._wire import Wire
 
 LINE_SECONDS: Final = 0.2e-3
 """Any line (``G90`` lines come one per 0.4 ms, as fast as their bytes)."""
@@ -336,7 +336,7 @@ class ParserWork:
         return True
 
     def hold(self, m: Machine, now: float, uart: Transmitter) -> None:
-        """``m.held_reply`` (a finished :class:`~.machine.Pending`'s reply and its planning
+        """``m.held_reply`` (a finished :class:`~._machine.Pending`'s reply and its planning
         seconds) becomes the reply of a line whose block is planned: printed when the work is
         done; the next line and the queued blocks' start wait, a ``?`` meanwhile is answered
         after the reply. A ``?`` deferred by a homing search is answered first (``Home``), and

@@ -9,7 +9,7 @@ import re
 from dataclasses import dataclass, field
 from typing import Final
 
-from . import codes as c
+from . import _codes as c
 
 AXIS_WORDS: Final = "XYZABCD"  # index = joint (M21: J1..J6, rail) or pose component (M20)
 _VALUE_WORDS: Final = frozenset("FIJKLNPRSETXYZABCD")

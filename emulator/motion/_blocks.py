@@ -15,8 +15,8 @@ import math
 from collections.abc import Callable, Sequence
 from math import copysign
 
-from .axes import AXES, AxisLimits, Steps7, Vec7, lerp, sub, vec7
-from .profile import Profile, braking, constant_rate, trapezoid
+from ._axes import AXES, AxisLimits, Steps7, Vec7, lerp, sub, vec7
+from ._profile import Profile, braking, constant_rate, trapezoid
 
 
 class Block:

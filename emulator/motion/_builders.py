@@ -8,8 +8,8 @@ import math
 from collections.abc import Callable, Sequence
 from typing import Final
 
-from .axes import ARM_AXES, AXES, RAIL, AxisLimits, Steps7, Vec7, finite_vec7, norm, sub, vec7
-from .blocks import (
+from ._axes import ARM_AXES, AXES, RAIL, AxisLimits, Steps7, Vec7, finite_vec7, norm, sub, vec7
+from ._blocks import (
     Block,
     DwellBlock,
     HomeSearchBlock,

@@ -6,10 +6,10 @@ from __future__ import annotations
 import itertools
 import math
 
-from mirobot_emulator.firmware.geometry import Geometry
-from mirobot_emulator.firmware.scanner import _read_float_digits, _scan, read_float, scan
+from mirobot_emulator.firmware._geometry import Geometry
+from mirobot_emulator.firmware._scanner import _read_float_digits, _scan, read_float, scan
 from mirobot_emulator.motion import AxisLimits, joint_block
-from mirobot_emulator.motion.axes import round_half_away, vec7
+from mirobot_emulator.motion._axes import round_half_away, vec7
 from mirobot_emulator.settings import default_settings
 
 
@@ -77,7 +77,7 @@ def test_a_line_scanned_again_gives_the_same_words_in_a_block_of_its_own() -> No
 
 
 def test_a_blocks_nominal_profile_is_the_trapezoid_from_rest() -> None:
-    from mirobot_emulator.motion.profile import trapezoid
+    from mirobot_emulator.motion._profile import trapezoid
 
     limits = AxisLimits.from_settings(default_settings("classic"))
     end = (10.0, 5.0, 0.0, 0.0, 0.0, 0.0, 0.0)

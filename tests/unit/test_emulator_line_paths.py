@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 
 from mirobot_emulator.firmware import Firmware
-from mirobot_emulator.firmware.linebuffer import RX_CAPACITY, LineBuffer
+from mirobot_emulator.firmware._linebuffer import RX_CAPACITY, LineBuffer
 from mirobot_emulator.motion import Planner
 
 

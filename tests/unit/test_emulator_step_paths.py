@@ -9,7 +9,7 @@ import math
 import random
 
 from mirobot_emulator import motion
-from mirobot_emulator.firmware.geometry import Geometry
+from mirobot_emulator.firmware._geometry import Geometry
 from mirobot_emulator.motion import AxisLimits, Block, joint_block, joint_block_in_steps
 from mirobot_emulator.settings import default_settings
 
