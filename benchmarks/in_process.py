@@ -61,6 +61,9 @@ class _TimedClock:
     def deliver(self, data: bytes, crossed: float | None, wall: float) -> None:
         self._timed("deliver", data, crossed, wall)
 
+    def feed(self, data: bytes) -> None:
+        self._timed("feed", data)
+
     def next_wall_deadline(self) -> float | None:
         result: float | None = self._timed("next_wall_deadline")
         return result

@@ -5,7 +5,7 @@
 - :class:`EmulatorServer`, :class:`ServerOptions`, :class:`VirtualMirobot`
   (:mod:`mirobot_emulator.server`): the model on a pseudo-terminal, as a process
   (``mirobot-emulator``) or in a background thread.
-- :mod:`mirobot_emulator.faults`: fault injection, deterministic by seed.
+- :mod:`mirobot_emulator._faults`: fault injection, deterministic by seed.
 
 Attributes are imported lazily so that ``python -m mirobot_emulator`` starts fast (the firmware
 imports numpy).

@@ -7,8 +7,8 @@ traceback). Stdin is a control channel for fault injection (one command per line
 ``--exit-on-stdin-eof`` (then the server stops once the commands read are answered: a parent
 that dies, even by SIGKILL, leaves no emulator behind). The control command ``renew ARGS...``
 makes the process what a new one started with ARGS would be (see
-:data:`mirobot_emulator.server.control.RENEW`). Diagnostics go to stderr. See
-:mod:`mirobot_emulator.server` for what is modelled and :mod:`mirobot_emulator.faults` for the
+:data:`mirobot_emulator.server._control.RENEW`). Diagnostics go to stderr. See
+:mod:`mirobot_emulator.server` for what is modelled and :mod:`mirobot_emulator._faults` for the
 fault specifications and commands. With ``--bus N`` the port carries an RS485 bus of N
 controllers, each with its arm (:mod:`mirobot_emulator.bus`).
 
@@ -188,7 +188,7 @@ def _log(message: str) -> None:
 
 
 def _options(args: argparse.Namespace, parser: argparse.ArgumentParser) -> ServerOptions:
-    from .faults import FaultSpecError, parse_fault
+    from ._faults import FaultSpecError, parse_fault
     from .server import ServerOptions, parse_listen
     from .server.options import DEFAULT_LISTEN_HOST
 
@@ -207,7 +207,7 @@ def _options(args: argparse.Namespace, parser: argparse.ArgumentParser) -> Serve
     _check_bus_arguments(args, parser)
     listen = None
     if args.listen is None and not args.link:
-        from .server.pty_port import pty_available
+        from .server._pty_port import pty_available
 
         if not pty_available():  # e.g. Windows: TCP is the only port there is
             listen = parse_listen(f"{DEFAULT_LISTEN_HOST}:0")

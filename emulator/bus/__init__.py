@@ -37,10 +37,10 @@ MS4220 stepper nodes; what a real controller prints on errors (``error``, unknow
 marked INFERRED in EXBOX.md stays an inference here.
 """
 
-from .controller import Controller
-from .gpio import PIN_NAMES, Pins
-from .model import MAX_LINE, Bus
-from .options import BAUD_CODES, DEFAULT_BUS_BAUD, BusOptions
+from ._controller import Controller
+from ._gpio import PIN_NAMES, Pins
+from ._model import MAX_LINE, Bus
+from ._options import BAUD_CODES, DEFAULT_BUS_BAUD, BusOptions
 
 __all__ = [
     "BAUD_CODES",

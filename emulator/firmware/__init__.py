@@ -10,17 +10,17 @@ as the classic oracle does. No asyncio, no OS calls: the host feeds bytes with
 what the robot prints with :meth:`Firmware.read_output`. Motion timing is
 :mod:`mirobot_emulator.motion`; kinematics are :mod:`mirobot_async.kinematics` (the only module
 of the client it uses; its typed ``Unreachable``/``OutOfLimits`` become the firmware's texts in
-:func:`.geometry.kinematics_refusal`).
+:func:`._geometry.kinematics_refusal`).
 
 Layout
 ------
-* :mod:`.linebuffer`: the receive ring and the line discipline.
-* :mod:`.scanner`: GRBL's word scanner (STEP 2); :mod:`.validation`: its checks (STEP 3).
-* :mod:`.modal`: the modal state; :mod:`.offsets`: work coordinates; :mod:`.geometry`: FK, IK,
+* :mod:`._linebuffer`: the receive ring and the line discipline.
+* :mod:`._scanner`: GRBL's word scanner (STEP 2); :mod:`._validation`: its checks (STEP 3).
+* :mod:`._modal`: the modal state; :mod:`._offsets`: work coordinates; :mod:`._geometry`: FK, IK,
   soft limits, switches.
-* :mod:`.moves`: motion lines into planner blocks; :mod:`.gcode`: executing a valid line.
-* :mod:`.system`: the ``$`` commands and homing; :mod:`.reports`: status and banner.
-* :mod:`.machine`: the shared state; :mod:`.facade`: :class:`Firmware`; :mod:`.codes`: texts.
+* :mod:`._moves`: motion lines into planner blocks; :mod:`._gcode`: executing a valid line.
+* :mod:`._system`: the ``$`` commands and homing; :mod:`._reports`: status and banner.
+* :mod:`._machine`: the shared state; :mod:`._facade`: :class:`Firmware`; :mod:`._codes`: texts.
 
 Every 2021 behaviour that no 2021 manual or 2021 device log shows (the ASSUMED ones), and why
 each is not simply classic's: ``docs/2021-profile.md``.
@@ -41,7 +41,7 @@ What is modelled (checked against the oracle where it says so)
   (``%`` too) are lost; other bytes enter the receive ring, which the reset empties.
 * A ``?`` that arrives while the previous report is still being printed gets none of its own
   (oracle: 12.5 ms after a 175-byte report's ``?``, 15.1 ms for 193 bytes, ~45 ms after a
-  ``%`` whose banner goes first); modelled by :mod:`.uart` when the server paces the link at
+  ``%`` whose banner goes first); modelled by :mod:`._uart` when the server paces the link at
   the arm's baud rate at real time or faster (``Firmware.uart.byte_seconds``), else every ``?``
   is answered. ASSUMED: the window does not grow while the arm moves (the oracle's does: 14-16
   ms for a 175-byte report at 30 deg/s, whose first byte comes 2-12 ms after the ``?`` as the
@@ -65,7 +65,7 @@ What is modelled (checked against the oracle where it says so)
   on (``G91ok``).
 * Status angles are whole motor steps, the pose is the FK of those angles (oracle:
   ``reports.step_position``); during a ``G4`` dwell the state is ``Idle`` (oracle).
-* Parse time (oracle, :mod:`.linecost`): bytes arrive one per 100 us (:mod:`.wire`); each line
+* Parse time (oracle, :mod:`._linecost`): bytes arrive one per 100 us (:mod:`._wire`); each line
   occupies the parser with its words' work (``M20`` 6.8 ms + 0.16 ms per joint off zero, a
   Cartesian target 5.3-6.3 ms by its ``Y``/``A``/``B``/``C``, a Cartesian block 0.40 ms, 1.45 ms
   behind others, charged only when planned; a joint line 1.45 ms), plus 6.6 us per byte that
@@ -166,7 +166,7 @@ ASSUMED points implemented (each in one constant or function, named here)
   rest of its line acts first, and 2021 does the same, its manual being silent).
 * ``G4`` waits for the planner to empty, then dwells (state ``Idle``, oracle); its ``ok`` comes
   after the dwell, and after the motion of its line is queued, not run (oracle: ``M21 G91 G0
-  X30 G4 P0.2``); it lasts :func:`.gcode.dwell_seconds` (GRBL's 50 ms steps counted in 16 bits:
+  X30 G4 P0.2``); it lasts :func:`._gcode.dwell_seconds` (GRBL's 50 ms steps counted in 16 bits:
   ``G4 P3277`` waits 0.2 s, tapes). ``M2``/``M30`` wait for the planner, reset the modal state
   as GRBL does and print ``[Pgm End]``; ``M0`` waits, then holds; its ``ok`` follows the ``~``.
 * A soft reset during a dwell or a completed feed hold is not "during motion" (no alarm), as in
@@ -214,10 +214,11 @@ Taken from GRBL 0.9j / the open firmware where PROTOCOL.md is silent
 
 from __future__ import annotations
 
-from .codes import PROFILES, error_text
-from .facade import CLASSIC_HOMING_SECONDS, DEFAULT_HOMING_SECONDS, Firmware
-from .geometry import HARD_LIMIT_SWITCHES
-from .linebuffer import LINE_BUFFER_SIZE, RX_BUFFER_SIZE, RX_CAPACITY
+from ._codes import PROFILES, error_text
+from ._facade import CLASSIC_HOMING_SECONDS, DEFAULT_HOMING_SECONDS, Firmware
+from ._geometry import HARD_LIMIT_SWITCHES
+from ._linebuffer import LINE_BUFFER_SIZE, RX_BUFFER_SIZE, RX_CAPACITY
+from ._uart import report_compute_seconds
 
 __all__ = [
     "CLASSIC_HOMING_SECONDS",
@@ -229,4 +230,5 @@ __all__ = [
     "RX_CAPACITY",
     "Firmware",
     "error_text",
+    "report_compute_seconds",
 ]

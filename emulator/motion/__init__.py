@@ -5,9 +5,9 @@ No asyncio, no OS calls, no clock of its own: time only moves when the caller ru
 mm); the firmware's letter order (a..g = J4, J5, J6, D, J1, J2, J3) only appears in
 :meth:`AxisLimits.from_settings`, :func:`letters_to_joints` and :func:`joints_to_letters`.
 
-Modules: :mod:`.axes` (vectors, limits from the ``$`` settings, motor steps), :mod:`.profile`
-(trapezoids), :mod:`.blocks` (what a block is), :mod:`.builders` (blocks from G-code
-intentions), :mod:`.planner` (the 18-block look-ahead planner; its docstring has the rules).
+Modules: :mod:`._axes` (vectors, limits from the ``$`` settings, motor steps), :mod:`._profile`
+(trapezoids), :mod:`._blocks` (what a block is), :mod:`._builders` (blocks from G-code
+intentions), :mod:`._planner` (the 18-block look-ahead planner; its docstring has the rules).
 
 The model, checked against the classic firmware (the oracle; its recorded firmware tapes)
 -----------------------------------------------------------------------------------------
@@ -20,7 +20,7 @@ The model, checked against the classic firmware (the oracle; its recorded firmwa
   agrees within 4 ms (``M21 G90 G1 X90 F2000`` 3.370 s, ``F1000`` 5.738 s; ``M20 G90 G1 X180
   Y20 Z120 A0 B0 C0 F2000`` from the start pose 1.655 s).
 * Consecutive blocks blend at GRBL's junction speeds (``$11`` junction deviation, in degrees);
-  see :mod:`.planner`. Programs measured in simulated time against the oracle (same bytes,
+  see :mod:`._planner`. Programs measured in simulated time against the oracle (same bytes,
   character counting): 200 ``M20 G1`` chords of 3.1 mm at F2000 15.101 s there, 14.969 s here
   (15.091 s with the oracle's cycle start and line cost, see :meth:`Planner.cycle_start`);
   400 chords of 0.5 mm at F3000 13.232 / 13.106 s; joint polygons with 8 and 20 degree turns,
@@ -62,7 +62,7 @@ firmware's business, not this package's.
 
 from __future__ import annotations
 
-from .axes import (
+from ._axes import (
     ARM_AXES,
     AXES,
     LETTER_TO_JOINT,
@@ -76,8 +76,8 @@ from .axes import (
     joints_to_letters,
     letters_to_joints,
 )
-from .blocks import Block, DwellBlock, HomeSearchBlock, JointBlock, PathBlock
-from .builders import (
+from ._blocks import Block, DwellBlock, HomeSearchBlock, JointBlock, PathBlock
+from ._builders import (
     DEFAULT_PATH_STEP_MM,
     MAX_PATH_SAMPLES,
     MIN_PATH_SAMPLES,
@@ -91,7 +91,7 @@ from .builders import (
     path_block,
     path_blocks,
 )
-from .planner import (
+from ._planner import (
     CYCLE_START_LATENCY,
     HOLDABLE_KINDS,
     SNAP_SECONDS,
@@ -100,7 +100,7 @@ from .planner import (
     PlannerFull,
     junction_speed_sqr,
 )
-from .profile import SNAP_FRACTION, Profile
+from ._profile import SNAP_FRACTION, Profile
 
 __all__ = [
     "ARM_AXES",

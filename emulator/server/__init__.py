@@ -2,8 +2,8 @@
 
 What it models
 --------------
-- **The serial port**, as a pseudo-terminal (:mod:`.pty_port`, POSIX) or, with ``--listen
-  HOST:PORT``, a TCP socket (:mod:`.tcp_port`, every platform; ``socket://HOST:PORT`` for
+- **The serial port**, as a pseudo-terminal (:mod:`._pty_port`, POSIX) or, with ``--listen
+  HOST:PORT``, a TCP socket (:mod:`._tcp_port`, every platform; ``socket://HOST:PORT`` for
   pyserial and our client). The address is printed as the first line of stdout; clients (ours,
   pyserial, third-party SDKs) open it like ``/dev/ttyUSB0``. ``--link PATH`` adds a symlink to
   the pty. The arm is powered on before the address is published: its power-on banner is already
@@ -14,12 +14,12 @@ What it models
 - **Reset on open** (``--reset-on-open``): when a client opens the port, the firmware is reset
   (as ``%`` does: settings kept, banner reprinted) and output still in transit is discarded,
   like an Arduino board whose DTR line resets the MCU. On TCP a connection is an open; on a pty
-  an open is seen as the client's configuration of the port (see :mod:`.pty_port`): later input
+  an open is seen as the client's configuration of the port (see :mod:`._pty_port`): later input
   flushes (the vendor's newer SDK flushes before each status poll) do not reset.
 - **The wire speed** (``--baud N``): input and output are paced at N/10 bytes per second (8N1),
   so the firmware's 128-byte receive ring overflows exactly as on the arm when a host sends too
   much. Without ``--baud``, bytes go through as fast as they come.
-- **Bounded buffers** (:mod:`.link`): at most 4 KiB in transit to the firmware, and no input is
+- **Bounded buffers** (:mod:`._link`): at most 4 KiB in transit to the firmware, and no input is
   taken while 64 KiB of output wait for the client; a client that writes faster than that, or
   writes ``?`` and never reads, is blocked by the OS as by a real port.
 - **A USB-serial adapter's latency timer** (``--usb-latency-ms N``, FTDI chips default to 16 ms):
@@ -27,7 +27,7 @@ What it models
 - **Time** (:mod:`.clock`). Simulated time = wall time x ``--time-scale`` (1 by default; 100
   makes a 10 s homing take 0.1 s; 0 completes every motion instantly). The clock can be changed
   while running (control command ``time-scale X``).
-- **Faults** (:mod:`mirobot_emulator.faults`): ``--fault SPEC`` flags and the control channel
+- **Faults** (:mod:`mirobot_emulator._faults`): ``--fault SPEC`` flags and the control channel
   (stdin, one command per line, each answered by ``ack <command>`` on stdout, or ``error
   <command>: <reason>``). Data faults act on whole output lines. A stall holds the output (the
   firmware keeps running and the output comes out afterwards). Timed faults count wall-clock
@@ -70,10 +70,10 @@ What it does not model
 An exception raised by the firmware model is logged (with its traceback, on stderr for the CLI)
 and the server keeps serving: a client sees a missing reply, not a vanished port.
 
-Layout: :mod:`.options` (options, the firmware protocol), :mod:`.port` with :mod:`.pty_port`
-and :mod:`.tcp_port`, :mod:`.clock` (simulated time), :mod:`.pacing` (baud, USB latency),
-:mod:`.link` (both directions, bounded), :mod:`.control` (the control channel), :mod:`.loop`
-(:class:`EmulatorServer`) and :mod:`.background` (:class:`VirtualMirobot`). Only this package
+Layout: :mod:`.options` (options, the firmware protocol), :mod:`._port` with :mod:`._pty_port`
+and :mod:`._tcp_port`, :mod:`.clock` (simulated time), :mod:`._pacing` (baud, USB latency),
+:mod:`._link` (both directions, bounded), :mod:`._control` (the control channel), :mod:`.loop`
+(:class:`EmulatorServer`) and :mod:`._background` (:class:`VirtualMirobot`). Only this package
 (and ``__main__``) does OS calls.
 """
 
@@ -82,14 +82,14 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from .background import VirtualMirobot
+    from ._background import VirtualMirobot
     from .loop import EmulatorServer
     from .options import FirmwareLike, ServerOptions, parse_listen
 
 __all__ = ["EmulatorServer", "FirmwareLike", "ServerOptions", "VirtualMirobot", "parse_listen"]
 
 _LAZY = {
-    "VirtualMirobot": ".background",
+    "VirtualMirobot": "._background",
     "EmulatorServer": ".loop",
     "FirmwareLike": ".options",
     "ServerOptions": ".options",

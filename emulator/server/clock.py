@@ -133,15 +133,6 @@ class Simulation:
         """
         fw = self.firmware
         total = getattr(fw, "motion_ends", None)
-        if type(total) is int:
-            if total == self._motion_ends_seen:
-                return  # no new end (what the general path below finds, sooner)
-            if total == self._motion_ends_seen + 1 and not self._scale > 0:
-                ends = getattr(fw, "motion_end_times", None)
-                if ends:  # one new end at scale 0: now (what the general path below finds)
-                    self._motion_ends_seen = total
-                    self.motion_end_walls.append(wall)
-                    return
         ends = getattr(fw, "motion_end_times", None)  # optional: not part of FirmwareLike
         if ends is None or not isinstance(total, int):
             return

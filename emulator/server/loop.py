@@ -21,7 +21,7 @@ from collections import deque
 from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
-from ..faults import (
+from .._faults import (
     Command,
     FaultFilter,
     FaultSchedule,
@@ -29,11 +29,11 @@ from ..faults import (
     link_commands,
     parse_command,
 )
+from ._control import QUERIES, RENEW, ControlReader, answer_query, wire_counters
+from ._link import InputPath, OutputPath
+from ._port import Arrival, Port
 from .clock import Simulation
-from .control import QUERIES, RENEW, ControlReader, answer_query, wire_counters
-from .link import InputPath, OutputPath
 from .options import FirmwareLike, ServerOptions
-from .port import Arrival, Port
 
 __all__ = ["EmulatorServer"]
 
@@ -108,10 +108,10 @@ def _unregister(selector: selectors.BaseSelector, fileobjs: Iterable[Any]) -> No
 
 def _make_port(options: ServerOptions, log: Callable[[str], None]) -> Port:
     if options.listen is not None:
-        from .tcp_port import TcpPort
+        from ._tcp_port import TcpPort
 
         return TcpPort(*options.listen, log=log)
-    from .pty_port import PtyPort
+    from ._pty_port import PtyPort
 
     return PtyPort(log=log)
 

@@ -6,7 +6,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Protocol
 
-from ..faults import Fault
+from .._faults import Fault
 
 __all__ = ["BUS_BAUDS", "DEFAULT_LISTEN_HOST", "FirmwareLike", "ServerOptions", "parse_listen"]
 
@@ -22,7 +22,7 @@ class FirmwareLike(Protocol):
 
     The server also reads, when present, the optional public attributes ``motion_end_times``,
     ``motion_ends`` (ends of motion), ``rx_lost`` (bytes the receive ring lost) and the
-    planner's starvation counter (see :mod:`mirobot_emulator.server.control`).
+    planner's starvation counter (see :mod:`mirobot_emulator.server._control`).
     """
 
     @property

@@ -99,7 +99,8 @@ def _disagree(parsed: ParsedLine, guard: EnvelopeGuard | NullGuard) -> bool:
 
 def _judged(judged_from: ModalState | None, guard: EnvelopeGuard | NullGuard) -> bool:
     """The line was found free of problems from the modal state the guard now predicts (a
-    stream's line, judged before the stream began): judging it again would say the same."""
+    stream's line, judged before the stream began): judging it again would say the same.
+    Assumes a line's verdict is a pure function of the line, the profile and the modal state."""
     return judged_from is not None and judged_from == guard.modal_state()
 
 

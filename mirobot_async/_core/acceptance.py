@@ -131,7 +131,8 @@ class Scan:
 @lru_cache(maxsize=2048)
 def scan(text: str, firmware: str) -> Scan:
     """The scanner's reading of the normalized line ``text`` (its words from the one parse) on
-    ``firmware`` (``"classic"`` knows no ``G5``)."""
+    ``firmware`` (``"classic"`` knows no ``G5``). Remembered (the last 2048): assumes it is a
+    pure function of the text and the family, and :class:`Scan` immutable."""
     parsed = parse_line(text)
     seen: set[str] = set()
     values: set[str] = set()

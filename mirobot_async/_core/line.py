@@ -533,10 +533,8 @@ _STILL_G: Final = frozenset({0, 1, 2, 3, 4, 5, 17, 20, 21, 40, 54, 61, 80, 90, 9
 """G codes that do not move by themselves (motion codes move only with axis words)."""
 
 
-@lru_cache(maxsize=4096)
 def _word(letter: str, written: str) -> Word:
-    """The word ``letter`` + ``written`` (a number :data:`_NUMBER` matched whole). Words are
-    immutable and a program repeats most of them (``G1``, ``F2000``): each is read once."""
+    """The word ``letter`` + ``written`` (a number :data:`_NUMBER` matched whole)."""
     command = letter in "GM"
     if not command:
         digits = len(written) - (written[0] in "+-") - ("." in written)
@@ -575,8 +573,8 @@ def parse_line(line: str | bytes | bytearray | memoryview) -> ParsedLine:
 
 @lru_cache(maxsize=1024)
 def _parse_text(raw: str) -> ParsedLine:
-    """:func:`parse_line` of a text: a pure function of it, and the result immutable, so a line
-    repeated in a program (or judged again by another reader) is parsed once."""
+    """:func:`parse_line` of a text. Remembered (the last 1024 texts): assumes the parse is a
+    pure function of the text and :class:`ParsedLine` immutable (a program repeats its lines)."""
     source = raw.rstrip("\r\n")
     text, open_comment = normalize_text(source)
     if not text:

@@ -30,7 +30,6 @@ never be matched to that line.
 
 from __future__ import annotations
 
-import functools
 import re
 from collections import deque
 from collections.abc import Callable, Iterator
@@ -61,11 +60,6 @@ from mirobot_async._core.replies import (
 )
 from mirobot_async.errors import MirobotProtocolError, MirobotUsageError
 
-_classify: Callable[[str], Reply] = functools.lru_cache(maxsize=256)(classify_line)
-""":func:`classify_line` once per distinct line: the robot repeats most of what it prints (``ok``,
-the 2021 firmware's ``Info, M21: Angle mode start.`` after every joint line), and a
-:class:`Reply` is immutable."""
-
 FinalReply = LineAcknowledged | LineRejected  # a line's final reply
 
 __all__ = [
@@ -92,7 +86,6 @@ __all__ = [
 
 _LINE_END_RE = re.compile(rb"[\r\n]")
 _OK = b"ok"
-_STATUS_START = 0x3C  # "<"
 
 
 class MirobotConnection:
@@ -354,13 +347,9 @@ class MirobotConnection:
         """Turn one complete, non-empty, not-too-long line into events."""
         events = self._events
         raw = raw_bytes.decode("ascii", "replace")
-        if raw_bytes[0] == _STATUS_START:
-            # Fast path: a status report (the only lines starting with "<").
-            self._status(raw.strip())
-            return
         if raw_bytes.isspace():
             return  # whitespace only: an empty line
-        reply = _classify(raw)
+        reply = classify_line(raw)
         kind = reply.kind
         if self._banner is not None and kind in _BANNER_BODY and not reply.ok:
             self._banner_line(reply.raw.strip(), kind is ReplyKind.BANNER_END)

@@ -259,8 +259,8 @@ def _gcode_verdict(
     source: str, profile: str, modes: MotionModes
 ) -> tuple[tuple[str, ...], MotionModes]:
     """:func:`_judge_gcode` of the line ``source`` from a state with these modes: its problems
-    and the modes after it. A function of its arguments (a line is a function of its text), so
-    a line judged again from the same modes (a program repeats its lines) is judged once."""
+    and the modes after it. Remembered (the last 1024): assumes the verdict is a pure function
+    of the text, the profile and the modes (a program repeats its lines)."""
     state = ModalState.of(modes, Chaining())
     problems: list[str] = []
     _judge_gcode(parse_line(source), profile, state, problems)

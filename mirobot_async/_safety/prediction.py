@@ -33,7 +33,6 @@ stored startup lines run), ``$M``, program end. What the firmware stores is read
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Final
@@ -438,7 +437,6 @@ def with_soft_limits(envelope: Envelope, values: tuple[float, ...] | None) -> En
     return _narrowed(envelope, ranges)
 
 
-@functools.lru_cache(maxsize=16)
 def _narrowed(envelope: Envelope, ranges: tuple[tuple[float, float], ...]) -> Envelope:
     # ASSUMED: the firmware's own rounding (float32) never drops a target within LIMIT_TOL
     # (1e-6 deg) of a soft limit that the envelope lets through.

@@ -166,8 +166,7 @@ class _Model:
     def __init__(self, firmware: str, offset: float, paced: bool = True) -> None:
         # imported when a tape is replayed: the CLI that offers replay stays cheap to import
         model = importlib.import_module("mirobot_emulator.firmware")
-        uart = importlib.import_module("mirobot_emulator.firmware.uart")
-        self.compute: Callable[[int], float] = uart.report_compute_seconds
+        self.compute: Callable[[int], float] = model.report_compute_seconds
         self.byte_seconds = UART_BYTE_SECONDS if paced else 0.0
         if paced:
             self.fw: _Firmware = model.Firmware(firmware, byte_seconds=UART_BYTE_SECONDS)

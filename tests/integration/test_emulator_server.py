@@ -20,11 +20,11 @@ from collections.abc import Callable, Iterator
 
 import psutil
 import pytest
-from mirobot_emulator.faults import Fault, parse_fault
+from mirobot_emulator._faults import Fault, parse_fault
 from mirobot_emulator.firmware import Firmware
 from mirobot_emulator.server import ServerOptions, VirtualMirobot
-from mirobot_emulator.server.link import INPUT_HOLD_LIMIT, OUTPUT_HOLD_LIMIT
-from mirobot_emulator.server.port import READ_CHUNK
+from mirobot_emulator.server._link import INPUT_HOLD_LIMIT, OUTPUT_HOLD_LIMIT
+from mirobot_emulator.server._port import READ_CHUNK
 from waiting import wait_for
 
 # the emulator as a process and its links: run on the link lanes (MIROBOT_TEST_LINK=pty|tcp)

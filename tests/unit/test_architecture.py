@@ -242,6 +242,32 @@ def test_emulator_imports_only_the_kinematics_of_the_client(path: Path) -> None:
     assert all(level < depth + 1 for level, _ in _relative_imports(path))
 
 
+EMULATOR_PUBLIC = {
+    "mirobot_emulator",
+    "mirobot_emulator.__main__",
+    "mirobot_emulator.bus",
+    "mirobot_emulator.firmware",
+    "mirobot_emulator.motion",
+    "mirobot_emulator.server",
+    "mirobot_emulator.server.clock",
+    "mirobot_emulator.server.loop",
+    "mirobot_emulator.server.options",
+    "mirobot_emulator.settings",
+}
+"""The emulator's entry points: its command, the pure models, the server; the rest is private."""
+
+
+def test_the_emulator_modules_are_private_but_its_entry_points() -> None:
+    public = set()
+    for path in ROOT.joinpath("emulator").rglob("*.py"):
+        parts = path.relative_to(ROOT / "emulator").with_suffix("").parts
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        if not any(part.startswith("_") and part != "__main__" for part in parts):
+            public.add(".".join(("mirobot_emulator", *parts)))
+    assert public == EMULATOR_PUBLIC
+
+
 def test_pre_commit_runs_the_ruff_of_the_dev_extra() -> None:
     """One ruff: the hook a contributor runs on commit and the one CI runs agree."""
     import re

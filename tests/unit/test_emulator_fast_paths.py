@@ -6,10 +6,10 @@ from __future__ import annotations
 import itertools
 import math
 
-from mirobot_emulator.firmware.geometry import Geometry
-from mirobot_emulator.firmware.scanner import _read_float_digits, _scan, read_float, scan
+from mirobot_emulator.firmware._geometry import Geometry
+from mirobot_emulator.firmware._scanner import _read_float_digits, _scan, read_float, scan
 from mirobot_emulator.motion import AxisLimits, joint_block
-from mirobot_emulator.motion.axes import round_half_away, vec7
+from mirobot_emulator.motion._axes import round_half_away, vec7
 from mirobot_emulator.settings import default_settings
 
 
@@ -31,13 +31,12 @@ def test_to_steps_is_the_rounding_of_every_axis_whatever_was_asked_before() -> N
     q = (10.0, -20.5, 0.00881, -0.00881, 359.99, -0.0, 1e-300)
     expected = tuple(round_half_away(x * s) for x, s in zip(q, limits.steps, strict=True))
     assert limits.to_steps(q) == expected
-    assert limits.to_steps(q) == expected  # answered from the memo
     other = (1.0,) * 7
     assert limits.to_steps(other) != expected
     assert limits.to_steps(q) == expected
     as_list = list(q)
     assert limits.to_steps(as_list) == expected
-    as_list[0] = 0.0  # a list may change: never taken from the memo
+    as_list[0] = 0.0
     assert limits.to_steps(as_list)[0] == 0
 
 
@@ -77,14 +76,12 @@ def test_a_line_scanned_again_gives_the_same_words_in_a_block_of_its_own() -> No
     assert scan("G1X", "2021")[1] == _scan("G1X", "2021")[1] != 0
 
 
-def test_equal_blocks_share_their_nominal_profile_which_is_the_trapezoid() -> None:
-    from mirobot_emulator.motion.profile import trapezoid
+def test_a_blocks_nominal_profile_is_the_trapezoid_from_rest() -> None:
+    from mirobot_emulator.motion._profile import trapezoid
 
     limits = AxisLimits.from_settings(default_settings("classic"))
     end = (10.0, 5.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     first = joint_block((0.0,) * 7, end, 2000.0, limits)
-    second = joint_block((0.0,) * 7, end, 2000.0, limits)
-    assert second.profile is first.profile
     fresh = trapezoid(0.0, first.length, 0.0, 0.0, first.speed, first.accel)
     assert first.profile.phases() == fresh.phases()
     assert (first.profile.s_end, first.profile.v_end) == (fresh.s_end, fresh.v_end)

@@ -1,41 +1,14 @@
-"""The emulator's per-line shortcuts give what the general code gives: a line read in one pass
-has the words (and the status) of the word-by-word reading, a whole line arriving with room for
-it enters the ring as the byte-run loop puts it, an idle planner's advance only moves its clock,
-and a line whose blocks find free slots is answered as a waiting line would be."""
+"""The emulator's per-line shortcuts give what the general code gives: a whole line arriving
+with room for it enters the ring as the byte-run loop puts it, an idle planner's advance only
+moves its clock, and a line whose blocks find free slots is answered as a waiting line would be."""
 
 from __future__ import annotations
 
 import math
-import random
 
 from mirobot_emulator.firmware import Firmware
-from mirobot_emulator.firmware.linebuffer import RX_CAPACITY, LineBuffer
-from mirobot_emulator.firmware.scanner import GBlock, _Groups, _scan, _scan_by_position
+from mirobot_emulator.firmware._linebuffer import RX_CAPACITY, LineBuffer
 from mirobot_emulator.motion import Planner
-
-_LETTERS = "GMXYZFSEABCDNPIJKRLT"
-_NUMBERS = ["", "-", "+", "0", "-0", "1", "21", "20", "90", "91", "3", "4", "5", "92.1",
-            "0.5", "1.", "-.", ".25", "-0.000", "123456789.5", "00000000012.3", "7.999999999",
-            "43.1", "28.1", "0.001", "255.999", "256"]  # fmt: skip
-
-
-def test_a_line_read_in_one_pass_has_the_words_of_the_word_by_word_reading() -> None:
-    rng = random.Random(11)
-    for _ in range(20000):
-        words = []
-        for _ in range(rng.randint(1, 6)):
-            number = rng.choice(_NUMBERS)
-            if rng.random() < 0.3:
-                number = f"{rng.uniform(-500, 500):.{rng.randint(0, 9)}f}"
-            words.append(rng.choice(_LETTERS) + number)
-        line = "".join(words)
-        for profile in ("classic", "2021"):
-            fast, fast_status = _scan(line, profile)
-            slow, slow_status = _scan_by_position(line, profile, GBlock(), _Groups())
-            assert fast_status == slow_status, line
-            assert vars(fast) == vars(slow), line
-            for letter, value in fast.words.items():  # signed zeros alike
-                assert math.copysign(1.0, value) == math.copysign(1.0, slow.words[letter])
 
 
 def _arrivals(data: bytes, ring_fill: int) -> tuple[bytes, list[str], int]:

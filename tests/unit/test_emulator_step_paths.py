@@ -1,6 +1,5 @@
 """The emulator's shortcuts for joint moves in whole steps give what the general code gives: a
-whole-step point made by ``grid_point`` rounds back to its steps (so ``to_steps`` of it may be
-answered from the memo), a block built from whole steps is the block built from its ends, and a
+block built from whole steps is the block built from its ends, and a
 block shared by a move made again runs as often as it is queued, and the soft-limit check
 without its loop names the axis the loop names."""
 
@@ -10,64 +9,13 @@ import math
 import random
 
 from mirobot_emulator import motion
-from mirobot_emulator.firmware.geometry import Geometry
+from mirobot_emulator.firmware._geometry import Geometry
 from mirobot_emulator.motion import AxisLimits, Block, joint_block, joint_block_in_steps
 from mirobot_emulator.settings import default_settings
 
 
 def _limits(profile: str) -> AxisLimits:
     return Geometry(profile, default_settings(profile)).limits()
-
-
-def test_whole_steps_round_back_to_themselves_within_the_grid_bounds() -> None:
-    rng = random.Random(7)
-    edge = 2**30 - 1
-    for profile in ("classic", "2021"):
-        limits = _limits(profile)
-        assert limits.steps is not None
-        tables = [
-            limits.steps,
-            (2.0**20,) * 7,
-            (2.0**-20,) * 7,
-            (0.3, 1.7, 3.0, 7.1, 9.9, 55.6, 1e6),
-        ]
-        for steps in tables:
-            samples = [tuple(rng.randint(-edge, edge) for _ in range(7)) for _ in range(3000)]
-            samples += [(edge, -edge, 0, 1, -1, edge - 1, -(edge - 1))]
-            for n in samples:
-                q = tuple(k / s for k, s in zip(n, steps, strict=True))
-                assert AxisLimits._round_steps(q, steps) == n, (steps, n)
-
-
-def test_to_steps_of_a_grid_point_is_its_steps() -> None:
-    limits = _limits("classic")
-    n = (567, -1134, 0, 3, -2, 999_999, -5)
-    q = limits.grid_point(n)
-    assert q == limits.from_steps(n)
-    assert limits.to_steps(q) == n
-    assert limits.to_steps(tuple(q)) == n
-    far = (2**31, 0, 0, 0, 0, 0, 0)  # beyond the bounds: not remembered, rounded again
-    far_q = limits.grid_point(far)
-    assert limits.to_steps(far_q) == AxisLimits._round_steps(far_q, limits.steps or far_q)
-
-
-def test_a_table_beyond_the_grid_scale_is_never_remembered() -> None:
-    settings = dict(default_settings("classic"))
-    settings[100] = 1e-7  # steps per degree far below 2**-20
-    limits = Geometry("classic", settings).limits()
-    assert limits.steps is not None
-    n = (1, 2, 3, 4, 5, 6, 7)
-    q = limits.grid_point(n)
-    assert limits.to_steps(q) == AxisLimits._round_steps(q, limits.steps)
-
-
-def test_quantise_of_a_grid_point_is_that_point_and_of_others_their_rounding() -> None:
-    limits = _limits("2021")
-    q = limits.grid_point((100, -200, 300, 0, 5, -6, 7))
-    assert limits.quantise(q) is q
-    other = (1.23456, -2.5, 0.0, 3.3, 4.4, 5.5, 6.6)
-    assert limits.quantise(other) == limits.from_steps(limits.to_steps(other))
-    assert limits.quantise(_vec7(list(q))) == q  # equal, not the same object
 
 
 def _vec7(values: list[float]) -> tuple[float, float, float, float, float, float, float]:

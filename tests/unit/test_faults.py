@@ -1,4 +1,4 @@
-"""Pure tests of the emulator's fault injection (mirobot_emulator.faults): deterministic by seed."""
+"""Pure tests of the emulator's fault injection (mirobot_emulator._faults): seeded."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
-from mirobot_emulator.faults import (
+from mirobot_emulator._faults import (
     Command,
     Fault,
     FaultFilter,

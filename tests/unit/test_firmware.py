@@ -19,8 +19,8 @@ import pytest
 from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 from mirobot_emulator.firmware import RX_CAPACITY, Firmware
-from mirobot_emulator.firmware.facade import ALARM_STALL_SECONDS
-from mirobot_emulator.firmware.wire import BYTE_SECONDS
+from mirobot_emulator.firmware._facade import ALARM_STALL_SECONDS
+from mirobot_emulator.firmware._wire import BYTE_SECONDS
 from mirobot_emulator.motion import Planner
 
 from mirobot_async import kinematics as kin

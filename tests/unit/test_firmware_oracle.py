@@ -7,7 +7,7 @@ import math
 
 import pytest
 from mirobot_emulator.firmware import Firmware
-from mirobot_emulator.firmware.wire import BYTE_SECONDS
+from mirobot_emulator.firmware._wire import BYTE_SECONDS
 
 STEP_TOLERANCE = 0.1  # status angles are whole motor steps (see test_firmware.py)
 
@@ -234,7 +234,7 @@ FLOAT32_PRINTS = [
 
 @pytest.mark.parametrize(("steps", "per_unit", "printed"), FLOAT32_PRINTS)
 def test_status_angle_printed_in_float32(steps: int, per_unit: float, printed: str) -> None:
-    from mirobot_emulator.firmware.float32 import print_float, step_angle
+    from mirobot_emulator.firmware._float32 import print_float, step_angle
     from mirobot_emulator.settings import grbl_float
 
     assert print_float(step_angle(steps, per_unit)) == printed
@@ -242,7 +242,7 @@ def test_status_angle_printed_in_float32(steps: int, per_unit: float, printed: s
 
 
 def test_float32_print_keeps_grbl_format() -> None:
-    from mirobot_emulator.firmware.float32 import print_float
+    from mirobot_emulator.firmware._float32 import print_float
 
     assert [print_float(v) for v in (0.0, -0.0, -0.0001, 202.0, -10.307, 0.0005)] == [
         "0.000", "0.000", "-0.000", "202.000", "-10.307", "0.001",

@@ -1,5 +1,5 @@
 """Parse time of lines on the classic model against the firmware oracle's ``-l`` logs
-(:mod:`mirobot_emulator.firmware.linecost`): ``M20`` lines by pose, the receive interrupts of
+(:mod:`mirobot_emulator.firmware._linecost`): ``M20`` lines by pose, the receive interrupts of
 bytes that arrive meanwhile, a block charged only when planned, and what a burst that overflows
 the receive ring loses."""
 
@@ -9,7 +9,7 @@ import itertools
 
 import pytest
 from mirobot_emulator.firmware import Firmware
-from mirobot_emulator.firmware.wire import Wire
+from mirobot_emulator.firmware._wire import Wire
 
 START = "M21 G90 G0 X0 Y0 Z0 A0 B0 C0 F2000"
 

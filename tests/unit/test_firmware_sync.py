@@ -154,7 +154,7 @@ def test_a_status_before_the_held_line_waits_finds_the_move_not_started(
 def test_the_move_starts_once_the_report_before_it_is_out() -> None:
     """With the transmitter paced as the oracle's, the report printed before the start delays
     the move by its production (oracle: the held line's ``ok`` 12.5 ms later; here 13.0 ms)."""
-    from mirobot_emulator.firmware.uart import ORACLE_BYTE_SECONDS
+    from mirobot_emulator.firmware._uart import ORACLE_BYTE_SECONDS
 
     ends = []
     for pad in (3, 5):

@@ -1,5 +1,5 @@
 """The firmware model's transmitter: a ``?`` that arrives while a report is being printed is
-merged into it (oracle boundaries, :mod:`mirobot_emulator.firmware.uart`)."""
+merged into it (oracle boundaries, :mod:`mirobot_emulator.firmware._uart`)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import copy
 
 import pytest
 from mirobot_emulator.firmware import Firmware
-from mirobot_emulator.firmware.uart import ORACLE_BYTE_SECONDS, Transmitter
+from mirobot_emulator.firmware._uart import ORACLE_BYTE_SECONDS, Transmitter
 from mirobot_emulator.server.clock import Simulation
 
 from mirobot_async._client.poller import pipeline_gap

@@ -1,4 +1,4 @@
-"""Unit tests of the look-ahead planner (mirobot_emulator.motion.planner): GRBL's junction
+"""Unit tests of the look-ahead planner (mirobot_emulator.motion._planner): GRBL's junction
 deviation rule, reverse/forward passes, blending vs stopping, feed hold across block ends,
 whole-step positions, deferred cycle start and the starvation counters."""
 
@@ -21,7 +21,7 @@ from mirobot_emulator.motion import (
     junction_speed_sqr,
     path_blocks,
 )
-from mirobot_emulator.motion.planner import HOLD_LATENCY, HOLD_SEGMENT_SECONDS
+from mirobot_emulator.motion._planner import HOLD_LATENCY, HOLD_SEGMENT_SECONDS
 from mirobot_emulator.settings import default_settings
 
 CLASSIC = AxisLimits.from_settings(default_settings("classic"))

@@ -11,8 +11,8 @@ import time
 from collections.abc import Iterator
 
 import pytest
-from mirobot_emulator.server.port import OPEN_SETTLE_S
-from mirobot_emulator.server.tcp_port import BUSY_MESSAGE, REFUSED_LINGER_S, TcpPort
+from mirobot_emulator.server._port import OPEN_SETTLE_S
+from mirobot_emulator.server._tcp_port import BUSY_MESSAGE, REFUSED_LINGER_S, TcpPort
 
 
 def ready(port: TcpPort, timeout: float = 5.0) -> None:

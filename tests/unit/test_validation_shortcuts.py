@@ -15,7 +15,8 @@ from __future__ import annotations
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mirobot_async._core.line import AXIS_LETTERS, CodeWord, parse_line
+from mirobot_async._core import acceptance
+from mirobot_async._core.line import AXIS_LETTERS, CodeWord, _parse_text, parse_line
 from mirobot_async._core.modal import Chaining
 from mirobot_async._core.validation import (
     ModalState,
@@ -220,3 +221,20 @@ def test_a_remembered_gcode_verdict_is_the_fresh_one(
         _check_gcode(parsed, profile, remembered, problems)
         assert problems == fresh_problems
         assert remembered == fresh
+
+
+@settings(max_examples=500, deadline=None)
+@given(line=lines)
+def test_a_remembered_parse_is_the_fresh_one(line: str) -> None:
+    fresh = _parse_text.__wrapped__(line)
+    for _ in range(2):  # computed, then remembered
+        assert parse_line(line) == fresh
+
+
+@settings(max_examples=500, deadline=None)
+@given(line=lines, firmware=st.sampled_from(("classic", "2021")))
+def test_a_remembered_scan_is_the_fresh_one(line: str, firmware: str) -> None:
+    text = parse_line(line).text
+    fresh = acceptance.scan.__wrapped__(text, firmware)
+    for _ in range(2):  # computed, then remembered
+        assert acceptance.scan(text, firmware) == fresh

@@ -50,12 +50,6 @@ class ReceivedLine(NamedTuple):
     """Received bytes the line took from the ring (its line end included)."""
 
 
-_RECENT_TEXTS: dict[bytes, str] = {}
-"""The filtered text of whole lines received lately (without comments; none was partly in the
-line being assembled): a line sent again is not filtered again."""
-_RECENT_TEXTS_MAX: Final = 256
-
-
 class LineBuffer:
     """The 128-byte receive ring plus the line being assembled from it."""
 
@@ -185,19 +179,13 @@ class LineBuffer:
         if end < 0:
             return None
         received = bytes(ring[:end])
-        text = None if self._line else _RECENT_TEXTS.get(received)
-        if text is None:
-            if 0x28 in received or 0x3B in received:  # '(' or ';'
-                return None
-            kept = received.translate(None, _DROPPED)
-            if len(self._line) + len(kept) > MAX_LINE_LENGTH:
-                return None
-            text = (bytes(self._line) + kept).upper().decode("latin-1")  # ASCII letters, as GRBL
-            if not self._line:
-                if len(_RECENT_TEXTS) >= _RECENT_TEXTS_MAX:
-                    _RECENT_TEXTS.clear()
-                _RECENT_TEXTS[received] = text
-            self._line.clear()
+        if 0x28 in received or 0x3B in received:  # '(' or ';'
+            return None
+        kept = received.translate(None, _DROPPED)
+        if len(self._line) + len(kept) > MAX_LINE_LENGTH:
+            return None
+        text = (bytes(self._line) + kept).upper().decode("latin-1")  # ASCII letters, as GRBL
+        self._line.clear()
         del ring[: end + 1]
         taken, self._raw = self._raw + end + 1, 0
         return ReceivedLine(text, raw=taken)

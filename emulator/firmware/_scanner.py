@@ -9,7 +9,7 @@ import re
 from dataclasses import dataclass, field
 from typing import Final
 
-from . import codes as c
+from . import _codes as c
 
 AXIS_WORDS: Final = "XYZABCD"  # index = joint (M21: J1..J6, rail) or pose component (M20)
 _VALUE_WORDS: Final = frozenset("FIJKLNPRSETXYZABCD")
@@ -122,13 +122,6 @@ class GBlock:
     words: dict[str, float] = field(default_factory=dict)
 
 
-_WORD: Final = re.compile(r"([A-Z])([+-]?)([0-9]*)(?:\.([0-9]*))?")
-"""A word as :func:`scan` reads it: its letter, then what ``read_float`` takes."""
-
-_WORDS: Final = re.compile(r"(?:[A-Z][+-]?[0-9]*(?:\.[0-9]*)?)*")
-"""A line made of such words only (then they are read in one pass)."""
-
-
 def scan(line: str, profile: str) -> tuple[GBlock, int]:
     """The words of ``line`` and 0, or the words before the first scanning error and its GRBL
     status (the classic firmware acts on the ``M20``/``M21``/``M50`` scanned before it).
@@ -144,40 +137,16 @@ def scan(line: str, profile: str) -> tuple[GBlock, int]:
 
 @functools.lru_cache(maxsize=512)
 def _scan_memo(line: str, profile: str) -> tuple[GBlock, int]:
-    """:func:`_scan` of the lines seen lately (the result is never handed out: copies are)."""
+    """:func:`_scan` of the last 512 lines: assumes the words are a pure function of the text and
+    the profile (the result is never handed out, copies are: callers may change theirs)."""
     return _scan(line, profile)
 
 
 def _scan(line: str, profile: str) -> tuple[GBlock, int]:
-    """The words of ``line`` (see :func:`scan`), read now."""
+    """The words of ``line`` (see :func:`scan`), read now, word by word from the start,
+    stopping at the first error."""
     g = GBlock()
     groups = _Groups()
-    if _WORDS.fullmatch(line) is None:
-        return _scan_by_position(line, profile, g, groups)  # an error somewhere: read in order
-    for word in _WORD.finditer(line):  # the same words the position loop would read
-        letter, sign, whole, fraction = word.groups()
-        ndigit = len(whole) + len(fraction) if fraction is not None else len(whole)
-        if ndigit == 0:
-            return g, c.BAD_NUMBER_FORMAT
-        if ndigit > 8:
-            parsed = _read_float_digits(line, word.start(2))
-            assert parsed is not None  # it has digits
-            value = parsed[0]
-        elif fraction:  # _kept_digits inlined (the same integer and power of ten)
-            intval = int(whole + fraction)
-            value = float(intval) * 10.0 ** -len(fraction) if intval else 0.0
-        else:
-            value = float(int(whole))  # (times 10.0**0)
-        if sign == "-" and ndigit <= 8:
-            value = -value
-        status = _word(g, letter, value, groups, profile)
-        if status:
-            return g, status
-    return g, 0
-
-
-def _scan_by_position(line: str, profile: str, g: GBlock, groups: _Groups) -> tuple[GBlock, int]:
-    """:func:`scan` word by word from the start, stopping at the first error."""
     i = 0
     n = len(line)
     while i < n:

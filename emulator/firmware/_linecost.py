@@ -3,7 +3,7 @@
 Measured on the oracle (the classic firmware on a simulated 16 MHz ATmega2560, ``-s 0`` with
 ``-l`` logs): bursts of identical lines written at once after an empty line (whose ``ok`` times
 the first byte), ``ok`` to ``ok`` once no more bytes arrive. Bytes arrive one every 100 us
-(:mod:`.wire`), so short lines are paced by the wire and the parse of a line overlaps the
+(:mod:`._wire`), so short lines are paced by the wire and the parse of a line overlaps the
 arrival of the next. Steady gaps, at the start pose (all joints 0) unless said, no block planned:
 
 ======================================  =====================  =====================
@@ -64,18 +64,17 @@ and of an empty line (0.06 ms, here :data:`LINE_SECONDS`).
 
 from __future__ import annotations
 
-import functools
 import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Final
 
-from .linebuffer import ReceivedLine
+from ._linebuffer import ReceivedLine
 
 if TYPE_CHECKING:
-    from .machine import Machine
-    from .uart import Transmitter
-    from .wire import Wire
+    from ._machine import Machine
+    from ._uart import Transmitter
+    from ._wire import Wire
 
 LINE_SECONDS: Final = 0.2e-3
 """Any line (``G90`` lines come one per 0.4 ms, as fast as their bytes)."""
@@ -179,7 +178,6 @@ class LineWork:
     """The ``Y``, ``A``, ``B``, ``C`` words' values (None: not in the line)."""
 
 
-@functools.lru_cache(maxsize=1024)
 def line_work(text: str, cartesian_mode: bool) -> LineWork:
     """The work of the filtered line ``text`` with the parser in Cartesian mode (``M20``) or
     not. A cheap textual estimate, not a second parser: a refused line costs what its words
@@ -270,7 +268,6 @@ def line_seconds(m: Machine, line: ReceivedLine, *, waited: bool) -> tuple[float
     return seconds, work
 
 
-@functools.lru_cache(maxsize=256)
 def wait_point_seconds(text: str) -> float:
     """How long after its parse began a line that waits for queued motion (``M3``/``M4``/``M5``
     behind a move) reaches its wait, before which a ``?`` finds the move not started. Oracle,
@@ -278,7 +275,7 @@ def wait_point_seconds(text: str) -> float:
     bytes after its line, ``M4 E65`` 8, ``M3 S500`` 7, ``M4 E40 S500`` 4: the wait comes 0.1 ms
     later per word (with this model's parse start, the first word's time is in the line before;
     ``M21 G90 X5 M3 S1000``: moving 1.3 ms after, here 0.4 ms)."""
-    words = sum(char.isalpha() for char in text)  # (of a line seen lately: from the cache)
+    words = sum(char.isalpha() for char in text)
     return WAIT_WORD_SECONDS * max(words - 1, 0)
 
 
@@ -339,7 +336,7 @@ class ParserWork:
         return True
 
     def hold(self, m: Machine, now: float, uart: Transmitter) -> None:
-        """``m.held_reply`` (a finished :class:`~.machine.Pending`'s reply and its planning
+        """``m.held_reply`` (a finished :class:`~._machine.Pending`'s reply and its planning
         seconds) becomes the reply of a line whose block is planned: printed when the work is
         done; the next line and the queued blocks' start wait, a ``?`` meanwhile is answered
         after the reply. A ``?`` deferred by a homing search is answered first (``Home``), and

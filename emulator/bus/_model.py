@@ -12,8 +12,8 @@ from collections import deque
 from collections.abc import Sequence
 
 from ..firmware import Firmware
-from .controller import Controller
-from .options import BAUD_CODES, DEFAULT_BUS_BAUD, BusOptions
+from ._controller import Controller
+from ._options import BAUD_CODES, DEFAULT_BUS_BAUD, BusOptions
 
 __all__ = ["MAX_LINE", "Bus"]
 

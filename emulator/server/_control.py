@@ -1,6 +1,6 @@
 """The control channel: commands in, one answer line per command out.
 
-Commands are the fault commands of :mod:`mirobot_emulator.faults` (``drop-ok``, ``stall``,
+Commands are the fault commands of :mod:`mirobot_emulator._faults` (``drop-ok``, ``stall``,
 ``reset``, ``close``, ``time-scale``, ``stats``...), the server's own queries (:data:`QUERIES`)
 and :data:`RENEW`. Each is answered ``ack <command>[ <result>]`` or ``error <command>: <reason>``.
 The CLI reads them from stdin in a thread (:class:`ControlReader`: portable, no selector on a
@@ -16,8 +16,8 @@ from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from ..faults import FaultFilter
-    from .link import InputPath, OutputPath
+    from .._faults import FaultFilter
+    from ._link import InputPath, OutputPath
 
 __all__ = [
     "QUERIES",

@@ -10,12 +10,12 @@ from typing import Final
 from .. import motion
 from .. import settings as cfg
 from ..motion import Vec7
-from . import codes as c
-from .geometry import vec7
-from .machine import N_STARTUP_LINE, Machine, Pending
-from .moves import MIN_FEED
-from .offsets import WorkOffsets
-from .scanner import read_float, uint8
+from . import _codes as c
+from ._geometry import vec7
+from ._machine import N_STARTUP_LINE, Machine, Pending
+from ._moves import MIN_FEED
+from ._offsets import WorkOffsets
+from ._scanner import read_float, uint8
 
 HOMING_RAIL_FACTOR: Final = 1.5
 """ASSUMED: ``$H0`` (arm and rail) searches this many times ``homing_seconds``."""

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Final
 
 AXES: Final = 7
@@ -19,12 +19,7 @@ Vec7 = tuple[float, float, float, float, float, float, float]
 Steps7 = tuple[int, int, int, int, int, int, int]
 
 ZERO: Final[Vec7] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-_NO_STEPS: Final[Steps7] = (0, 0, 0, 0, 0, 0, 0)
-_GRID_STEPS: Final = 2**30
-_GRID_SCALE: Final = 2.0**20
-"""Bounds within which a whole-step point rounds back to its steps (``grid_point``)."""
 _INF: Final = math.inf  # ``-_INF < x < _INF``: x is finite (False for NaN)
-_UNSEEN: Final = object()  # the key of an empty slot of AxisLimits' memo (no argument is it)
 
 LETTER_TO_JOINT: Final[tuple[int, ...]] = (3, 4, 5, 6, 0, 1, 2)
 """Firmware axis letter a..g (settings ``$110 + k``, status angles) -> joint index."""
@@ -131,18 +126,6 @@ class AxisLimits:
     accel: Vec7
     steps: Vec7 | None = None
     junction_deviation: float = 0.0
-    _steps_memo: list[tuple[object, Steps7, bool]] = field(
-        default_factory=lambda: [(_UNSEEN, _NO_STEPS, False), (_UNSEEN, _NO_STEPS, False)],
-        init=False,
-        repr=False,
-        compare=False,
-    )
-    """The last two tuples given to :meth:`to_steps` (or made by :meth:`grid_point`: flagged
-    True) and their results, the latest first (a joint line rounds its start and its end
-    several times: the no-step check, the switch crossing, the block; the next line starts
-    where it ended)."""
-    _exact_grid: bool = field(default=False, init=False, repr=False, compare=False)
-    """Whether every steps-per-degree value is within ``_GRID_SCALE`` of 1 (see grid_point)."""
 
     def __post_init__(self) -> None:
         for name, values in (("max_rate", self.max_rate), ("accel", self.accel)):
@@ -155,9 +138,6 @@ class AxisLimits:
         jd = self.junction_deviation
         if not (math.isfinite(jd) and jd >= 0.0):
             raise ValueError(f"junction_deviation must be finite and >= 0: {jd}")
-        if self.steps is not None:
-            exact = all(1.0 / _GRID_SCALE <= v <= _GRID_SCALE for v in self.steps)
-            object.__setattr__(self, "_exact_grid", exact)
 
     @classmethod
     def from_settings(cls, settings: Mapping[int, float]) -> AxisLimits:
@@ -187,17 +167,7 @@ class AxisLimits:
         """Whole motor steps nearest to the joint vector ``q`` (``ValueError`` without steps)."""
         if self.steps is None:
             raise ValueError("these limits have no steps per degree")
-        memo = self._steps_memo
-        last, before = memo
-        if last[0] is q:  # the same tuple object: the same value (a tuple is immutable)
-            return last[1]
-        if before[0] is q:
-            memo[:] = (before, last)
-            return before[1]
-        steps = self._round_steps(q, self.steps)
-        if type(q) is tuple:
-            memo[:] = ((q, steps, False), last)  # one assignment: no torn pair for a thread
-        return steps
+        return self._round_steps(q, self.steps)
 
     @staticmethod
     def _round_steps(q: Sequence[float], s: Vec7) -> Steps7:
@@ -221,27 +191,8 @@ class AxisLimits:
         return (n[0] / s[0], n[1] / s[1], n[2] / s[2], n[3] / s[3], n[4] / s[4], n[5] / s[5],
                 n[6] / s[6])  # fmt: skip
 
-    def grid_point(self, n: Steps7) -> Vec7:
-        """:meth:`from_steps` of the whole steps ``n`` that :meth:`to_steps` gave: that point
-        rounds back to ``n``, so :meth:`to_steps` of it is answered from the memo.
-
-        Exact within ``_GRID_STEPS`` steps and ``_GRID_SCALE`` steps per degree: ``n / s * s``
-        is then within ``|n| * 2**-52 < 2**-22`` of ``n`` (two roundings of ``2**-53``)."""
-        q = self.from_steps(n)
-        self.note_grid_point(q, n)
-        return q
-
-    def note_grid_point(self, q: Vec7, n: Steps7) -> None:
-        """Remember that ``q``, made by :meth:`grid_point` of ``n``, is ``n`` steps."""
-        if self._exact_grid and min(n) > -_GRID_STEPS and max(n) < _GRID_STEPS:
-            memo = self._steps_memo
-            memo[:] = ((q, n, True), memo[0])
-
     def quantise(self, q: Vec7) -> Vec7:
         """``q`` rounded to whole motor steps (unchanged for an ideal machine)."""
         if self.steps is None:
             return q
-        for key, _, on_grid in self._steps_memo:
-            if key is q and on_grid:
-                return q  # made by grid_point: whole steps already (the same numbers)
         return self.from_steps(self.to_steps(q))

@@ -34,9 +34,9 @@ import math
 from collections import deque
 from typing import ClassVar, Final
 
-from .axes import AxisLimits, Steps7, Vec7, finite_vec7
-from .blocks import Block, JointBlock
-from .profile import STOPPED, Profile, constant_rate
+from ._axes import AxisLimits, Steps7, Vec7, finite_vec7
+from ._blocks import Block, JointBlock
+from ._profile import STOPPED, Profile, constant_rate
 
 SNAP_SECONDS: Final = 1e-9
 """A block whose remaining time is below this is finished (float error never runs forever)."""

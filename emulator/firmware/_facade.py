@@ -10,17 +10,17 @@ from typing import Final
 
 from .. import motion
 from ..motion import Vec7
-from . import codes as c
-from .gcode import GcodeExecutor
-from .geometry import switch_pins
-from .linebuffer import RX_BUFFER_SIZE, RX_CAPACITY
-from .linecost import ParserWork, line_seconds, wait_point_seconds
-from .machine import Machine
-from .reports import banner, status_line
-from .scanner import read_float
-from .system import SystemCommands
-from .uart import Transmitter
-from .wire import BYTE_SECONDS, Wire
+from . import _codes as c
+from ._gcode import GcodeExecutor
+from ._geometry import switch_pins
+from ._linebuffer import RX_BUFFER_SIZE, RX_CAPACITY
+from ._linecost import ParserWork, line_seconds, wait_point_seconds
+from ._machine import Machine
+from ._reports import banner, status_line
+from ._scanner import read_float
+from ._system import SystemCommands
+from ._uart import Transmitter
+from ._wire import BYTE_SECONDS, Wire
 
 DEFAULT_HOMING_SECONDS: Final = 10.0
 """Switch search of ``$H`` on 2021 when the constructor is not told otherwise (PROTOCOL 9)."""
@@ -28,7 +28,7 @@ DEFAULT_HOMING_SECONDS: Final = 10.0
 CLASSIC_HOMING_SECONDS: Final = 8.1534
 """Switch search of ``$H`` on classic, from the zero pose: the firmware tapes' search ends
 8.1537 s after ``$H``'s line end was written (a ``Home`` status for a ``?`` meanwhile starts
-2.2 ms later, the reply 5.6 ms later: :data:`.system.HOMED_PLANNING_SECONDS`; then the 2.3 s
+2.2 ms later, the reply 5.6 ms later: :data:`._system.HOMED_PLANNING_SECONDS`; then the 2.3 s
 return move), less this model's 0.3 ms from that byte to the search's start; with the
 simulator's assumed switches (no device log gives a time)."""
 
@@ -150,7 +150,7 @@ class Firmware(_MachineViews):
         self._after_stall: Callable[[], None] | None = None
         """What follows the stall after an alarm (:meth:`_stall`; None: no stall)."""
         self.uart = Transmitter()
-        """The firmware's transmitter; the server sets its ``byte_seconds`` (:mod:`.uart`)."""
+        """The firmware's transmitter; the server sets its ``byte_seconds`` (:mod:`._uart`)."""
         self.settings: dict[int, float] = self._m.settings
         self._gcode = GcodeExecutor(self._m)
         self._system = SystemCommands(self._m, self.reset, self._gcode.execute)
@@ -164,10 +164,10 @@ class Firmware(_MachineViews):
     # public API
 
     def receive(self, data: bytes) -> None:
-        """Bytes from the host, written now: they arrive one byte time apart (:mod:`.wire`;
+        """Bytes from the host, written now: they arrive one byte time apart (:mod:`._wire`;
         run the clock to see their effect). On arrival realtime bytes act at once wherever
         they are; the others enter the 128-byte receive ring (lost when it is full) and
-        complete lines are parsed (:mod:`.linecost`) and executed as soon as the parser is free
+        complete lines are parsed (:mod:`._linecost`) and executed as soon as the parser is free
         (not waiting for the planner, a homing search, a dwell or a hold).
         """
         self._wire.send(bytes(data), self.now)
@@ -204,20 +204,17 @@ class Firmware(_MachineViews):
         end = self.now + dt
         self._service()
         zero_steps = 0
-        serviced = False
         next_change, next_arrival = planner.time_to_next_change, wire.next_event
-        in_transit = wire.in_transit  # (empty: next_arrival() is None)
         while True:
             now = self.now
-            if m.printed != uart.seen:
-                uart.sync(m.printed, now)  # what the last events printed, printed then
+            uart.sync(m.printed, now)  # what the last events printed, printed then
             step = next_change()
             # the earliest of the planner's change, the parse's end, the next arrival, the boot
             if (at := parser.until) is not None:
                 wait = at - now if at > now else 0.0  # max(at - now, 0.0)
                 if step is None or wait < step:  # min(step, wait)
                     step = wait
-            if (arrival := next_arrival() if in_transit else None) is not None:
+            if (arrival := next_arrival()) is not None:
                 wait = arrival - now if arrival > now else 0.0
                 if step is None or wait < step:
                     step = wait
@@ -229,7 +226,6 @@ class Firmware(_MachineViews):
                 if not math.isinf(end):
                     planner.advance(end - now)  # its clock times the starvations
                     self.now = end
-                    serviced = False
                 break
             left = end - now
             finished = planner.finished
@@ -241,30 +237,25 @@ class Firmware(_MachineViews):
                     self._block_done()
                 if arrival is not None and (due := wire.take_due(self.now)):  # (None: no bytes)
                     self._deliver(due)  # the bytes arrived by ``end``
-                serviced = False
                 break
             planner.advance(step)
             self.now = now = now + step
             zero_steps = zero_steps + 1 if step == 0.0 else 0
-            # serviced: the step's last act was a _service (the same again would change nothing)
-            serviced = planner.finished != finished and self._block_done()
+            if planner.finished != finished:
+                self._block_done()
             if arrival is not None and (due := wire.take_due(self.now)):
                 self._deliver(due)  # before the parse ends: a full ring lost what came meanwhile
-                serviced = False
             if self._boot_until is not None and self._boot_until <= self.now:
                 self._finish_boot()
-                serviced = False
             if parser.until is not None and parser.until <= self.now:
                 self._finish_parse()
-                serviced = False
             if zero_steps > 100_000:  # pragma: no cover - a planner bug, never loop forever
                 break
-        if not serviced:
-            self._service()
+        self._service()
 
-    def _block_done(self) -> bool:
+    def _block_done(self) -> None:
         """After blocks finished: an end of motion if the planner ran empty (before the waiting
-        lines can refill it: ``G4 P0`` between moves), then carry on (True: by :meth:`_service`)."""
+        lines can refill it: ``G4 P0`` between moves), then carry on."""
         m = self._m
         if not m.planner.busy:
             self.motion_end_times.append(self.now)
@@ -274,9 +265,8 @@ class Firmware(_MachineViews):
                 m.rezero = None
         if m.limit_blocks and m.switch_reached():
             self._stall(m.reset_to_continue)
-            return False
+            return
         self._service()
-        return True
 
     def read_output(self) -> bytes:
         """Everything printed since the last call (each line ends ``\\r\\n``)."""
@@ -290,7 +280,7 @@ class Firmware(_MachineViews):
         deadline = self._m.planner.time_to_next_change()
         if deadline is not None:
             deadline += self.now
-        arrival = self._wire.next_event() if self._wire.in_transit else None
+        arrival = self._wire.next_event()
         for at in (self._parser.until, arrival, self._boot_until):
             if at is not None and (deadline is None or at < deadline):
                 deadline = at
@@ -364,8 +354,8 @@ class Firmware(_MachineViews):
 
     @property
     def input_deadline(self) -> float | None:
-        """When received bytes next arrive (a line end or realtime byte, :mod:`.wire`), the
-        line being parsed is done (:mod:`.linecost`) or the boot after a reset ends
+        """When received bytes next arrive (a line end or realtime byte, :mod:`._wire`), the
+        line being parsed is done (:mod:`._linecost`) or the boot after a reset ends
         (``BOOT_SECONDS``); None when nothing is in transit, being parsed or booting."""
         times = [self._wire.next_event(), self._parser.until, self._boot_until]
         return min((t for t in times if t is not None), default=None)
@@ -441,7 +431,7 @@ class Firmware(_MachineViews):
         self._parser.begin(m, self.now, seconds)
 
     def _finish_parse(self) -> None:
-        """The parser is done with its line: execute it (:class:`~.linecost.ParserWork`)."""
+        """The parser is done with its line: execute it (:class:`~._linecost.ParserWork`)."""
         m, parser = self._m, self._parser
         line = m.parsing
         m.parsing = None

@@ -11,13 +11,12 @@
 
 from __future__ import annotations
 
-import functools
 import math
 from collections.abc import Callable, Sequence
 from math import copysign
 
-from .axes import AXES, AxisLimits, Steps7, Vec7, lerp, sub, vec7
-from .profile import Profile, braking, constant_rate, trapezoid
+from ._axes import AXES, AxisLimits, Steps7, Vec7, lerp, sub, vec7
+from ._profile import Profile, braking, constant_rate, trapezoid
 
 
 class Block:
@@ -74,7 +73,7 @@ class Block:
         if timed:
             self.profile = self._profile_from(0.0, 0.0, 0.0)
         else:  # = self._profile_from(0.0, 0.0, 0.0): s = 0.0, v = min(0.0, speed) = 0.0
-            self.profile = _from_rest(length, speed, accel)
+            self.profile = trapezoid(0.0, length, 0.0, 0.0, speed, accel)
 
     @property
     def duration(self) -> float:
@@ -265,33 +264,9 @@ class HomeSearchBlock(DwellBlock):
         super().__init__("home_search", at, seconds)
 
 
-@functools.lru_cache(maxsize=1024)
-def _from_rest(length: float, speed: float, accel: float) -> Profile:
-    """The nominal (rest to rest) trapezoid of an untimed block: a pure function of its
-    arguments (a signed zero length gives the same profile), so equal blocks share one."""
-    return trapezoid(0.0, length, 0.0, 0.0, speed, accel)
-
-
-_PER_STEP: dict[Vec7, Vec7] = {}
-"""Degrees per motor step of the steps-per-degree tables seen (a handful: one per setting)."""
-_PER_STEP_LAST: list[tuple[object, Vec7]] = [(object(), (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0))]
-"""The last table and its result (the first key is no table)."""
-
-
 def _per_step(per_degree: Vec7) -> Vec7:
-    """``1 / per_degree`` per axis, computed once per table."""
-    last_key, last = _PER_STEP_LAST[0]
-    if last_key is per_degree:  # the same table as the last block's (a tuple is immutable)
-        return last
-    if type(per_degree) is not tuple:
-        return vec7(1.0 / x for x in per_degree)
-    per = _PER_STEP.get(per_degree)
-    if per is None:
-        if len(_PER_STEP) > 64:
-            _PER_STEP.clear()
-        per = _PER_STEP[per_degree] = vec7(1.0 / x for x in per_degree)
-    _PER_STEP_LAST[0] = (per_degree, per)
-    return per
+    """``1 / per_degree`` per axis."""
+    return vec7(1.0 / x for x in per_degree)
 
 
 def limits_quantiser(limits: AxisLimits) -> Callable[[Vec7], Vec7] | None:

@@ -25,10 +25,10 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Final
 
-from .reports import status_line
+from ._reports import status_line
 
 if TYPE_CHECKING:
-    from .machine import Machine
+    from ._machine import Machine
 
 ORACLE_BYTE_SECONDS: Final = 93.5e-6
 """The oracle's UART: 93.5 us a byte at 115200 baud (its ``-l`` log), 10.77 bit times."""

@@ -36,7 +36,7 @@ except ImportError:  # not POSIX: the pty mode is not offered there, the TCP mod
 
 import contextlib
 
-from .port import OPEN_SETTLE_S, READ_CHUNK, Arrival, Port
+from ._port import OPEN_SETTLE_S, READ_CHUNK, Arrival, Port
 
 __all__ = ["PtyPort", "pty_available"]
 

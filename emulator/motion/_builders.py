@@ -8,8 +8,8 @@ import math
 from collections.abc import Callable, Sequence
 from typing import Final
 
-from .axes import ARM_AXES, AXES, RAIL, AxisLimits, Steps7, Vec7, finite_vec7, norm, sub, vec7
-from .blocks import (
+from ._axes import ARM_AXES, AXES, RAIL, AxisLimits, Steps7, Vec7, finite_vec7, norm, sub, vec7
+from ._blocks import (
     Block,
     DwellBlock,
     HomeSearchBlock,
@@ -50,9 +50,9 @@ def _check_feed(feed: float | None) -> None:
 
 
 _RECENT_BLOCKS: dict[tuple[Steps7, Steps7, float | None, str], tuple[AxisLimits, JointBlock]] = {}
-"""Joint blocks built lately, by their whole steps, feed and kind, with the limits they were
-built with: a block is never changed once built, so a move made again (a stream going back
-and forth) shares it."""
+"""The last 64 joint blocks built, by their whole steps, feed and kind, with the limits they
+were built with: assumes a block is never changed once built and is a pure function of these
+(a stream going back and forth shares them)."""
 _RECENT_BLOCKS_MAX: Final = 64
 
 
@@ -63,10 +63,7 @@ def _joint_in_steps(
     key = (first, last, feed, kind)
     recent = _RECENT_BLOCKS.get(key)
     if recent is not None and recent[0] is limits:
-        block = recent[1]
-        limits.note_grid_point(block.start, first)  # as grid_point() below would
-        limits.note_grid_point(block.end, last)
-        return block
+        return recent[1]
     block = _joint_between_steps(first, last, feed, limits, kind)
     if len(_RECENT_BLOCKS) >= _RECENT_BLOCKS_MAX:
         _RECENT_BLOCKS.clear()
@@ -80,7 +77,7 @@ def _joint_between_steps(
     delta_steps = (last[0] - first[0], last[1] - first[1], last[2] - first[2],
                    last[3] - first[3], last[4] - first[4], last[5] - first[5],
                    last[6] - first[6])  # fmt: skip
-    start, end = limits.grid_point(first), limits.grid_point(last)
+    start, end = limits.from_steps(first), limits.from_steps(last)
     assert limits.steps is not None  # (whole steps come from limits with steps)
     return _joint_between(start, end, (first, delta_steps, limits.steps), feed, limits, kind)
 

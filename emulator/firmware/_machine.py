@@ -11,12 +11,12 @@ from dataclasses import dataclass
 from .. import motion
 from .. import settings as cfg
 from ..motion import Block, Planner, Vec7
-from . import codes as c
-from .geometry import FW_LETTERS, Geometry
-from .linebuffer import LineBuffer, ReceivedLine
-from .modal import ModalState
-from .moves import MoveBuilder
-from .offsets import WorkOffsets
+from . import _codes as c
+from ._geometry import FW_LETTERS, Geometry
+from ._linebuffer import LineBuffer, ReceivedLine
+from ._modal import ModalState
+from ._moves import MoveBuilder
+from ._offsets import WorkOffsets
 
 N_STARTUP_LINE = 2  # GRBL 0.9j config.h
 HOLDABLE = motion.HOLDABLE_KINDS
@@ -64,10 +64,10 @@ class Machine:
         self.rx = LineBuffer()
         self.out = bytearray()
         self.printed = 0
-        """Bytes printed since power-on (the transmitter's clock counts them, :mod:`.uart`)."""
+        """Bytes printed since power-on (the transmitter's clock counts them, :mod:`._uart`)."""
         self.pending: Pending | None = None
         self.parsing: ReceivedLine | None = None
-        """The line the parser is working on (see :mod:`.linecost`); its effects and reply
+        """The line the parser is working on (see :mod:`._linecost`); its effects and reply
         come when the work is done."""
         self.limit_blocks: list[Block] = []
         """Blocks that end on a limit switch: the alarm fires when one of them is done."""

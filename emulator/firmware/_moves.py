@@ -12,8 +12,8 @@ import numpy as np
 
 from .. import motion
 from ..motion import AxisLimits, Block, Vec7
-from . import codes as c
-from .geometry import Geometry, Pose, Refusal, lerp, pose6, vec7
+from . import _codes as c
+from ._geometry import Geometry, Pose, Refusal, lerp, pose6, vec7
 
 PATH_SAMPLE_MM: Final = 2.0
 """Cartesian paths are checked (IK, limits) every this many mm ..."""

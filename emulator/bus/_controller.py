@@ -19,8 +19,8 @@ from collections import deque
 from dataclasses import dataclass
 
 from ..firmware import Firmware
-from .gpio import Pins
-from .options import BAUD_CODES, BusOptions
+from ._gpio import Pins
+from ._options import BAUD_CODES, BusOptions
 
 __all__ = ["HARDWARE_VERSION", "TEST_PROGRAM", "Controller"]
 

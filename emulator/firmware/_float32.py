@@ -20,7 +20,6 @@ differs from the oracle in one last digit.
 
 from __future__ import annotations
 
-import functools
 import math
 import struct
 from typing import Final
@@ -40,13 +39,11 @@ def single(value: float) -> float:
     return unpacked
 
 
-@functools.lru_cache(maxsize=4096)
 def step_angle(steps: int, per_unit: float) -> float:
     """The firmware's angle (degrees, rail mm) of ``steps`` motor steps: float32 division."""
     return single(single(float(steps)) / single(per_unit))
 
 
-@functools.lru_cache(maxsize=4096)  # a pure function of its arguments: reports repeat them
 def print_float(value: float, decimals: int = 3) -> str:
     """GRBL's number printing on the AVR: float32 magnitude scaled by powers of ten (by 100
     while two or more places remain, then by 10), plus 0.5, truncated; ``-`` when below zero."""

@@ -6,7 +6,7 @@ open is over, as below), then the end of the stream (FIN, not a reset: what it s
 is read and dropped, so that the line is not lost to a reset); it is closed when its client
 closes it or after :data:`REFUSED_LINGER_S`. A connection is an open of the port; it takes effect
 (``--reset-on-open`` resets the firmware then) at the client's first byte or
-:data:`~.port.OPEN_SETTLE_S` after it connected, so that pyserial's open-time flush does not
+:data:`~._port.OPEN_SETTLE_S` after it connected, so that pyserial's open-time flush does not
 swallow the banner. When the client goes away the robot keeps its state, and output meanwhile
 is lost (nobody is on the other end of the cable). ``TCP_NODELAY`` is set: every write goes out
 at once, as on a serial line. What a client writes is read only while the emulator has room for
@@ -24,7 +24,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from .port import OPEN_SETTLE_S, READ_CHUNK, Arrival, Port
+from ._port import OPEN_SETTLE_S, READ_CHUNK, Arrival, Port
 
 __all__ = ["BUSY_MESSAGE", "REFUSED_LINGER_S", "TcpPort", "socket_url"]
 

@@ -20,9 +20,9 @@ import math
 import re
 import time
 
-from ..faults import FaultFilter, OutputDelay
-from .pacing import UsbLatencyBuffer, WirePacer
-from .port import READ_CHUNK, Port
+from .._faults import FaultFilter, OutputDelay
+from ._pacing import UsbLatencyBuffer, WirePacer
+from ._port import READ_CHUNK, Port
 
 __all__ = ["INPUT_HOLD_LIMIT", "OUTPUT_HOLD_LIMIT", "InputPath", "OutputPath"]
 

@@ -9,12 +9,12 @@ from dataclasses import dataclass
 from typing import Final
 
 from ..motion import Vec7
-from . import codes as c
-from .geometry import Geometry, vec7
-from .modal import ModalState
-from .moves import Arc
-from .offsets import WorkOffsets
-from .scanner import AXIS_WORDS, NONMODAL_AXIS_COMMANDS, GBlock
+from . import _codes as c
+from ._geometry import Geometry, vec7
+from ._modal import ModalState
+from ._moves import Arc
+from ._offsets import WorkOffsets
+from ._scanner import AXIS_WORDS, NONMODAL_AXIS_COMMANDS, GBlock
 
 ARC_ANGULAR_TRAVEL_EPSILON: Final = 5e-7  # GRBL 0.9j config.h
 MAX_LINE_NUMBER: Final = 9999999  # GRBL 0.9j gcode.c

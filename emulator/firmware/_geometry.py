@@ -15,9 +15,10 @@ from mirobot_async import kinematics as kin
 from mirobot_async.errors import MirobotUsageError
 
 from .. import motion
-from ..motion import AxisLimits, Steps7, Vec7, axes
-from . import codes as c
-from .float32 import single
+from ..motion import AxisLimits, Steps7, Vec7
+from ..motion import _axes as axes
+from . import _codes as c
+from ._float32 import single
 
 Pose = tuple[float, float, float, float, float, float]
 

@@ -8,18 +8,18 @@ from typing import Final
 
 from .. import motion
 from ..motion import Vec7
-from . import codes as c
-from .float32 import print_float, single, step_angle
-from .geometry import vec7
-from .machine import Machine
-from .scanner import c_round, uint8
+from . import _codes as c
+from ._float32 import print_float, single, step_angle
+from ._geometry import vec7
+from ._machine import Machine
+from ._scanner import c_round, uint8
 
 NUMERIC_ZERO: Final = 1e-9
 """Below this a status number is rounding noise of our double-precision FK and prints as 0."""
 
 
 def fmt(value: float) -> str:
-    """A status number as the firmware prints it (float32, :func:`.float32.print_float`):
+    """A status number as the firmware prints it (float32, :func:`._float32.print_float`):
     3 decimals, ``-0.000`` for a small negative value (oracle); values within
     ``NUMERIC_ZERO`` of 0 print ``0.000``."""
     return print_float(0.0 if abs(value) < NUMERIC_ZERO else value)
@@ -42,7 +42,7 @@ def fmt_inch(value: float) -> str:
 def step_position(q: Vec7, settings: Mapping[int, float]) -> Vec7:
     """``q`` in whole motor steps, as the firmware counts and reports it: each axis rounded
     (half away from zero) to its ``$100..$106`` steps per degree (mm for the rail), then
-    divided back in float32 as the firmware does (:func:`.float32.step_angle`).
+    divided back in float32 as the firmware does (:func:`._float32.step_angle`).
 
     The one place where the report quantises; it goes when the planner tracks steps itself.
     """

@@ -8,14 +8,14 @@ from typing import Final
 
 from .. import motion
 from ..motion import Block, Vec7
-from . import codes as c
-from .float32 import single
-from .geometry import Pose, Refusal, pose6
-from .machine import Machine, Pending
-from .modal import ModalState
-from .offsets import ZERO7, with_values
-from .scanner import AXIS_WORDS, GBlock, scan
-from .validation import MM_PER_INCH, CheckedLine, check_block
+from . import _codes as c
+from ._float32 import single
+from ._geometry import Pose, Refusal, pose6
+from ._machine import Machine, Pending
+from ._modal import ModalState
+from ._offsets import ZERO7, with_values
+from ._scanner import AXIS_WORDS, GBlock, scan
+from ._validation import MM_PER_INCH, CheckedLine, check_block
 
 
 def waits_for_motion(line: CheckedLine, modal: ModalState) -> bool:

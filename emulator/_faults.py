@@ -45,7 +45,7 @@ Control commands (the server's stdin, one per line; each answered ``ack <command
                          the wire
 
 The server also answers queries of its own on the same channel (``motion-ends``,
-``starvations``: see :mod:`mirobot_emulator.server.control`).
+``starvations``: see :mod:`mirobot_emulator.server._control`).
 
 An "ok line" is a line that is exactly ``ok``; an ``ok`` glued to other text (``in homeing
 moving...ok``) is not counted or dropped. A "status line" is a line starting with ``<``.

@@ -13,7 +13,7 @@ from typing import Final
 
 from ..motion import Vec7
 from ..settings import grbl_float
-from .scanner import AXIS_WORDS
+from ._scanner import AXIS_WORDS
 
 ZERO7: Final[Vec7] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 _REPORT_ORDER: Final = "ABCDXYZ"  # $# prints the firmware's axis order a..g
