@@ -31,6 +31,7 @@ LAYERS = {  # a directory -> the mirobot_async modules and packages it may impor
     "_safety": {"errors", "kinematics", "_core", "_safety"},
     "_client": {"errors", "kinematics", "_core", "_safety", "_client"},
     "_tapes": {"errors", "_tapes"},  # the client only under TYPE_CHECKING or when recording
+    "virtual": {"errors", "_client", "virtual"},  # the virtual arm: a product, not a test tool
 }
 IMPURE_MODULES = {
     "asyncio",
@@ -127,6 +128,7 @@ def test_every_module_is_in_a_layer_or_public() -> None:
         "bus/__init__.py",
         "sync/__init__.py",
         "testing/__init__.py",
+        "virtual/__init__.py",
     }, public
 
 
