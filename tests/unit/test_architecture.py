@@ -132,6 +132,18 @@ def test_every_module_is_in_a_layer_or_public() -> None:
     }, public
 
 
+def test_nothing_but_the_plugin_imports_the_plugin() -> None:
+    """The virtual arm is a product (the CLI, the view, the MCP server run it): no module
+    outside ``testing/`` imports ``mirobot_async.testing``, not even inside a function."""
+    importers = {
+        path.relative_to(PACKAGE).as_posix()
+        for path in PACKAGE.rglob("*.py")
+        if path.parent.name != "testing"
+        and any(m.startswith("mirobot_async.testing") for m in _imports(path))
+    }
+    assert not importers
+
+
 EMULATOR_PURE = sorted(
     [
         *ROOT.joinpath("emulator", "firmware").glob("*.py"),
