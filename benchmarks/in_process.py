@@ -25,7 +25,7 @@ from typing import Any
 from figures import Config, Stat, Table, fmt_ms
 
 from mirobot_async import Mirobot
-from mirobot_async.testing._virtual import InProcessArm
+from mirobot_async.virtual import InProcessArm
 
 PROFILES = ("classic", "2021")
 STREAM_LINES = 100

@@ -31,7 +31,7 @@ import serial
 from programs import IdealRun, Program, full_programs, ideal_run, quick_programs
 
 from mirobot_async import Mirobot
-from mirobot_async.testing import EmulatorError, EmulatorProcess
+from mirobot_async.virtual import EmulatorError, EmulatorProcess
 
 MOTION_ENDS_POLL_S = 0.5
 """The emulator keeps its last 64 ends of motion: fetch them this often during a run."""

@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from mirobot_async import Mirobot
-from mirobot_async.testing import EmulatorProcess
+from mirobot_async.virtual import EmulatorProcess
 
 SER2NET = shutil.which("ser2net") or shutil.which("ser2net", path="/usr/sbin:/usr/local/sbin:/sbin")
 PATHS = ("direct", "socket", "rfc2217", "listen")

@@ -4,7 +4,7 @@ Prints one markdown table (machine in its header), then item 10's tables. See is
 items 1-9 measure and why, issue 12 for item 10 ("a real program", :mod:`real_program`).
 Sans-IO figures run in this process (:mod:`sansio`), as does item 11 (a user's test on the
 in-process virtual arm, :mod:`in_process`); everything else drives the emulator *process* over a
-real pseudo-terminal (:func:`mirobot_async.testing.start_emulator`).
+real pseudo-terminal (:func:`mirobot_async.virtual.start_emulator`).
 ``--item10`` runs item 10 alone (at real time it takes a few minutes).
 """
 
@@ -43,7 +43,7 @@ from sansio import item_sansio
 
 from mirobot_async import LineResult, Mirobot, StreamResult
 from mirobot_async._client.transport import Implementation
-from mirobot_async.testing import EmulatorProcess, start_emulator
+from mirobot_async.virtual import EmulatorProcess, start_emulator
 
 WIRE_BYTES_PER_S = 115200 / 10  # 8N1: 10 bits per byte
 

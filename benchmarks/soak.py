@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 import psutil
 
 from mirobot_async import LineResult, Mirobot
-from mirobot_async.testing import start_emulator
+from mirobot_async.virtual import start_emulator
 
 PWM_VALUES = 1001  # M3 S0 .. S1000
 WARMUP_LINES = 5_000

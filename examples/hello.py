@@ -11,7 +11,7 @@ import contextlib
 import sys
 
 from mirobot_async import Mirobot
-from mirobot_async.testing import start_emulator
+from mirobot_async.virtual import start_emulator
 
 
 async def main(port: str | None) -> None:

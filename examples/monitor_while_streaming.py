@@ -13,7 +13,7 @@ import sys
 from pathlib import Path
 
 from mirobot_async import LineResult, Mirobot
-from mirobot_async.testing import start_emulator
+from mirobot_async.virtual import start_emulator
 
 HERE = Path(__file__).resolve().parent
 

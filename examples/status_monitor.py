@@ -16,7 +16,7 @@ import contextlib
 import sys
 
 from mirobot_async import Mirobot
-from mirobot_async.testing import start_emulator
+from mirobot_async.virtual import start_emulator
 
 
 async def something_to_watch(arm: Mirobot) -> None:

@@ -58,7 +58,7 @@ if TYPE_CHECKING:
     from mirobot_async._core.replies import Refusal, State, StatusReport, parse_status
     from mirobot_async._core.validation import InvalidLineError
     from mirobot_async._safety.envelope import Envelope
-    from mirobot_async.testing import start_emulator
+    from mirobot_async.virtual import start_emulator
 
 __all__ = [
     "ClientStats",
@@ -123,7 +123,7 @@ _LAZY: dict[str, str] = {
     "State": "mirobot_async._core.replies",
     "StatusReport": "mirobot_async._core.replies",
     "parse_status": "mirobot_async._core.replies",
-    "start_emulator": "mirobot_async.testing",
+    "start_emulator": "mirobot_async.virtual",
     "Envelope": "mirobot_async._safety.envelope",
     "InvalidLineError": "mirobot_async._core.validation",
 }

@@ -191,7 +191,7 @@ async def open_robot(
             await arm.close()
         return
 
-    from mirobot_async.testing import start_emulator
+    from mirobot_async.virtual import start_emulator
 
     firmware = firmware_of(args)
     scale = DEFAULT_TIME_SCALE if args.time_scale is None else float(args.time_scale)

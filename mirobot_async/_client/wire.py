@@ -95,7 +95,7 @@ class WireTap(Protocol):
 
 
 IN_PROCESS_SCHEME = "virtual://"
-"""URLs of virtual arms served inside this process (:mod:`mirobot_async.testing._virtual`)."""
+"""URLs of virtual arms served inside this process (:mod:`mirobot_async.virtual`)."""
 _in_process: dict[str, TransportOpener] = {}
 
 

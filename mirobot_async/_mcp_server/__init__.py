@@ -41,7 +41,7 @@ async def _twin(args: argparse.Namespace, arm: Mirobot) -> AsyncIterator[Mirobot
         yield None
         return
     from mirobot_async._client.client import Mirobot
-    from mirobot_async.testing import start_emulator
+    from mirobot_async.virtual import start_emulator
 
     firmware = args.firmware or arm.firmware or await arm.detect_firmware()
     note(f"--dry-run: every motion runs first on a virtual twin (firmware {firmware})")

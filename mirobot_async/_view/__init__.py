@@ -84,7 +84,7 @@ async def _open_arm(args: argparse.Namespace, envelope: Envelope | None) -> Asyn
             yield arm
         return
     from mirobot_async._cli.session import DEFAULT_TIME_SCALE
-    from mirobot_async.testing import start_emulator
+    from mirobot_async.virtual import start_emulator
 
     scale = DEFAULT_TIME_SCALE if args.time_scale is None else float(args.time_scale)
     note(

@@ -30,8 +30,7 @@ from concurrent.futures import Executor, Future, ThreadPoolExecutor
 from typing import TypeVar
 
 from mirobot_async.errors import MirobotTimeoutError
-from mirobot_async.testing import EmulatorProcess
-from mirobot_async.testing._control import (
+from mirobot_async.virtual._control import (
     CONTROL_TIMEOUT,
     DEFAULT_FIRMWARE,
     DEFAULT_TIME_SCALE,
@@ -42,7 +41,8 @@ from mirobot_async.testing._control import (
     default_link,
     emulator_args,
 )
-from mirobot_async.testing._sync import SyncEmulatorProcess
+from mirobot_async.virtual._process import EmulatorProcess
+from mirobot_async.virtual._sync import SyncEmulatorProcess
 
 __all__ = ["DEFAULT_MAX_IDLE", "BorrowedEmulatorProcess", "EmulatorPool"]
 

@@ -31,6 +31,7 @@ LAYERS = {  # a directory -> the mirobot_async modules and packages it may impor
     "_safety": {"errors", "kinematics", "_core", "_safety"},
     "_client": {"errors", "kinematics", "_core", "_safety", "_client"},
     "_tapes": {"errors", "_tapes"},  # the client only under TYPE_CHECKING or when recording
+    "virtual": {"errors", "_client", "virtual"},  # the virtual arm: a product, not a test tool
 }
 IMPURE_MODULES = {
     "asyncio",
@@ -127,6 +128,7 @@ def test_every_module_is_in_a_layer_or_public() -> None:
         "bus/__init__.py",
         "sync/__init__.py",
         "testing/__init__.py",
+        "virtual/__init__.py",
     }, public
 
 
@@ -197,11 +199,7 @@ def _import_circles() -> list[list[str]]:
     return sorted(circles)
 
 
-KNOWN_CIRCLES = [
-    # The emulator pool builds on EmulatorProcess, which the plugin module defines; it goes
-    # when the virtual arm and its processes get a home of their own (not the plugin's).
-    ["mirobot_async.testing", "mirobot_async.testing._pool"],
-]
+KNOWN_CIRCLES: list[list[str]] = []
 
 
 def test_no_module_imports_itself_through_a_circle() -> None:
@@ -214,6 +212,18 @@ def test_the_circle_check_sees_deferred_and_type_checking_imports() -> None:
     # the guard imports Envelope under TYPE_CHECKING and the prediction inside its methods
     imported = _imported_modules("mirobot_async._client.guard", PACKAGE / "_client" / "guard.py")
     assert {"mirobot_async._safety.prediction", "mirobot_async._safety.envelope"} <= imported
+
+
+def test_nothing_but_the_plugin_imports_the_plugin() -> None:
+    """The virtual arm is a product (the CLI, the view, the MCP server run it): no module
+    outside ``testing/`` imports ``mirobot_async.testing``, not even inside a function."""
+    importers = {
+        path.relative_to(PACKAGE).as_posix()
+        for path in PACKAGE.rglob("*.py")
+        if path.parent.name != "testing"
+        and any(m.startswith("mirobot_async.testing") for m in _imports(path))
+    }
+    assert not importers
 
 
 EMULATOR_PURE = sorted(

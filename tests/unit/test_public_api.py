@@ -63,6 +63,7 @@ PUBLIC_MODULES = {
     "mirobot_async.bus": None,
     "mirobot_async.sync": None,
     "mirobot_async.testing": None,
+    "mirobot_async.virtual": None,
 }
 """The public modules; the root's names pinned here, the others' by their ``__all__`` below."""
 
@@ -85,6 +86,15 @@ PINNED_ALL = {
         "emulator_command",
         "run_emulator",
         "session_link",
+        "start_emulator",
+    ],
+    "mirobot_async.virtual": [
+        "EmulatorError",
+        "EmulatorProcess",
+        "InProcessArm",
+        "SyncEmulatorProcess",
+        "emulator_command",
+        "run_emulator",
         "start_emulator",
     ],
 }

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from mirobot_async.errors import MirobotUsageError
-from mirobot_async.testing._control import LINK_ENV, default_link, link_args
+from mirobot_async.virtual._control import LINK_ENV, default_link, link_args
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -6,7 +6,7 @@ import pytest
 
 from mirobot_async.errors import MirobotUsageError
 from mirobot_async.testing import emulator_command
-from mirobot_async.testing._control import LINK_ENV, default_link, link_args
+from mirobot_async.virtual._control import LINK_ENV, default_link, link_args
 
 
 def test_listen_values(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -35,7 +35,7 @@ __all__ = [
     "renewed_url",
 ]
 
-_log = logging.getLogger("mirobot_async.testing")
+_log = logging.getLogger("mirobot_async.virtual")
 
 DEFAULT_FIRMWARE = "2021"
 DEFAULT_TIME_SCALE = 0.0

@@ -1,9 +1,9 @@
-"""A virtual Mirobot inside the test's own process: the pure firmware model, no pty, no subprocess.
+"""A virtual Mirobot inside this process: the pure firmware model, no pty, no subprocess.
 
 ::
 
     from mirobot_async import Mirobot
-    from mirobot_async.testing import start_emulator
+    from mirobot_async.virtual import start_emulator
 
     async with start_emulator(firmware="classic", time_scale=0, in_process=True) as url:
         async with Mirobot.connect(url) as arm:         # url is "virtual://1"
@@ -17,7 +17,7 @@ do. Bytes the client writes reach the firmware at once; its output is delivered 
 of the event loop, and a timer of the loop runs the firmware's clock to its next change by itself
 (motion ends, homing, reports). Time scale 0 makes every motion complete at once, as with the
 process. What it does not model: the serial line's pacing (``--baud``, USB latency) and the
-process's fault injection and control channel (use :class:`~mirobot_async.testing.EmulatorProcess`
+process's fault injection and control channel (use :class:`~mirobot_async.virtual.EmulatorProcess`
 for those, and to prove the transport itself).
 
 The arm keeps its state between connections, like a powered arm whose cable is plugged again;
@@ -95,9 +95,10 @@ class InProcessArm:
             time_scale < 0
         ):
             raise MirobotUsageError(f"time_scale={time_scale!r} must be a number >= 0")
-        # Imported here: the firmware model pulls in numpy (kinematics), and the plugin module
-        # that offers this class must stay cheap to import. (importlib keeps the type checker
-        # to the protocols above: the client does not depend on the emulator's package.)
+        # Imported here: the firmware model pulls in numpy (kinematics), and the modules that
+        # offer this class (mirobot_async.virtual, the pytest plugin) stay cheap to import.
+        # (importlib keeps the type checker to the protocols above: the client does not depend
+        # on the emulator's package.)
         model = importlib.import_module("mirobot_emulator.firmware")
         clock = importlib.import_module("mirobot_emulator.server.clock")
 

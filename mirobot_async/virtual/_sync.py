@@ -12,7 +12,7 @@ import threading
 from collections.abc import Iterator, Sequence
 
 from mirobot_async.errors import MirobotTimeoutError
-from mirobot_async.testing._control import (
+from mirobot_async.virtual._control import (
     CONTROL_TIMEOUT,
     DEFAULT_FIRMWARE,
     DEFAULT_TIME_SCALE,
@@ -30,7 +30,7 @@ from mirobot_async.testing._control import (
 
 __all__ = ["SyncEmulatorProcess", "run_emulator"]
 
-_log = logging.getLogger("mirobot_async.testing")
+_log = logging.getLogger("mirobot_async.virtual")
 
 
 class SyncEmulatorProcess:
