@@ -118,8 +118,10 @@ async def cmd_doctor(args: argparse.Namespace) -> int:
     differences = transcript_differences(report)
     print(f"firmware family: {detected or 'unknown'} ({tape.header.get('family_evidence', '-')})")
     print(f"tape: {path} ({len(tape.events)} events)")
-    if report.instants != "exact":
-        print("instants compared loosely (USB latency, or the virtual arm's clock steps)")
+    if report.instants == "loose":
+        print("instants compared loosely (a recorded tape's carry the USB latency)")
+    elif report.instants == "none":
+        print("instants not compared (a virtual arm faster than real time)")
     if not differences:
         print(f"no difference from the emulator's {against} profile")
         return EXIT_OK

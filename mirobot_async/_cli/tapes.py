@@ -33,7 +33,7 @@ def _describe(report: ReplayReport, stop_at: float | None) -> str:
     loose = {
         "exact": "",
         "loose": "; instants compared loosely (a recorded tape)",
-        "none": "; instants not compared (a virtual arm at time scale 0)",
+        "none": "; instants not compared (a virtual arm not at time scale 1)",
     }[report.instants]
     if report.equal:
         return f"equal: {report.tape} [{report.firmware}] {counts}{scope}{loose}"
