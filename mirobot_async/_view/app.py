@@ -24,6 +24,7 @@ import viser
 
 from mirobot_async._core import gcode
 from mirobot_async._core.replies import State, StatusReport
+from mirobot_async._view.holdjog import HoldJog
 from mirobot_async._view.panel import CARTESIAN_AXES, ControlPanel
 from mirobot_async._view.preview import ProgramPreview
 from mirobot_async._view.scene import ArmScene
@@ -102,6 +103,10 @@ class ViewController:
         self.scene = ArmScene(server, firmware)
         self.panel = ControlPanel(server, self, program=None if program is None else program.name)
         self.table = TeachTable()
+        self.holdjog = HoldJog(arm, self.panel.say)
+        server.on_client_disconnect(
+            lambda _: self.holdjog.release("page closed")
+        )  # a page gone: stop
         self.last: StatusReport | None = None
         self.reports = 0
         self.current: str | None = None
@@ -169,14 +174,23 @@ class ViewController:
                     self._programs -= 1
 
     def _submit(
-        self, name: str, action: Callable[[], Awaitable[object]], *, program: bool = False
+        self,
+        name: str,
+        action: Callable[[], Awaitable[object]],
+        *,
+        program: bool = False,
+        refused: Callable[[], None] | None = None,
     ) -> None:
         """Queue ``action`` on the client's loop (from viser's threads). Refused, said on the
         page, when the link is lost, when a program (``program=True``) is queued or running
         (a jog would wait behind it and run after it: Hold, Resume and Stop are not queued),
-        or when :data:`_QUEUE_LIMIT` commands wait."""
+        or when :data:`_QUEUE_LIMIT` commands wait (then ``refused()`` is called)."""
 
         def put() -> None:
+            if refused is not None and (
+                self.link_lost.is_set() or self._programs or self._queue.qsize() >= _QUEUE_LIMIT
+            ):
+                refused()
             if self.link_lost.is_set():
                 self.panel.refuse(f"{name}: refused, the link to the arm is lost")
             elif self._programs:
@@ -216,6 +230,18 @@ class ViewController:
             f"{name} {'+' if sign > 0 else '-'}{abs(step):g}",
             lambda: self.arm.move_pose(*steps, relative=True, linear=True, speed=speed),
         )
+
+    def hold_jog(self, joint: int, sign: int) -> None:
+        """A keep-alive of a held jog button; the first one queues the jog."""
+        if self.holdjog.press(joint, sign):
+            self._submit(
+                f"J{joint} {'+' if sign > 0 else '-'} (hold)",
+                lambda: self.holdjog.run(joint, sign),
+                refused=self.holdjog.refused,
+            )
+
+    def hold_release(self) -> None:
+        self.holdjog.release()
 
     def command(self, name: str) -> None:
         arm = self.arm

@@ -13,6 +13,8 @@ from typing import Final, Protocol
 import viser
 from viser._gui_handles import GuiProgressBarHandle
 
+from mirobot_async._view.holdjog import KEEPALIVE_HZ, SPEED
+
 __all__ = ["CARTESIAN_AXES", "Actions", "ControlPanel"]
 
 CARTESIAN_AXES: Final = ("X", "Y", "Z", "RX", "RY", "RZ")
@@ -23,6 +25,8 @@ class Actions(Protocol):
 
     def jog_joint(self, joint: int, sign: int) -> None: ...
     def jog_cartesian(self, axis: int, sign: int) -> None: ...
+    def hold_jog(self, joint: int, sign: int) -> None: ...
+    def hold_release(self) -> None: ...
     def command(self, name: str) -> None: ...
     def realtime(self, name: str) -> None: ...
     def teach(self, name: str) -> None: ...
@@ -63,6 +67,13 @@ class ControlPanel:
             for j in range(1, 7):
                 group = gui.add_button_group(f"J{j}", (f"J{j} -", f"J{j} +"))
                 group.on_click(_pick(_jog(actions.jog_joint, j)))
+        with gui.add_folder("Hold to jog"):
+            gui.add_markdown(f"Moves while held, at {SPEED:g} deg/min; stops on release.")
+            for j in range(1, 7):
+                for sign, word in ((-1, "-"), (1, "+")):
+                    button = gui.add_button(f"J{j} {word} (hold)")
+                    button.on_hold(_held(actions.hold_jog, j, sign), callback_hz=KEEPALIVE_HZ)
+                    button.on_click(lambda _: actions.hold_release())
         with gui.add_folder("Jog Cartesian"):
             self.move_step = gui.add_number("Step (mm)", 10.0, min=0.1, max=100.0, step=0.1)
             self.turn_step = gui.add_number("Turn step (deg)", 5.0, min=0.1, max=90.0, step=0.1)
@@ -119,3 +130,14 @@ def _jog(action: Callable[[int, int], None], which: int) -> Callable[[str], None
         action(which, -1 if option.endswith("-") else 1)
 
     return handler
+
+
+def _held(
+    action: Callable[[int, int], None], joint: int, sign: int
+) -> Callable[[viser.GuiEvent[viser.GuiButtonHandle]], None]:
+    """A hold button's keep-alive: ``action(joint, sign)``."""
+
+    def callback(_: viser.GuiEvent[viser.GuiButtonHandle]) -> None:
+        action(joint, sign)
+
+    return callback
