@@ -243,3 +243,42 @@ def test_run_option_streams_the_program_once_the_page_is_open(
     page.expect_text("State: Idle")
     page.shot("ran")
     _close(page, view)
+
+
+def test_replay_a_trace_scrubs_pose_path_and_events(
+    start_view: Any, open_page: Any, tmp_path: Path
+) -> None:
+    program = tmp_path / "pick.gcode"
+    program.write_text(
+        "M21 G90 G21 G1 F2000\nX30 Y20 Z0 A0 B0 C0\nM3 S1000\nG4 P0.3\n"
+        "X-30 Y30 Z-10 A0 B0 C0\nM3 S0\nX0 Y0 Z0 A0 B0 C0\n"
+    )
+    ran = mirobot("run", str(program), "--time-scale", "5", "--trace", "run.csv", cwd=tmp_path)
+    assert ran.returncode == 0, ran.stderr
+    view = start_view("--replay", "run.csv")
+    page = open_page(view.url)
+    page.expect_text("Replay of run.csv")
+    page.expect_text("At 0.00 s")
+    start = page.wait_for_scene()
+    page.shot("replay-start")
+    page.click("End")
+    page.expect_text(re.compile(r"Events so far \(2\)"))
+    page.expect_text("pump off")
+    page.click("Prev event")
+    page.expect_text(re.compile(r"Events so far \(1\)"))
+    page.expect_text("suction on")
+    page.click("Next event")
+    page.expect_text(re.compile(r"Events so far \(2\)"))
+    page.click("Start")
+    page.expect_text("At 0.00 s")
+    page.click("Play")  # the slider runs by itself, at real time
+    page.expect_text(re.compile(r"At [1-9]\.\d\d s"))
+    page.click("Pause")
+    wait_for(
+        lambda: (np.abs(page.canvas() - start).max(axis=2) > 60).sum() > 300 or None,
+        60,
+        "the arm and its path to be drawn elsewhere than at the start",
+        every=0.5,
+    )
+    page.shot("replay-scrubbed")
+    _close(page, view)
