@@ -30,14 +30,17 @@ __all__ = [
     "SLOW_FIRST_SPEED",
     "Dwell",
     "Output",
+    "ProgramTable",
     "Row",
     "Speed",
     "TeachProgram",
     "describe_row",
     "parse_program",
+    "parse_row",
     "play_lines",
     "program_lines",
     "row_line",
+    "table_markdown",
 ]
 
 OutputName = Literal["pump on", "pump blow", "pump off", "gripper open", "gripper close"]
@@ -213,3 +216,51 @@ def table_markdown(rows: Sequence[Row], selected: int | None = None) -> str:
         mark = f"**{n}**" if n == selected else str(n)
         out.append(f"| {mark} | {describe_row(row)} |")
     return "\n".join(out)
+
+
+class ProgramTable:
+    """The pendant's rows (1-based numbers): add, insert, replace (edit), move, delete."""
+
+    def __init__(self, rows: Iterable[Row] = ()) -> None:
+        self.rows: list[Row] = list(rows)
+
+    def _index(self, number: int) -> int:
+        if not 1 <= number <= len(self.rows):
+            raise MirobotUsageError(f"there is no row {number} (the table has {len(self.rows)})")
+        return number - 1
+
+    def add(self, row: Row) -> int:
+        """Append; returns the row's number."""
+        self.rows.append(row)
+        return len(self.rows)
+
+    def get(self, number: int) -> Row:
+        return self.rows[self._index(number)]
+
+    def replace(self, number: int, row: Row) -> None:
+        self.rows[self._index(number)] = row
+
+    def delete(self, number: int) -> None:
+        del self.rows[self._index(number)]
+
+    def move(self, number: int, offset: int) -> int:
+        """Move row ``number`` up (-1) or down (+1); returns its new number."""
+        i = self._index(number)
+        j = min(max(i + offset, 0), len(self.rows) - 1)
+        self.rows.insert(j, self.rows.pop(i))
+        return j + 1
+
+    def points(self) -> list[tuple[int, TaughtPoint]]:
+        """(row number, point) of each point row."""
+        return [(n, r) for n, r in enumerate(self.rows, start=1) if isinstance(r, TaughtPoint)]
+
+    def program(self, speed: float) -> TeachProgram:
+        return TeachProgram(tuple(self.rows), speed)
+
+
+def parse_row(text: str, *, firmware: str = "2021") -> Row:
+    """One row from its G-code line (the page's row editor)."""
+    program = parse_program(["M21 G90 G21 G1 F2000", text], firmware=firmware, name="row")
+    if len(program.rows) != 1:
+        raise MirobotUsageError(f"row {text!r}: one G-code line of the table's kinds")
+    return program.rows[0]

@@ -282,3 +282,79 @@ def test_replay_a_trace_scrubs_pose_path_and_events(
     )
     page.shot("replay-scrubbed")
     _close(page, view)
+
+
+def _final(text: str) -> tuple[tuple[float, ...], str]:
+    """The joints and the pwm line of the status ``mirobot run`` prints at the end."""
+    joints = re.search(r"^joints\s+(.*)$", text, re.M)
+    pwm = re.search(r"^pwm\s+(.*)$", text, re.M)
+    assert joints and pwm, text
+    return tuple(float(v) for v in joints[1].split()[:6]), pwm[1].strip()
+
+
+def test_teach_a_program_with_actions_play_export_check_and_run_the_same(
+    start_view: Any, open_page: Any, tmp_path: Path
+) -> None:
+    view = start_view("--time-scale", "100")
+    page = open_page(view.url)
+    page.expect_text("State: Idle")
+    page.click("J1 +")
+    page.expect_joint(1, 5.0)
+    page.click("Record point")
+    page.expect_text("Recorded point 1")
+    page.click("+ pump on")
+    page.click("+ dwell")
+    page.expect_text("dwell 1 s")
+    page.click("J2 +")
+    page.expect_joint(2, 5.0)
+    page.click("Record point")
+    page.expect_text("Recorded point 4")
+    page.click("+ speed")
+    page.expect_text("speed 1000 deg/min")
+    page.click("J3 -")
+    page.expect_joint(3, -5.0)
+    page.click("Record point")
+    page.expect_text("Recorded point 6")
+    page.click("+ pump blow")
+    page.click("+ gripper open")  # added, moved up, back down, deleted: 7 rows are left
+    page.expect_text("gripper open")
+    page.click("Up")
+    page.expect_text(re.compile(r"7\s*gripper open\s*8\s*pump blow"))  # the table's cells
+    page.click("Down")
+    page.expect_text(re.compile(r"7\s*pump blow\s*8\s*gripper open"))
+    page.click("Delete")
+    page.expect_text(re.compile(r"7\s*pump blow\s*Row #"))
+    page.page.get_by_label("Loops").fill("2")
+    page.click("J1 +")  # away from the first point: Play goes there slowly first
+    page.expect_joint(1, 10.0)
+    page.shot("teach-table")
+    page.click("Play")
+    page.expect_text("Played 7 rows x 2")
+    page.expect_text("pump blowing")
+    page.expect_joint(1, 5.0)
+    page.expect_joint(3, -5.0)
+    page.click("Export")
+    page.expect_text("Wrote taught.gcode (3 points, 4 actions)")
+    page.click("Delete")
+    page.click("Import")
+    page.expect_text("Imported taught.gcode: 7 rows")
+    _close(page, view)
+    program = tmp_path / "taught.gcode"
+    lines = program.read_text().splitlines()
+    assert lines[1:] == [
+        "M21 G90 G21 G1 F2000",
+        *lines[2:3],
+        "M3 S1000",
+        "G4 P1",
+        *lines[5:6],
+        "F1000",
+        *lines[7:8],
+        "M3 S500",
+    ]
+    checked = mirobot("check", str(program), cwd=tmp_path)
+    assert checked.returncode == 0, checked.stdout + checked.stderr
+    ran = mirobot("run", str(program), "--time-scale", "100", cwd=tmp_path)
+    assert ran.returncode == 0, ran.stderr
+    joints, pwm = _final(ran.stdout)
+    assert joints == pytest.approx((5, 5, -5, 0, 0, 0), abs=0.02)  # where Play ended
+    assert pwm.startswith("pump 500"), pwm  # blowing, as Play left it

@@ -13,12 +13,15 @@ from mirobot_async._view.program import (
     OUTPUTS,
     Dwell,
     Output,
+    ProgramTable,
     Row,
     Speed,
     TeachProgram,
     parse_program,
+    parse_row,
     play_lines,
     program_lines,
+    row_line,
 )
 from mirobot_async._view.teach import TaughtPoint, modes_line
 from mirobot_async.errors import MirobotUsageError
@@ -108,3 +111,19 @@ def test_no_points_is_refused() -> None:
         program_lines(TeachProgram((Output("pump on"),)))
     with pytest.raises(MirobotUsageError, match="loops"):
         play_lines(TeachProgram((Output("pump on"),)), loops=0)
+
+
+def test_the_table_edits_rows_and_a_row_edits_as_its_line() -> None:
+    point = TaughtPoint((5.0, 0.0, -5.0, 0.0, 0.0, 0.0), None, forward((5, 0, -5, 0, 0, 0), DH))
+    table = ProgramTable([point, Output("pump on"), Dwell(1.0)])
+    assert table.move(3, -1) == 2
+    assert table.rows == [point, Dwell(1.0), Output("pump on")]
+    table.replace(2, parse_row("G4 P2.5"))
+    table.delete(3)
+    assert table.rows == [point, Dwell(2.5)]
+    assert table.points() == [(1, point)]
+    assert parse_row(row_line(point)) == point
+    with pytest.raises(MirobotUsageError, match="no row 9"):
+        table.get(9)
+    with pytest.raises(MirobotUsageError, match="not a teach-table line"):
+        parse_row("M20 G1 X1")
