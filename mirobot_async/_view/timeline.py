@@ -161,7 +161,8 @@ def from_tape(tape: Tape, source: str = "tape") -> Timeline:
             if sample.valve != before.valve:
                 events.append(Event(t, "output", f"valve {sample.valve}"))
             if sample.state in ("Alarm", "Hold") and sample.state != before.state:
-                events.append(Event(t, "state", sample.state.lower()))
+                kind = "alarm" if sample.state == "Alarm" else "state"  # as from a trace
+                events.append(Event(t, kind, sample.state.lower()))
         samples.append(sample)
     if not samples:
         raise MirobotUsageError(f"{source}: no status lines in the tape")

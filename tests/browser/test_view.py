@@ -358,3 +358,17 @@ def test_teach_a_program_with_actions_play_export_check_and_run_the_same(
     joints, pwm = _final(ran.stdout)
     assert joints == pytest.approx((5, 5, -5, 0, 0, 0), abs=0.02)  # where Play ended
     assert pwm.startswith("pump 500"), pwm  # blowing, as Play left it
+
+
+def test_replay_a_recorded_tape_shows_its_alarm(start_view: Any, open_page: Any) -> None:
+    tape = Path(__file__).parents[1] / "tapes" / "firmware" / "integration-oracle-link.jsonl.gz"
+    view = start_view("--replay", str(tape))
+    page = open_page(view.url)
+    page.expect_text("Replay of integration-oracle-link.jsonl.gz")
+    page.wait_for_scene()
+    page.click("Next event")
+    page.expect_text(re.compile(r"alarm\s*: Abort during cycle"))
+    page.click("End")
+    page.expect_text(re.compile(r"Events so far \(2\)"))
+    page.shot("replay-tape")
+    _close(page, view)
