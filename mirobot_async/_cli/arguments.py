@@ -436,6 +436,12 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="DIR",
         help="the folder the pendant's Export writes into (default: the current folder)",
     )
+    view.add_argument(
+        "--replay",
+        metavar="FILE",
+        help="scrub a run that happened, offline (no arm): a trace CSV (run --trace) or a tape "
+        "(.jsonl[.gz]) with a time slider: the pose, the path so far and the events",
+    )
     view.add_argument("--no-browser", action="store_true", help="do not open a browser")
     add_envelope_option(view)  # drawn as a box; every jog and streamed line is checked
     urdf = add(

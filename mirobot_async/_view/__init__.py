@@ -110,6 +110,10 @@ async def serve_view(args: argparse.Namespace) -> int:
         raise CliError(
             "mirobot view needs the view extra: pip install 'mirobot-async[view]'"
         ) from None
+    if getattr(args, "replay", None) is not None:  # offline: no arm
+        from mirobot_async._view.replay import serve_replay
+
+        return await serve_replay(args)
     from mirobot_async._view.app import ProgramSource, ViewController
     from mirobot_async._view.gate import Gate, guarded_serve, is_loopback
     from mirobot_async._view.preview import preview_program

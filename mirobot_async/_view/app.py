@@ -28,14 +28,7 @@ from mirobot_async._view.holdjog import HoldJog
 from mirobot_async._view.panel import CARTESIAN_AXES, ControlPanel
 from mirobot_async._view.preview import ProgramPreview
 from mirobot_async._view.scene import ArmScene
-from mirobot_async._view.teach import (
-    TaughtPoint,
-    TeachTable,
-    export_name,
-    export_program,
-    modes_line,
-    point_line,
-)
+from mirobot_async._view.teach_ui import PLAY, Teacher
 from mirobot_async.errors import MirobotConnectionError, MirobotError, MirobotTimeoutError
 
 if TYPE_CHECKING:
@@ -102,7 +95,7 @@ class ViewController:
         self.loop = asyncio.get_running_loop()
         self.scene = ArmScene(server, firmware)
         self.panel = ControlPanel(server, self, program=None if program is None else program.name)
-        self.table = TeachTable()
+        self.teacher = Teacher(server, self.panel.teach, firmware=firmware, export_dir=export_dir)
         self.holdjog = HoldJog(arm, self.panel.say)
         server.on_client_disconnect(
             lambda _: self.holdjog.release("page closed")
@@ -120,7 +113,6 @@ class ViewController:
         if preview is not None and program is not None:
             self.scene.show_preview(preview)
             self.panel.program_text.content = describe_preview(program, preview)  # type: ignore[union-attr]
-        self.panel.table.content = self.table.markdown()
 
     # ------------------------------------------------------------------------------------
     # Tasks: status following and the command worker
@@ -283,103 +275,7 @@ class ViewController:
     def teach(self, name: str) -> None:
         """The teach table's buttons (table changes happen on the loop, in order)."""
 
-        async def act() -> str | None:
-            return await self._teach(name)
-
-        self._submit(name, act, program=name == "Run all points")
-
-    # ------------------------------------------------------------------------------------
-    # Teach pendant
-
-    def _here(self) -> TaughtPoint:
-        report = self.last
-        if report is None:
-            raise _ViewError("no status yet")
-        return TaughtPoint(report.joints, report.rail, report.pose)
-
-    def _selected(self) -> int:
-        return int(self.panel.point.value)
-
-    async def _teach(self, name: str) -> str | None:
-        table, panel = self.table, self.panel
-        said = None
-        if name == "Record point":
-            report = await self.arm.status(fresh=True)
-            self.last = report
-            number = table.add(TaughtPoint(report.joints, report.rail, report.pose))
-            _set_value(panel.point, number)
-            said = f"Recorded point {number}"
-        elif name == "Go to":
-            await self._run_points([table.get(self._selected())])
-        elif name == "Run all points":
-            await self._run_points(list(table.points))
-        elif name in ("Up", "Down"):
-            _set_value(panel.point, table.move(self._selected(), -1 if name == "Up" else 1))
-        elif name == "Delete":
-            table.delete(self._selected())
-        elif name == "Set here":
-            report = await self.arm.status(fresh=True)
-            table.replace(self._selected(), TaughtPoint(report.joints, report.rail, report.pose))
-        elif name == "Apply joints":
-            table.replace(self._selected(), self._edited_point())
-        elif name == "Export":
-            said = self._export()
-        if table.points and 1 <= self._selected() <= len(table.points):
-            point = table.get(self._selected())
-            _set_value(panel.point_joints, " ".join(f"{v:.3f}" for v in point.joints))
-        panel.table.content = table.markdown(self._selected())
-        return said
-
-    def _edited_point(self) -> TaughtPoint:
-        from mirobot_async._urdf import dh_of
-        from mirobot_async.kinematics import forward
-
-        text = self.panel.point_joints.value.replace(",", " ").split()
-        try:
-            values = [float(v) for v in text]
-        except ValueError:
-            raise _ViewError(
-                f"point joints {self.panel.point_joints.value!r}: six numbers"
-            ) from None
-        if len(values) != 6:
-            raise _ViewError(f"point joints: six numbers J1..J6 (got {len(values)})")
-        joints = (values[0], values[1], values[2], values[3], values[4], values[5])
-        old = self.table.get(self._selected())
-        point = TaughtPoint(joints, old.rail, forward(joints, dh_of(self.firmware)))
-        point_line(point, firmware=self.firmware)  # the joint ranges, before it is stored
-        return point
-
-    async def _run_points(self, points: list[TaughtPoint]) -> None:
-        if not points:
-            raise _ViewError("no points to run")
-        speed = float(self.panel.teach_speed.value)
-        lines = [modes_line(speed)] + [point_line(p, firmware=self.firmware) for p in points]
-        result = await self.arm.stream(lines, wait=True)
-        if result.errors:
-            raise _ViewError(f"stopped at point {result.errors[0].number - 1}")
-
-    def _export(self) -> str:
-        """Write the program into the export folder fixed at start, under the name the page
-        gives (a file name, no folder); an existing file only when the page's Overwrite box
-        is ticked (it is cleared again after each export)."""
-        lines = export_program(
-            self.table.points, speed=float(self.panel.teach_speed.value), firmware=self.firmware
-        )
-        name = export_name(self.panel.export_path.value)
-        overwrite = bool(self.panel.overwrite.value)
-        path = self.export_dir / name
-        try:
-            write_export(path, "\n".join(lines) + "\n", overwrite=overwrite)
-        except FileExistsError:
-            raise _ViewError(
-                f"{name} exists in {self.export_dir}: tick Overwrite to replace it, or give "
-                "another name"
-            ) from None
-        finally:
-            _set_value(self.panel.overwrite, False)
-        shown = "\n".join(lines)
-        self.panel.exported.content = f"```\n{shown}\n```"
-        return f"Wrote {name} ({len(self.table.points)} points) in {self.export_dir}"
+        self._submit(name, lambda: self.teacher.act(name, self.arm), program=name == PLAY)
 
     # ------------------------------------------------------------------------------------
     # The program

@@ -14,6 +14,7 @@ import viser
 from viser._gui_handles import GuiProgressBarHandle
 
 from mirobot_async._view.holdjog import KEEPALIVE_HZ, SPEED
+from mirobot_async._view.teach_ui import TeachPanel
 
 __all__ = ["CARTESIAN_AXES", "Actions", "ControlPanel"]
 
@@ -82,25 +83,7 @@ class ControlPanel:
                 group = gui.add_button_group(axis, (f"{axis} -", f"{axis} +"))
                 group.on_click(_pick(_jog(actions.jog_cartesian, i)))
         with gui.add_folder("Teach"):
-            record = gui.add_button("Record point", color="blue")
-            record.on_click(lambda _: actions.teach("Record point"))
-            self.table = gui.add_markdown("")
-            self.point = gui.add_number("Point #", 1, min=1, max=999, step=1)
-            edit = gui.add_button_group("Point", ("Go to", "Up", "Down", "Delete", "Set here"))
-            edit.on_click(_pick(lambda v: actions.teach(v)))
-            self.point_joints = gui.add_text("Point joints", "")
-            apply = gui.add_button("Apply joints")
-            apply.on_click(lambda _: actions.teach("Apply joints"))
-            self.teach_speed = gui.add_number(
-                "Program speed (deg/min)", 2000.0, min=10.0, max=3000.0
-            )
-            run_all = gui.add_button("Run all points")
-            run_all.on_click(lambda _: actions.teach("Run all points"))
-            self.export_path = gui.add_text("Export to", "taught.gcode")  # in the export folder
-            self.overwrite = gui.add_checkbox("Overwrite", False)
-            export = gui.add_button("Export")
-            export.on_click(lambda _: actions.teach("Export"))
-            self.exported = gui.add_markdown("")
+            self.teach = TeachPanel(gui, actions.teach)
 
     def say(self, text: str) -> None:
         """The panel's message line (errors, refusals, what happened)."""

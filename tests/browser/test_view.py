@@ -243,3 +243,132 @@ def test_run_option_streams_the_program_once_the_page_is_open(
     page.expect_text("State: Idle")
     page.shot("ran")
     _close(page, view)
+
+
+def test_replay_a_trace_scrubs_pose_path_and_events(
+    start_view: Any, open_page: Any, tmp_path: Path
+) -> None:
+    program = tmp_path / "pick.gcode"
+    program.write_text(
+        "M21 G90 G21 G1 F2000\nX30 Y20 Z0 A0 B0 C0\nM3 S1000\nG4 P0.3\n"
+        "X-30 Y30 Z-10 A0 B0 C0\nM3 S0\nX0 Y0 Z0 A0 B0 C0\n"
+    )
+    ran = mirobot("run", str(program), "--time-scale", "5", "--trace", "run.csv", cwd=tmp_path)
+    assert ran.returncode == 0, ran.stderr
+    view = start_view("--replay", "run.csv")
+    page = open_page(view.url)
+    page.expect_text("Replay of run.csv")
+    page.expect_text("At 0.00 s")
+    start = page.wait_for_scene()
+    page.shot("replay-start")
+    page.click("End")
+    page.expect_text(re.compile(r"Events so far \(2\)"))
+    page.expect_text("pump off")
+    page.click("Prev event")
+    page.expect_text(re.compile(r"Events so far \(1\)"))
+    page.expect_text("suction on")
+    page.click("Next event")
+    page.expect_text(re.compile(r"Events so far \(2\)"))
+    page.click("Start")
+    page.expect_text("At 0.00 s")
+    page.click("Play")  # the slider runs by itself, at real time
+    page.expect_text(re.compile(r"At [1-9]\.\d\d s"))
+    page.click("Pause")
+    wait_for(
+        lambda: (np.abs(page.canvas() - start).max(axis=2) > 60).sum() > 300 or None,
+        60,
+        "the arm and its path to be drawn elsewhere than at the start",
+        every=0.5,
+    )
+    page.shot("replay-scrubbed")
+    _close(page, view)
+
+
+def _final(text: str) -> tuple[tuple[float, ...], str]:
+    """The joints and the pwm line of the status ``mirobot run`` prints at the end."""
+    joints = re.search(r"^joints\s+(.*)$", text, re.M)
+    pwm = re.search(r"^pwm\s+(.*)$", text, re.M)
+    assert joints and pwm, text
+    return tuple(float(v) for v in joints[1].split()[:6]), pwm[1].strip()
+
+
+def test_teach_a_program_with_actions_play_export_check_and_run_the_same(
+    start_view: Any, open_page: Any, tmp_path: Path
+) -> None:
+    view = start_view("--time-scale", "100")
+    page = open_page(view.url)
+    page.expect_text("State: Idle")
+    page.click("J1 +")
+    page.expect_joint(1, 5.0)
+    page.click("Record point")
+    page.expect_text("Recorded point 1")
+    page.click("+ pump on")
+    page.click("+ dwell")
+    page.expect_text("dwell 1 s")
+    page.click("J2 +")
+    page.expect_joint(2, 5.0)
+    page.click("Record point")
+    page.expect_text("Recorded point 4")
+    page.click("+ speed")
+    page.expect_text("speed 1000 deg/min")
+    page.click("J3 -")
+    page.expect_joint(3, -5.0)
+    page.click("Record point")
+    page.expect_text("Recorded point 6")
+    page.click("+ pump blow")
+    page.click("+ gripper open")  # added, moved up, back down, deleted: 7 rows are left
+    page.expect_text("gripper open")
+    page.click("Up")
+    page.expect_text(re.compile(r"7\s*gripper open\s*8\s*pump blow"))  # the table's cells
+    page.click("Down")
+    page.expect_text(re.compile(r"7\s*pump blow\s*8\s*gripper open"))
+    page.click("Delete")
+    page.expect_text(re.compile(r"7\s*pump blow\s*Row #"))
+    page.page.get_by_label("Loops").fill("2")
+    page.click("J1 +")  # away from the first point: Play goes there slowly first
+    page.expect_joint(1, 10.0)
+    page.shot("teach-table")
+    page.click("Play")
+    page.expect_text("Played 7 rows x 2")
+    page.expect_text("pump blowing")
+    page.expect_joint(1, 5.0)
+    page.expect_joint(3, -5.0)
+    page.click("Export")
+    page.expect_text("Wrote taught.gcode (3 points, 4 actions)")
+    page.click("Delete")
+    page.click("Import")
+    page.expect_text("Imported taught.gcode: 7 rows")
+    _close(page, view)
+    program = tmp_path / "taught.gcode"
+    lines = program.read_text().splitlines()
+    assert lines[1:] == [
+        "M21 G90 G21 G1 F2000",
+        *lines[2:3],
+        "M3 S1000",
+        "G4 P1",
+        *lines[5:6],
+        "F1000",
+        *lines[7:8],
+        "M3 S500",
+    ]
+    checked = mirobot("check", str(program), cwd=tmp_path)
+    assert checked.returncode == 0, checked.stdout + checked.stderr
+    ran = mirobot("run", str(program), "--time-scale", "100", cwd=tmp_path)
+    assert ran.returncode == 0, ran.stderr
+    joints, pwm = _final(ran.stdout)
+    assert joints == pytest.approx((5, 5, -5, 0, 0, 0), abs=0.02)  # where Play ended
+    assert pwm.startswith("pump 500"), pwm  # blowing, as Play left it
+
+
+def test_replay_a_recorded_tape_shows_its_alarm(start_view: Any, open_page: Any) -> None:
+    tape = Path(__file__).parents[1] / "tapes" / "firmware" / "integration-oracle-link.jsonl.gz"
+    view = start_view("--replay", str(tape))
+    page = open_page(view.url)
+    page.expect_text("Replay of integration-oracle-link.jsonl.gz")
+    page.wait_for_scene()
+    page.click("Next event")
+    page.expect_text(re.compile(r"alarm\s*: Abort during cycle"))
+    page.click("End")
+    page.expect_text(re.compile(r"Events so far \(2\)"))
+    page.shot("replay-tape")
+    _close(page, view)
