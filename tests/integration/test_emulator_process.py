@@ -50,6 +50,8 @@ def banner_version(profile: str) -> tuple[str, str]:
     if profile == "2024":
         return "WLKATA Robot", "20240820"
     return "Qinnew Robot", "20191228_2" if profile == "classic" else "20210516"
+
+
 LISTEN = ("--listen", "127.0.0.1:0")  # TCP on the loopback, a free port
 TRANSPORTS = {"pty": (), "tcp": LISTEN}
 STEP = 0.01  # status angles are whole motor steps (~0.005 deg): a target is met within this
