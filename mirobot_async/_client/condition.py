@@ -54,6 +54,12 @@ _BUILD_INFO_RE: Final = re.compile(r"\[[0-9.]+[a-z]?\.[0-9]{8}:(.*)\]")
 # Alarms after which the firmware processes nothing but "%" (PROTOCOL.md 6.1; GRBL's critical
 # alarms print "[Reset to continue]").
 RESET_ONLY_ALARMS: Final = ("hard limit", "soft limit")
+ALARM_STALL_WAIT: Final = 1.5
+"""After printing an alarm the firmware stalls about 500 ms (the firmware tapes: its next line
+starts 500.6 ms after the alarm's) and loses the realtime bytes that arrive meanwhile, ``%`` too;
+after a reset-only alarm the stall ends with ``[Reset to continue]``. :meth:`Mirobot.reset
+<mirobot_async.Mirobot.reset>` waits for that line, at most this many seconds after the alarm
+arrived, before it writes its ``%`` (a ``%`` written earlier is lost: no banner would come)."""
 REFUSAL_ALARMS: Final = frozenset({102, 106, 107})
 """The 2024 family's alarm-table lines that replace the classic "``ok`` but dropped" texts
 (EVIDENCE-NEWER.md 2, INFERRED): ``A102`` ``Soft limit:<axis>`` (classic ``Soft limit
@@ -151,6 +157,10 @@ class RobotCondition:
         self.alarm: str | None = None
         self.alarm_epoch = 0
         self.reset_only: str | None = None  # an alarm only "%" clears: nothing is sent
+        # A reset-only alarm arrived and the stall after it ("[Reset to continue]") has not
+        # ended yet: set when it ends (ALARM_STALL_WAIT); None when no stall is known.
+        self.alarm_stall: asyncio.Event | None = None
+        self.alarm_stall_ends_by = -math.inf  # loop time: the alarm's arrival + ALARM_STALL_WAIT
         self.reset_epoch = 0
         self.fatal: str | None = None
         self.closing = False
@@ -223,28 +233,41 @@ class RobotCondition:
             return True
         return False
 
-    def on_alarm(self, text: str) -> bool:
-        """Remember an alarm; True when only a reset clears it (nothing is answered)."""
+    def on_alarm(self, text: str, now: float) -> bool:
+        """Remember an alarm (arrived at loop time ``now``); True when only a reset clears it
+        (nothing is answered)."""
         self.alarm = text
         self.alarm_epoch += 1
         _log.warning("robot alarm: %s", text)
         name = text.split(":", 1)[0].strip().lower()  # 2024: "Hard limit:X", the axis after
         if name in RESET_ONLY_ALARMS:
             self.reset_only = text
+            self.alarm_stall = asyncio.Event()  # "%" is lost until "[Reset to continue]"
+            self.alarm_stall_ends_by = now + ALARM_STALL_WAIT
             return True
         return False
 
     def on_feedback(self, text: str) -> bool:
         """``[Reset to continue]``: the firmware takes nothing but ``%`` now (True when this
         is news: then the waiting calls fail)."""
-        if "reset to continue" in text.lower() and self.reset_only is None:
+        if "reset to continue" not in text.lower():
+            return False
+        self.end_alarm_stall()
+        if self.reset_only is None:
             self.reset_only = self.alarm or text
             return True
         return False
 
+    def end_alarm_stall(self) -> None:
+        """The firmware's stall after an alarm is over (it takes ``%`` again)."""
+        if self.alarm_stall is not None:
+            self.alarm_stall.set()
+            self.alarm_stall = None
+
     def on_reset(self, now: float) -> None:
         """A banner started: the robot reset (a homing search in progress ended with it)."""
         self.reset_epoch += 1
+        self.end_alarm_stall()
         self.homing = None
         self.banner_started = now
         self.reset_requested = False

@@ -139,7 +139,8 @@ class EventRouter:
             return  # the line's output holds it: its reply says what was refused
         self._wire.stats.alarms += 1
         self._guard.forget("alarm")  # an alarm may stop the arm anywhere
-        if not self._condition.on_alarm(text):
+        assert self._loop is not None
+        if not self._condition.on_alarm(text, self._loop.time()):
             return  # the firmware still answers lines, or a banner follows
         self._fail_for_reset_only(text)
 

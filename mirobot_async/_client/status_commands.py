@@ -198,7 +198,9 @@ class StatusCommands(ClientParts):
     async def reset(self, *, timeout: float | None = RESET_TIMEOUT) -> tuple[str, ...]:
         """Soft reset (``%``): stop at once, clear the robot's buffers, await its banner.
 
-        Sent immediately, ahead of queued lines. Pending lines fail with
+        Sent immediately, ahead of queued lines (right after a reset-only alarm such as a hard
+        limit, once the firmware's stall after it is over: its ``[Reset to continue]``, at most
+        1.5 s after the alarm; a ``%`` written during the stall is lost). Pending lines fail with
         :class:`MirobotResetError` (they are not resent), lines of other calls still waiting for
         their turn fail the same way, and no line is written until the banner has ended. Calls
         that overlap before the banner starts share one ``%`` and its banner. Clears the
@@ -219,11 +221,12 @@ class StatusCommands(ClientParts):
         alarm_epoch = condition.alarm_epoch
         condition.resetting += 1
         try:
-            if not condition.reset_requested:  # else join the "%" whose banner is due
-                condition.reset_requested = True
-                self._wire.write_realtime(self._wire.conn.request_reset())
             deadline = deadline_after(loop, timeout)
             async with within(deadline, "the banner after a reset", timeout, command="%"):
+                if not condition.reset_requested:  # else join the "%" whose banner is due
+                    condition.reset_requested = True
+                    await self._after_alarm_stall(loop)
+                    self._wire.write_realtime(self._wire.conn.request_reset())
                 result = await fut
         finally:
             condition.resetting -= 1
@@ -237,6 +240,23 @@ class StatusCommands(ClientParts):
             raise result
         condition.cleared_by_reset(alarm_epoch)
         return result
+
+    async def _after_alarm_stall(self, loop: asyncio.AbstractEventLoop) -> None:
+        """Wait until the firmware's stall after a reset-only alarm is over (it prints
+        ``[Reset to continue]``; a ``%`` before that is lost), at most until
+        :data:`~mirobot_async._client.condition.ALARM_STALL_WAIT` after the alarm arrived."""
+        condition = self._condition
+        stall = condition.alarm_stall
+        if stall is None:
+            return
+        left = condition.alarm_stall_ends_by - loop.time()
+        if left > 0:
+            with contextlib.suppress(TimeoutError):
+                async with asyncio.timeout(left):
+                    await stall.wait()
+        if condition.alarm_stall is stall:
+            condition.alarm_stall = None  # no "[Reset to continue]": not waited for again
+        condition.raise_if_closed()
 
     @contextlib.asynccontextmanager
     async def hold_on_exit(self) -> AsyncIterator[None]:

@@ -249,7 +249,9 @@ async def test_stream_writes_nothing_after_the_failing_reply_arrived(
     def receive_spy(chunk: bytes) -> None:
         # runs right after the client handled the chunk (its replies dispatched)
         nonlocal written_when_error_arrived
-        if written_when_error_arrived is None and b"rror" in chunk:
+        # an error reply: "error:", "Error, E1nn"; 2024: "FOO BAR" is GRBL's status error 1,
+        # "Info,E100,..." (docs/2024-profile.md)
+        if written_when_error_arrived is None and (b"rror" in chunk or b"Info,E" in chunk):
             written_when_error_arrived = written
 
     before = int((await emu.control("stats")).split("lines_in=")[1].split()[0])

@@ -65,7 +65,10 @@ FINAL = re.compile(
     r"ok|error: [^\r\n]+|Error, E1\d\d,[^\r\n]+|in homeing moving\.\.\.ok|"
     r"Info, in homing moving\.\.\.ok|"
     # the firmware prints this refusal without a line end: its ``ok`` follows on the same line
-    r"GOAL OUT OF WORKSPACE, THERE IS NO VAILD VALUS FOR  THETA3!ok"
+    r"GOAL OUT OF WORKSPACE, THERE IS NO VAILD VALUS FOR  THETA3!ok|"
+    # the 2024 family (docs/2024-profile.md): GRBL's status errors "Info,E100..E110" and the
+    # g-code errors "Error,E111..E117" / "Error,E000,Invalid gcode ID:<n>" end the line alone
+    r"Info,E1(0\d|10),[^\r\n]+|Error,E(11[1-7]|000),[^\r\n]+"
 )
 OTHER = re.compile(
     "|".join(
@@ -73,7 +76,7 @@ OTHER = re.compile(
             r"",  # empty lines: before refusals, in the banner, before "Free memory"
             r"([01]{8})?ALARM: (Hard limit|Soft limit|Abort during cycle|Probe fail|Homing fail)",
             r"\[[^\r\n]*\]",  # feedback: $G, $#, $I, [Pgm End], [Caution: Unlocked] ...
-            r"(Info, )?(M50: Unlock each axis\.|M20: Cartesian mode start\.|"
+            r"(Info, ?)?(M50: Unlock each axis\.|M20: Cartesian mode start\.|"
             r"M21: Angle mode start\.)",
             r"Locked status of each axis!",
             r"Soft limit triggered:[XYZABCD]",
@@ -89,6 +92,15 @@ OTHER = re.compile(
             r"(D1|A1|A2|A3|D4|L|X offset|Y offset|Z offset|X|Y|Z|RX|RY|RZ): -?\d+",
             r"Initialized Cartesian coordinates and rotation: ",
             r"Using reset pos!",
+            # the 2024 family: its one-line banner, alarms and refusals (an ok follows those),
+            # the homing reply's first line
+            r"WLKATA Robot started successfully\.Firmware version:Mirobot,\d{8}",
+            r"Error,A10[1356],(Hard limit:[A-Z]?|Abort during cycle|Homing fail|"
+            r"Locked status of each axis)",
+            r"Error,A102,Soft limit:[XYZABCD]",
+            r"Error,E118,The given location is outside the workspace\.",
+            r"Error,E119,The angle of an axis is out of range\.",
+            r"Info,in homing moving\.\.\.",
             # after a reset, each stored startup line (``$N0=G0X1``, ``$N1=M3S5`` from
             # DOLLAR_COMMANDS) printed with its reply glued on, or before a message line
             r"(G0X1|M3S5)(ok|error: [^\r\n]+)?",
@@ -96,6 +108,13 @@ OTHER = re.compile(
     )
 )
 BANNER_END = "Using reset pos!"
+BANNER_2024 = re.compile(r"WLKATA Robot started successfully\.Firmware version:\S+")
+"""The 2024 family's banner: this one line (docs/2024-profile.md)."""
+
+
+def is_banner_end(line: str) -> bool:
+    """The last line of a banner (classic and 2021: ``Using reset pos!``; 2024: its only one)."""
+    return line == BANNER_END or BANNER_2024.fullmatch(line) is not None
 
 
 def is_final(line: str) -> bool:
@@ -145,6 +164,19 @@ def test_the_classifier_knows_the_shapes() -> None:
     assert [is_final(line) for line in good[:6]] == [True] * 6
     assert not is_final("G0X1ok")  # a startup line's reply: owed to no line sent
     assert STRICT_STATUS.fullmatch(good[17]) and not STRICT_STATUS.fullmatch(good[18])
+    family_2024 = [  # docs/2024-profile.md
+        ("WLKATA Robot started successfully.Firmware version:Mirobot,20240820", False),
+        ("Info,E100,Expected command letter", True),
+        ("Error,E112,Unsupported command", True),
+        ("Error,E000,Invalid gcode ID:24", True),
+        ("Error,A101,Hard limit:X", False),
+        ("Error,A106,Locked status of each axis", False),
+        ("Error,E118,The given location is outside the workspace.", False),
+        ("Info,M50: Unlock each axis.", False),
+        ("Info,in homing moving...", False),
+    ]
+    assert all(well_formed(line) and is_final(line) == final for line, final in family_2024)
+    assert is_banner_end(family_2024[0][0])
 
 
 def test_the_finals_counter_knows_the_line_discipline() -> None:
@@ -237,14 +269,14 @@ class RawEmulator:
     def restore(self) -> None:
         """Back to power-on defaults: ``%``, a unique marker, ``$RST=*``; check the status."""
         self.write(b"%")
-        self.read_until(lambda line: line == BANNER_END, "banner after %")
+        self.read_until(is_banner_end, "banner after %")
         marker = f"SYNC{next(self._markers)}"
         self.write(f"$I={marker}\n$I\n".encode())
         # (the classic build-info line continues after the user's text: "[...:SYNC0--...]")
         self.read_until(lambda line: line.startswith("[") and marker in line, "the marker line")
         self.read_until(is_final, "the marker's ok")
         self.write(b"$RST=*\n")
-        self.read_until(lambda line: line == BANNER_END, "banner after $RST=*")
+        self.read_until(is_banner_end, "banner after $RST=*")
         self.write(b"?")
         status = self.read_until(lambda line: line.startswith("<"), "a status line")
         assert STRICT_STATUS.fullmatch(status), status
@@ -370,7 +402,7 @@ def exchange(emu: RawEmulator, chunks: list[Chunk], *, may_reset: bool = False) 
             )
             continue
         silent_since = time.monotonic()
-        if line == BANNER_END and not banner_explained:
+        if is_banner_end(line) and not banner_explained:
             assert may_reset or not in_flight, f"a reset discarded input; output {emu.lines}"
             if in_flight:
                 _flush(emu, queue)
@@ -556,7 +588,7 @@ def test_random_settings_are_answered_and_the_status_survives(
     emulator.write(b"$$\n")
     emulator.read_until(is_final, "the $$ dump's ok")
     emulator.write(b"%")
-    emulator.read_until(lambda line: line == BANNER_END, "banner after %")
+    emulator.read_until(is_banner_end, "banner after %")
     assert STATUS.fullmatch(emulator.status())
     emulator.check_alive()
 

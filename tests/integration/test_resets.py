@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import re
 from collections.abc import AsyncIterator, Awaitable, Callable
 from typing import Any
 
@@ -40,6 +41,9 @@ from mirobot_async.testing import EmulatorProcess, WireSpy
 pytestmark = [pytest.mark.timeout(60), pytest.mark.usefixtures("no_leftover_tasks")]
 
 FAST_HOMING = ("--homing-seconds", "0.2")
+# A line's final reply: ok or an error; 2024: "Info,E100..E110" and "Error,E111..", but not its
+# refusals "Error,E118"/"Error,E119"/"Error,A1nn" (their ok follows: docs/2024-profile.md)
+FINAL_REPLY = re.compile(rb"ok|error: .*|Error, E\d+,.*|Error,E(?!118|119)\d+,.*|Info,E\d+,.*")
 # Once what needs real-time motion has been checked, the rest (homing, recovery moves) runs this
 # much faster than real time (the emulator's ``time-scale`` control command).
 FAST_SCALE = "time-scale 50"
@@ -222,9 +226,10 @@ async def test_lines_run_after_a_spontaneous_reset_are_reported_as_run(
     for late in progress[3 + len(written) :]:  # waited to be sent when the banner came
         assert isinstance(late.error, MirobotResetError) and "not sent" in str(late.error)
     received = b"".join(wire_spy.received)
-    banner_end = received.rindex(b"Using reset pos!")
+    # the banner's last line: 2024's is its one line (docs/2024-profile.md)
+    banner_end = max(received.rfind(b"Using reset pos!"), received.rfind(b"started successfully"))
     replies_after = [
-        line for line in received[banner_end:].splitlines()[1:] if line == b"ok" or b"rror" in line
+        line for line in received[banner_end:].splitlines()[1:] if FINAL_REPLY.fullmatch(line)
     ]
     assert result.stopped  # a stream always stops at a reset
     assert len(after_reset) == len(written) == len(replies_after) >= 5
@@ -327,7 +332,7 @@ async def test_no_line_is_written_while_a_second_concurrent_reset_awaits_its_ban
 @pytest.mark.emulator_process
 @pytest.mark.mirobot_emulator(time_scale=1, extra_args=FAST_HOMING)
 async def test_hard_limit_fails_everything_and_nothing_is_sent_until_reset(
-    emu: EmulatorProcess, ready_arm: Mirobot, spawn: Spawn
+    emu: EmulatorProcess, ready_arm: Mirobot, spawn: Spawn, profile: str
 ) -> None:
     arm = ready_arm
     reports: list[StatusReport] = []
@@ -348,7 +353,8 @@ async def test_hard_limit_fails_everything_and_nothing_is_sent_until_reset(
     assert isinstance(result.errors[0].error, MirobotAlarmError)
     assert isinstance(await finishes_within(3.0, watch), MirobotAlarmError)
     await wait_until(lambda: arm.needs_reset, 10, "the client to need a reset")
-    assert arm.alarm == "Hard limit"
+    # 2024: "Error,A101,Hard limit:<axis>" (docs/2024-profile.md), J1's switch: X
+    assert arm.alarm == ("Hard limit:X" if profile == "2024" else "Hard limit")
 
     # Nothing more goes out, not even "?": every call fails at once.
     sent = arm.stats.bytes_sent
