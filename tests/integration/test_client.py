@@ -150,9 +150,9 @@ async def test_original_pyserial_asyncio_implementation_works(emu: EmulatorProce
 
 async def test_bad_connect_arguments() -> None:
     with pytest.raises(MirobotUsageError):
-        Mirobot.connect("/dev/null", firmware="2019")  # type: ignore[call-overload]
+        Mirobot.connect("/dev/null", firmware="2019")  # type: ignore[arg-type]
     with pytest.raises(MirobotUsageError):
-        Mirobot.connect("/dev/null", implementation="slow")  # type: ignore[call-overload]
+        Mirobot.connect("/dev/null", implementation="slow")  # type: ignore[arg-type]
 
 
 @pytest.mark.mirobot_emulator(extra_args=["--reset-on-open"])

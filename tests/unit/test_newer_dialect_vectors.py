@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import pytest
 
 from mirobot_async._client.condition import RobotCondition, firmware_from_banner
+from mirobot_async._core.events import PendingLine
 from mirobot_async._core.protocol import (
     AlarmRaised,
     BannerReceived,
@@ -151,7 +152,9 @@ def test_each_evidence_line_is_classified(vector: Vector) -> None:
     assert not reply.ok
 
 
-def _around(line_bytes: bytes) -> tuple[MirobotConnection, list[object], tuple[object, object]]:
+def _around(
+    line_bytes: bytes,
+) -> tuple[MirobotConnection, list[object], tuple[PendingLine, PendingLine]]:
     conn = MirobotConnection()
     first, second = conn.send_line("G4 P0"), conn.send_line("M3 S0")
     conn.receive_data(line_bytes)
@@ -174,9 +177,10 @@ def test_each_evidence_line_gives_its_line_one_outcome_and_shifts_nothing(
         assert isinstance(one, LineRejected) and one.code == vector.code
     else:
         assert isinstance(one, LineAcknowledged)
-        assert (
-            one.refusal is None if vector.refusal is None else one.refusal.reason is vector.refusal
-        )
+        if vector.refusal is None:
+            assert one.refusal is None
+        else:
+            assert one.refusal is not None and one.refusal.reason is vector.refusal
     assert isinstance(two, LineAcknowledged) and two.output == () and two.refusal is None
     assert conn.pending_count == 0 and conn.bytes_in_flight == 0
     assert not [e for e in events if isinstance(e, ProtocolViolation | ResetDetected)]
