@@ -76,11 +76,11 @@ def test_hold_to_jog_moves_while_held_and_stops_soon_after_release(
         name = "J1 + (hold)" if number % 2 == 0 else "J1 - (hold)"
         before = _joint(page, 1)
         released = _hold(page, name, 0.8)
-        (stopped,) = wait_for(
-            lambda n=number: (s[n],) if len(s := _stops(view)) > n else None,
-            20,
-            "the view to report the jog stopped",
-        )
+        def stop_of(n: int = number) -> tuple[float] | None:
+            stops = _stops(view)
+            return (stops[n],) if len(stops) > n else None
+
+        (stopped,) = wait_for(stop_of, 20, "the view to report the jog stopped")
         latencies.append(stopped - released)
         page.expect_text(f"{name}: stopped at")
         moved = _joint(page, 1) - before
