@@ -26,6 +26,7 @@ import numpy as np
 
 from mirobot_async._cli.exits import CliError, note
 from mirobot_async._cli.programs import read_lines, read_program
+from mirobot_async._view.listen import parse_listen
 from mirobot_async.errors import MirobotLinkLostError
 
 if TYPE_CHECKING:
@@ -36,7 +37,6 @@ if TYPE_CHECKING:
 
 __all__ = ["parse_listen", "serve_view"]
 
-DEFAULT_HOST = "127.0.0.1"
 LOST_LINK_GRACE: Final = 1.0
 """Seconds the page keeps showing that the link is lost before the command exits (status 1)."""
 RENDER_WAIT: Final = 20.0
@@ -46,19 +46,6 @@ RENDER_SIZE: Final = 160
 DRAWN_PIXELS: Final = 200
 """Pixels of the arm (:func:`arm_pixels`) in that frame beyond which it is on screen (at the
 first camera about 620; the grid and the path alone under 10)."""
-
-
-def parse_listen(text: str) -> tuple[str, int]:
-    """``HOST:PORT`` (``:PORT`` or ``HOST`` alone allowed; port 0 = a free one)."""
-    host, _, port = text.rpartition(":") if ":" in text else (text, ":", "0")
-    host = host.strip("[]") or DEFAULT_HOST
-    try:
-        number = int(port or "0")
-    except ValueError:
-        raise CliError(f"--listen {text!r}: the port must be a number") from None
-    if not 0 <= number <= 65535:
-        raise CliError(f"--listen {text!r}: the port must be 0..65535")
-    return host, number
 
 
 def _load_envelope(path: str | None, firmware: str) -> Envelope | None:

@@ -14,7 +14,6 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-import os
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -35,7 +34,7 @@ if TYPE_CHECKING:
     from mirobot_async._client.client import Mirobot
     from mirobot_async._safety.envelope import Envelope
 
-__all__ = ["STATUS_INTERVAL", "ProgramSource", "ViewController", "write_export"]
+__all__ = ["STATUS_INTERVAL", "ProgramSource", "ViewController"]
 
 _log = logging.getLogger("mirobot_async.view")
 
@@ -309,20 +308,6 @@ class ViewController:
             raise _ViewError(f"{program.name}:{line}: {failed.error or 'failed'}")
         _set_value(bar, 100.0)
         return f"{program.name}: {total} lines done"
-
-
-def write_export(path: Path, text: str, *, overwrite: bool) -> None:
-    """Write ``text`` to ``path``: a new file only (``FileExistsError``), unless ``overwrite``;
-    never through a symbolic link."""
-    flags = os.O_WRONLY | os.O_CREAT | os.O_NOFOLLOW | (os.O_TRUNC if overwrite else os.O_EXCL)
-    try:
-        fd = os.open(path, flags, 0o644)
-    except OSError as err:
-        if isinstance(err, FileExistsError) or path.is_symlink():
-            raise FileExistsError(str(path)) from None
-        raise _ViewError(f"cannot write {path}: {err.strerror}") from None
-    with os.fdopen(fd, "w", encoding="ascii") as file:
-        file.write(text)
 
 
 def _set_value(handle: Any, value: object) -> None:

@@ -173,8 +173,8 @@ class ReplayView:
 
 async def serve_replay(args: argparse.Namespace) -> int:
     """Serve the replay of ``args.replay`` until interrupted (no arm is opened)."""
-    from mirobot_async._view import parse_listen
     from mirobot_async._view.gate import Gate, guarded_serve, is_loopback
+    from mirobot_async._view.listen import parse_listen
 
     try:
         line = load_timeline(args.replay)

@@ -9,8 +9,10 @@ output passes ``mirobot check`` (tests run it). Pure module.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Final
 
 from mirobot_async._core import gcode
@@ -24,6 +26,7 @@ __all__ = [
     "export_name",
     "export_program",
     "point_line",
+    "write_export",
 ]
 
 DEFAULT_TEACH_SPEED: Final = 2000.0
@@ -139,3 +142,17 @@ class TeachTable:
             xyz = " ".join(f"{v:.1f}" for v in p.pose[:3])
             rows.append(f"| {mark} | {joints} | {rail} | {xyz} |")
         return "\n".join(rows)
+
+
+def write_export(path: Path, text: str, *, overwrite: bool) -> None:
+    """Write ``text`` to ``path``: a new file only (``FileExistsError``), unless ``overwrite``;
+    never through a symbolic link. Another failure is a :class:`MirobotUsageError` naming it."""
+    flags = os.O_WRONLY | os.O_CREAT | os.O_NOFOLLOW | (os.O_TRUNC if overwrite else os.O_EXCL)
+    try:
+        fd = os.open(path, flags, 0o644)
+    except OSError as err:
+        if isinstance(err, FileExistsError) or path.is_symlink():
+            raise FileExistsError(str(path)) from None
+        raise MirobotUsageError(f"cannot write {path}: {err.strerror}") from None
+    with os.fdopen(fd, "w", encoding="ascii") as file:
+        file.write(text)

@@ -34,7 +34,7 @@ from mirobot_async._view.program import (
     row_line,
     table_markdown,
 )
-from mirobot_async._view.teach import TaughtPoint, export_name, modes_line
+from mirobot_async._view.teach import TaughtPoint, export_name, modes_line, write_export
 from mirobot_async.errors import MirobotUsageError
 from mirobot_async.kinematics import forward
 
@@ -147,8 +147,6 @@ class Teacher:
         return f"Played {len(program.rows)} rows x {loops}"
 
     def _export(self) -> str:
-        from mirobot_async._view.app import write_export
-
         lines = program_lines(self.table.program(self._speed()), firmware=self.firmware)
         name = export_name(self.panel.file.value)
         try:

@@ -9,8 +9,7 @@ import pytest
 
 pytest.importorskip("viser")
 
-from mirobot_async._view.app import write_export
-from mirobot_async._view.teach import export_name
+from mirobot_async._view.teach import export_name, write_export
 from mirobot_async.errors import MirobotUsageError
 
 
