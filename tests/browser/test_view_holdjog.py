@@ -76,6 +76,7 @@ def test_hold_to_jog_moves_while_held_and_stops_soon_after_release(
         name = "J1 + (hold)" if number % 2 == 0 else "J1 - (hold)"
         before = _joint(page, 1)
         released = _hold(page, name, 0.8)
+
         def stop_of(n: int = number) -> tuple[float] | None:
             stops = _stops(view)
             return (stops[n],) if len(stops) > n else None
