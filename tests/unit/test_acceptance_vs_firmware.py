@@ -12,7 +12,7 @@ validation: after every line the verdict (``ok`` or an error) and the modes (M20
 the motion code, units, feed rate, G93) must be the same.
 
 ``MIROBOT_TEST_SCALE`` scales the line count: CI runs it at 1 on its own (``.ci/run``): at least
-:data:`LINES` lines; README's run (scale 0.3) drives 5,000, to stay quick.
+:data:`LINES` lines; README's run (scale 0.3) drives 2,000, to stay quick.
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ LINES = 100_000
 PROGRAM = 50
 """Lines per example."""
 SCALE = float(os.environ.get("MIROBOT_TEST_SCALE", "0.3"))
-EXAMPLES = max(10, round(LINES * (SCALE if SCALE >= 1 else SCALE / 6) / PROGRAM / 2))
+EXAMPLES = max(10, round(LINES * (SCALE if SCALE >= 1 else SCALE / 15) / PROGRAM / 2))
 """Examples per profile."""
 
 WORDS = (
