@@ -60,7 +60,10 @@ def test_the_doctor_moves_nothing_without_a_confirmation(cli: Cli, tmp_path: Pat
 
 def test_the_doctor_with_motion_homes_and_still_matches(cli: Cli, tmp_path: Path) -> None:
     tape = tmp_path / "doctor.jsonl"
-    done = cli("doctor", "--firmware", "classic", "--motion", "--yes", "--record", str(tape))
+    done = cli(
+        "doctor", "--firmware", "classic", "--motion", "--yes", "--time-scale", "100",
+        "--record", str(tape),
+    )  # fmt: skip
     assert done.returncode == 0, done.stdout + done.stderr
     assert "$H -> " in done.stdout
     (recorded,) = read_tapes(tape)
@@ -71,7 +74,7 @@ def test_the_doctor_with_motion_homes_and_still_matches(cli: Cli, tmp_path: Path
 def test_a_recorded_session_replays_equal(cli: Cli, tmp_path: Path, firmware: str) -> None:
     tape = tmp_path / "session.jsonl"
     run = cli(
-        "run", "--firmware", firmware, "--home", "--record", str(tape),
+        "run", "--firmware", firmware, "--home", "--time-scale", "100", "--record", str(tape),
         str(Path(__file__).resolve().parents[2] / "examples" / "square.gcode"),
     )  # fmt: skip
     assert run.returncode == 0, run.stdout + run.stderr

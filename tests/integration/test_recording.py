@@ -159,7 +159,7 @@ def test_a_killed_recording_is_readable_up_to_its_last_whole_line(tmp_path: Path
     assert any(isinstance(e, Printed) and e.data.startswith(b"<") for e in tape.events)
 
 
-@pytest.mark.parametrize("scale", [5.0])
+@pytest.mark.parametrize("scale", [50.0])
 async def test_a_virtual_arms_tape_replays_equal(
     profile: str, scale: float, tmp_path: Path
 ) -> None:
