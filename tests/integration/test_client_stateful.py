@@ -60,11 +60,6 @@ _POOL: list[EmulatorPool] = []  # the session's pool while a test of this module
 def _emulator_pool(mirobot_emulator_pool: EmulatorPool) -> Iterator[None]:
     """Each example borrows a renewed emulator from the session's pool (milliseconds, not a
     process start); the state machine cannot take fixtures, so it finds the pool here."""
-    if mirobot_emulator_pool.link == "oracle":
-        pytest.skip(
-            "emulator only: the machine draws both profiles and injects hard limits through "
-            "the emulator's control channel"
-        )
     _POOL.append(mirobot_emulator_pool)
     yield
     _POOL.remove(mirobot_emulator_pool)
