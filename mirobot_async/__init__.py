@@ -58,9 +58,11 @@ if TYPE_CHECKING:
     from mirobot_async._core.replies import Refusal, State, StatusReport, parse_status
     from mirobot_async._core.validation import InvalidLineError
     from mirobot_async._safety.envelope import Envelope
+    from mirobot_async._view.watch import ArmView
     from mirobot_async.virtual import start_emulator
 
 __all__ = [
+    "ArmView",
     "ClientStats",
     "Connector",
     "DataCallback",
@@ -124,6 +126,7 @@ _LAZY: dict[str, str] = {
     "StatusReport": "mirobot_async._core.replies",
     "parse_status": "mirobot_async._core.replies",
     "start_emulator": "mirobot_async.virtual",
+    "ArmView": "mirobot_async._view.watch",
     "Envelope": "mirobot_async._safety.envelope",
     "InvalidLineError": "mirobot_async._core.validation",
 }

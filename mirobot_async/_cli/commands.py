@@ -504,7 +504,7 @@ def cmd_ports(args: argparse.Namespace) -> int:
 async def cmd_view(args: argparse.Namespace) -> int:
     """``mirobot view [PROGRAM]``: serve the 3D view and teach pendant until Ctrl-C (the view
     extra is imported here, so the other commands never need it)."""
-    from mirobot_async._view import serve_view
+    from mirobot_async._view.command import serve_view
 
     return await serve_view(args)
 

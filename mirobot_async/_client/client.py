@@ -152,8 +152,9 @@ from mirobot_async._core.outgoing import OutgoingLine, encode_line
 from mirobot_async._core.replies import StatusReport
 from mirobot_async.errors import MirobotConnectionError, MirobotTimeoutError, MirobotUsageError
 
-if TYPE_CHECKING:  # imported when an envelope is used (it needs numpy)
+if TYPE_CHECKING:  # imported when an envelope is used (it needs numpy), and the view
     from mirobot_async._safety.envelope import Envelope
+    from mirobot_async._view.watch import ArmView
 
 __all__ = [
     "CONNECT_TIMEOUT",
@@ -539,4 +540,45 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, ToolCommands, Settin
             _log.warning("stream(validate=False): its lines are sent WITHOUT validation")
         return Stream(
             parts, lines, on_progress, continue_on_error, timeout, check_envelope, validate, wait
+        )
+
+    def view(
+        self,
+        *,
+        host: str = "127.0.0.1",
+        port: int = 0,
+        open_browser: bool = True,
+        allow_remote: bool = False,
+    ) -> ArmView:
+        """The arm in 3D in a browser while a block runs: ``async with arm.view() as view:``.
+
+        The page follows this connection: the arm as its status reports it, the path predicted
+        for every line this script writes, a marker and an entry for each line refused (by the
+        firmware, or by the client before it was written), each alarm and reset. It only
+        watches: closing it never stops the script, and the block's end tells it how the script
+        ended. Its URL (with a secret; also printed on stderr) is ``view.url``, opened in a
+        browser unless ``open_browser=False``; it is served on ``host``:``port`` (a free port by
+        default; an address other than loopback only with ``allow_remote=True``).
+
+        Entering waits, once, for the arm at rest when its firmware (or, off classic, its base
+        offset) is not known yet (one ``$$``, at most 30 s: :class:`MirobotTimeoutError`).
+        Needs the ``view`` extra: without it :class:`MirobotUsageError` says what to install.
+        """
+        import importlib.util
+
+        missing = [m for m in ("viser", "yourdfpy") if importlib.util.find_spec(m) is None]
+        if missing:
+            raise MirobotUsageError(
+                f"arm.view() needs the view extra ({', '.join(missing)} not installed): "
+                "pip install 'mirobot-async[view]'"
+            )
+        from mirobot_async._view.watch import ArmView
+
+        return ArmView(
+            self,
+            self._lines.observers,
+            host=host,
+            port=port,
+            open_browser=open_browser,
+            allow_remote=allow_remote,
         )

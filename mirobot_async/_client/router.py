@@ -115,6 +115,8 @@ class EventRouter:
             if event.in_doubt:
                 self._guard.forget("lost")  # lines in doubt may change the modes
             self._lines.on_reset(event)
+            if self._lines.observers:
+                self._lines.observers.reset()
         elif isinstance(event, DoubtResolved):
             self._lines.on_doubt_resolved(event)
         elif isinstance(event, LineOutcomeUnknown):
@@ -139,6 +141,8 @@ class EventRouter:
             return  # the line's output holds it: its reply says what was refused
         self._wire.stats.alarms += 1
         self._guard.forget("alarm")  # an alarm may stop the arm anywhere
+        if self._lines.observers:
+            self._lines.observers.alarm(text)
         assert self._loop is not None
         if not self._condition.on_alarm(text, self._loop.time()):
             return  # the firmware still answers lines, or a banner follows

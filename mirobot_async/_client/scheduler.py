@@ -20,6 +20,7 @@ from mirobot_async._client.condition import RobotCondition
 from mirobot_async._client.deadline import clip, within
 from mirobot_async._client.guard import EnvelopeGuard, NeedPosition, NullGuard
 from mirobot_async._client.liveness import QUIET, ReplyWatch, Slot
+from mirobot_async._client.observers import LineObservers
 from mirobot_async._client.poller import StatusPoller
 from mirobot_async._client.wire import Wire
 from mirobot_async._core.line import ParsedLine
@@ -43,6 +44,7 @@ from mirobot_async._core.validation import (
 from mirobot_async.errors import (
     MirobotAlarmError,
     MirobotCommandError,
+    MirobotError,
     MirobotOutcomeUnknownError,
     MirobotResetError,
     MirobotTimeoutError,
@@ -164,6 +166,9 @@ class LineScheduler:
         self.liveness_interval = 1.0
         self.status_timeout = 2.0
         self.watch = ReplyWatch(wire, condition, poller, guard, self.slots, self._take)
+        self.observers = LineObservers()
+        """Who watches the lines (``Mirobot.view()``): told each line written, answered or
+        refused before it was written."""
 
     @property
     def reply_grace(self) -> float:
@@ -212,6 +217,8 @@ class LineScheduler:
         if slot is None:
             self._guard.line_answered(None, None, event)
             return
+        if self.observers:
+            self.observers.answered(slot.line, event)
         self._poller.on_line_reply(slot.sent_at)
         self._condition.on_line_answered(slot.parsed, event)
         self._guard.line_answered(slot.parsed, slot.tracked, event)
@@ -340,6 +347,25 @@ class LineScheduler:
         queued behind that move is lost (oracle: a ``G0 X10`` sent right after the ``ok`` of
         ``$H`` ends at 0).
         """
+        try:
+            return await self._submit(
+                line, deadline, timeout, rules, should_stop, watch, judged_from
+            )
+        except MirobotError as err:  # nothing of the line was written
+            if self.observers:
+                self.observers.not_sent(line.command, err)
+            raise
+
+    async def _submit(
+        self,
+        line: OutgoingLine,
+        deadline: float | None,
+        timeout: float | None,
+        rules: SendRules,
+        should_stop: Callable[[], bool] | None,
+        watch: Callable[[Slot], None] | None,
+        judged_from: ModalState | None,
+    ) -> Slot:
         command, parsed, what = line.command, line.parsed, line.what
         motion, validate = rules.motion, rules.validate
         condition, guard = self._condition, self._guard
@@ -422,6 +448,8 @@ class LineScheduler:
         if exclusive:
             self._barrier = pending.id
         self.watch.written(slot, now)
+        if self.observers:  # before the guard follows it: the modes it is parsed with
+            self.observers.written(line, self._guard.modes, self._guard.base_offset)
         return slot
 
     async def learn_position(self, command: str, deadline: float | None) -> None:

@@ -383,6 +383,8 @@ class Stream:
             await scheduler.require_firmware(deadline, self._timeout)
             refused, judged = self._restart_refusal()
         if refused is not None:  # nothing is written
+            if scheduler.observers and refused.error is not None:
+                scheduler.observers.not_sent(refused.line, refused.error)
             self.result.errors.append(refused)
             self.result.stopped = True
             yield refused

@@ -21,12 +21,12 @@ from typing import TYPE_CHECKING, Any, Final
 
 import viser
 
-from mirobot_async._core import gcode
-from mirobot_async._core.replies import State, StatusReport
+from mirobot_async._core.replies import StatusReport
 from mirobot_async._view.holdjog import HoldJog
 from mirobot_async._view.panel import CARTESIAN_AXES, ControlPanel
 from mirobot_async._view.preview import ProgramPreview
 from mirobot_async._view.scene import ArmScene
+from mirobot_async._view.status_text import describe_status
 from mirobot_async._view.teach_ui import PLAY, Teacher
 from mirobot_async.errors import MirobotConnectionError, MirobotError, MirobotTimeoutError
 
@@ -43,19 +43,6 @@ STATUS_INTERVAL: Final = 0.05
 _QUEUE_LIMIT: Final = 8
 """Commands waiting behind the running one; clicks beyond are refused (a stuck arm)."""
 _PUMP: Final = {"Pump on": "suction_on", "Pump blow": "blow", "Pump off": "pump_off"}
-_STATE_WORDS: Final = {State.HOME: "Home (homing)"}
-_OUTPUT_WORDS: Final = {  # what the PWM 1 output (M3 S...) drives, by its value
-    gcode.PUMP_OFF: "off",
-    gcode.PUMP_SUCK: "pump sucking",
-    gcode.PUMP_BLOW: "pump blowing",
-    gcode.GRIPPER_OPEN: "gripper open",
-    gcode.GRIPPER_CLOSE: "gripper closed",
-}
-_LEGACY_GRIPPER: Final = {
-    0: "off",
-    gcode.VALVE_GRIPPER_OPEN: "open",
-    gcode.VALVE_GRIPPER_CLOSE: "closed",
-}
 
 
 @dataclass(frozen=True, slots=True)
@@ -318,23 +305,6 @@ def _set_value(handle: Any, value: object) -> None:
 
 class _ViewError(MirobotError):
     """A pendant action that cannot be done (shown on the page)."""
-
-
-def describe_status(report: StatusReport, running: str | None) -> str:
-    """The panel's status block (Markdown)."""
-    word = _STATE_WORDS.get(report.state, report.state.value)
-    joints = "  ".join(f"J{i} {v:.2f}" for i, v in enumerate(report.joints, start=1))
-    x, y, z, rx, ry, rz = report.pose
-    rail = "" if report.rail is None else f"  \n**Rail:** {report.rail:.2f} mm"
-    outputs = _OUTPUT_WORDS.get(report.pump_pwm, f"PWM {report.pump_pwm}")
-    legacy = _LEGACY_GRIPPER.get(report.valve_pwm, f"PWM {report.valve_pwm}")
-    lines = [
-        f"**State:** {word}" + (f" (running: {running})" if running else ""),
-        f"**Joints:** {joints}",
-        f"**Tool:** x {x:.2f}  y {y:.2f}  z {z:.2f}  rx {rx:.2f}  ry {ry:.2f}  rz {rz:.2f}",
-        f"**Pump/gripper:** {outputs}  **Valve/legacy gripper:** {legacy}",
-    ]
-    return "  \n".join(lines) + rail
 
 
 def describe_preview(program: ProgramSource, preview: ProgramPreview) -> str:

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from mirobot_async._core import validation
-from mirobot_async._core.line import parse_line
+from mirobot_async._core.line import ParsedLine, parse_line
 from mirobot_async._core.modal import MotionModes, modes_of
 from mirobot_async._safety.envelope import Envelope
 from mirobot_async._safety.paths import (
@@ -35,7 +35,14 @@ from mirobot_async._safety.prediction import MachineState, Prediction, predict
 from mirobot_async._urdf import dh_of
 from mirobot_async.kinematics import Joints, Pose, forward, forward_many
 
-__all__ = ["FlaggedLine", "PathSegment", "ProgramPreview", "preview_program"]
+__all__ = [
+    "FlaggedLine",
+    "LineStep",
+    "PathSegment",
+    "ProgramPreview",
+    "predict_line",
+    "preview_program",
+]
 
 _ZERO: Joints = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
@@ -112,26 +119,48 @@ def preview_program(
         if number in problems:  # the firmware rejects the line: it moves nothing
             out.flagged.append(FlaggedLine(number, text, "; ".join(problems[number])))
             continue
-        result = predict(model, parsed, state, what=f"line {number}")
-        if not isinstance(result, Prediction):
-            entry = FlaggedLine(number, text, result.reason)
+        step = predict_line(model, number, parsed, text, state)
+        out.segments.extend(step.segments)
+        if step.unpredicted is not None:
             if envelope is not None:
-                out.flagged.append(entry)
+                out.flagged.append(step.unpredicted)
             elif state.joints is not None:
-                out.unknown.append(entry)
-            state = replace(state, joints=None, pose=None)
-            continue
-        after = result.state
-        if parsed.is_homing:  # homing ends at zero (the arm waits for Idle there)
-            after = replace(after, joints=_ZERO, pose=forward(_ZERO, model.dh, model.tool))
-        elif result.moves and state.joints is not None:
-            end = after.joints if after.joints is not None else result.model_joints
-            if end is not None:
-                out.segments.extend(_segments(model, number, parsed, state, result, end))
-                if after.joints is None:
-                    after = replace(after, joints=end)
-        state = after
+                out.unknown.append(step.unpredicted)
+        state = step.state
     return replace(out, end_joints=state.joints)
+
+
+@dataclass(frozen=True, slots=True)
+class LineStep:
+    """One line predicted: the path it draws, the machine after it, and, when the prediction
+    failed (the position or a mode unknown, the envelope refuses), why (then ``state`` has no
+    position: the path is not drawn until a later line states one)."""
+
+    segments: list[PathSegment]
+    state: MachineState
+    unpredicted: FlaggedLine | None = None
+
+
+def predict_line(
+    model: Envelope, number: int, parsed: ParsedLine, text: str, state: MachineState
+) -> LineStep:
+    """Predict one line (numbered ``number``) from ``state`` with ``model``'s geometry: the
+    step of :func:`preview_program`, and of the view that follows a script's lines."""
+    result = predict(model, parsed, state, what=f"line {number}")
+    if not isinstance(result, Prediction):
+        gone = replace(state, joints=None, pose=None)
+        return LineStep([], gone, FlaggedLine(number, text, result.reason))
+    after = result.state
+    segments: list[PathSegment] = []
+    if parsed.is_homing:  # homing ends at zero (the arm waits for Idle there)
+        after = replace(after, joints=_ZERO, pose=forward(_ZERO, model.dh, model.tool))
+    elif result.moves and state.joints is not None:
+        end = after.joints if after.joints is not None else result.model_joints
+        if end is not None:
+            segments = _segments(model, number, parsed, state, result, end)
+            if after.joints is None:
+                after = replace(after, joints=end)
+    return LineStep(segments, after)
 
 
 def _joint_points(model: Envelope, start: Sequence[float], end: Sequence[float]) -> FloatArray:

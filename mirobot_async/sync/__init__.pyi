@@ -15,6 +15,7 @@ from mirobot_async._client.wire import ClientStats, TransportOpener
 from mirobot_async._core.modal import LineCheck
 from mirobot_async._core.replies import StatusReport
 from mirobot_async._safety.envelope import Envelope
+from mirobot_async._view.watch import ArmView
 from mirobot_async.sync._facade import BlockingContextManager, BlockingFacade, BlockingIterator
 from mirobot_async.sync._loop import EventLoopThread
 
@@ -179,6 +180,8 @@ class Mirobot(BlockingFacade, wraps=AsyncMirobot):
     def suction_on(self, *, timeout: float | None = ...) -> None: ...
 
     def unlock(self, *, timeout: float | None = ...) -> None: ...
+
+    def view(self, *, host: str = ..., port: int = ..., open_browser: bool = ..., allow_remote: bool = ...) -> BlockingContextManager[ArmView]: ...
 
     def wait_idle(self, *, timeout: float | None = ...) -> StatusReport: ...
 

@@ -80,14 +80,21 @@ class BlockingIterator(Generic[T]):
 
 
 class BlockingContextManager(Generic[T]):
-    """An async context manager driven from another thread, usable with ``with``."""
+    """An async context manager driven from another thread, usable with ``with``. What its
+    ``__aenter__`` returns is adapted too, unless it is the manager itself (``arm.view()``
+    enters as the view: its properties are read from any thread)."""
 
-    def __init__(self, manager: Any, runner: Callable[..., Any]) -> None:
+    def __init__(
+        self, manager: Any, runner: Callable[..., Any], adapt: Callable[[Any], Any] | None = None
+    ) -> None:
         self._manager = manager
         self._runner = runner
+        self._adapt = adapt
 
     def __enter__(self) -> T:
         value: T = self._runner(self._manager.__aenter__)
+        if self._adapt is not None and value is not self._manager:
+            value = self._adapt(value)
         return value
 
     def __exit__(self, *exc_info: Any) -> bool:
@@ -165,7 +172,7 @@ class BlockingFacade:
         if hasattr(value, "__anext__"):
             return BlockingIterator(value, self._run)
         if hasattr(value, "__aenter__") and hasattr(value, "__aexit__"):
-            return BlockingContextManager(value, self._run_adapted)
+            return BlockingContextManager(value, self._run, self._adapt)
         return value
 
     # -- attributes the asyncio object sets on itself (not visible on its class)

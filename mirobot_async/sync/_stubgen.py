@@ -121,6 +121,16 @@ def _awaited(return_type: str, namespace: dict[str, Any]) -> str | None:
     return parts[-1].strip()
 
 
+def _entered(return_type: str, namespace: dict[str, Any]) -> bool:
+    """Whether ``return_type`` names an async context manager (the facade makes it a plain
+    one: ``arm.view()``), looked up in ``namespace`` or, imported under TYPE_CHECKING, in the
+    public root."""
+    cls = namespace.get(return_type)
+    if cls is None and return_type in getattr(sys.modules["mirobot_async"], "__all__", ()):
+        cls = getattr(sys.modules["mirobot_async"], return_type)
+    return isinstance(cls, type) and hasattr(cls, "__aenter__") and hasattr(cls, "__aexit__")
+
+
 def _params(signature: inspect.Signature) -> str:
     out: list[str] = []
     kw_only_started = False
@@ -201,6 +211,9 @@ def render_stub() -> str:
         elif inspect.isasyncgenfunction(raw):
             item = _inner(returns, "AsyncIterator", "AsyncGenerator") or "Any"
             returns = f"BlockingIterator[{item}]"
+        elif not inspect.iscoroutinefunction(raw) and _entered(returns, namespace):
+            imports.note(returns, namespace, fallback)
+            returns = f"BlockingContextManager[{returns}]"
         elif not inspect.iscoroutinefunction(raw):
             returns = _awaited(returns, namespace) or returns
             if returns != signature.return_annotation:

@@ -18,6 +18,7 @@ import mirobot_async
 
 PUBLIC_MODULES = {
     "mirobot_async": [
+        "ArmView",
         "ClientStats",
         "Connector",
         "DataCallback",
@@ -220,7 +221,12 @@ PINNED_MEMBERS = {
         "stream",
         "suction_on",
         "unlock",
+        "view",
         "wait_idle",
+    ],
+    "mirobot_async.ArmView": [
+        "clients",
+        "url",
     ],
     "mirobot_async.MotionModes": [
         "cartesian",

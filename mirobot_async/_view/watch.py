@@ -1,0 +1,370 @@
+"""The 3D view of a script's own connection: ``async with arm.view() as view:``.
+
+The page (served by viser from this process, behind the same secret URL and origin check as
+``mirobot view``: :mod:`~mirobot_async._view.gate`) shows the arm as its status reports it
+(polled every :data:`STATUS_INTERVAL` s on the script's connection, sharing its ``?``), the
+tool's trail, the path predicted for every line the script writes (pipelined lines ahead of
+the arm: :class:`~mirobot_async._view.script_lines.ScriptLines`), a red marker and an entry for
+each line refused (by the firmware, or by the client before a byte was written), each alarm
+and each reset. The page only watches: it has no control that moves the arm, and closing it
+(or opening several) changes nothing for the script. When the block ends, the page says how
+the script ended, then the server stops.
+
+Needs the ``view`` extra (viser and yourdfpy); :meth:`Mirobot.view` checks it and says so.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import sys
+import webbrowser
+from collections import deque
+from collections.abc import AsyncGenerator
+from types import TracebackType
+from typing import TYPE_CHECKING, Any, Final, Protocol
+
+import numpy as np
+
+from mirobot_async._client.observers import LineObservers, Offset
+from mirobot_async._core.modal import MotionModes
+from mirobot_async._core.outgoing import OutgoingLine
+from mirobot_async._core.protocol import LineAcknowledged, LineRejected
+from mirobot_async._core.replies import State, StatusReport
+from mirobot_async._urdf import dh_of
+from mirobot_async._view.script_lines import ScriptLines
+from mirobot_async._view.status_text import describe_status
+from mirobot_async.errors import (
+    MirobotConnectionError,
+    MirobotError,
+    MirobotTimeoutError,
+    MirobotUsageError,
+)
+from mirobot_async.kinematics import forward
+
+if TYPE_CHECKING:
+    import viser
+
+    from mirobot_async._safety.envelope import Envelope
+
+__all__ = ["STATUS_INTERVAL", "ArmView", "WatchedArm"]
+
+_log = logging.getLogger("mirobot_async.view")
+
+STATUS_INTERVAL: Final = 0.05
+"""Seconds between the status reports the view asks for (20 Hz)."""
+REDRAW_INTERVAL: Final = 0.1
+"""Seconds between redraws of the predicted path and the trail (when they changed)."""
+END_GRACE: Final = 0.5
+"""Seconds the server stays up after the script ended, for the page to hear it."""
+SETUP_TIMEOUT: Final = 30.0
+"""Seconds the view may wait, once, for the arm at rest to learn its firmware and settings."""
+_TRAIL_POINTS: Final = 5000
+_M: Final = 0.001
+_PATH_COLOURS: Final = {
+    "joint": (40, 110, 230),
+    "cartesian": (20, 160, 80),
+    "snap": (150, 150, 150),
+}
+_TRAIL_COLOUR: Final = (40, 40, 40)
+_MARK_COLOUR: Final = (220, 30, 30)
+
+
+class WatchedArm(Protocol):
+    """What the view reads of the script's arm (a :class:`mirobot_async.Mirobot`)."""
+
+    @property
+    def firmware(self) -> str | None: ...
+    @property
+    def envelope(self) -> Envelope | None: ...
+    @property
+    def pending_count(self) -> int: ...
+    def statuses(
+        self, interval: float = ..., *, timeout: float | None = ...
+    ) -> AsyncGenerator[StatusReport, None]: ...
+    async def detect_firmware(self, *, timeout: float | None = ...) -> str: ...
+    async def settings(self, *, timeout: float | None = ...) -> dict[int, float]: ...
+    async def status(self, *, fresh: bool = ..., timeout: float | None = ...) -> StatusReport: ...
+
+
+class ArmView:
+    """The 3D view of one connection while a block runs (see the module). ``url`` is the
+    page's address with this run's secret (known once the block is entered)."""
+
+    def __init__(
+        self,
+        arm: WatchedArm,
+        observers: LineObservers,
+        *,
+        host: str,
+        port: int,
+        open_browser: bool,
+        allow_remote: bool,
+    ) -> None:
+        from mirobot_async._view.gate import is_loopback
+
+        if not is_loopback(host) and not allow_remote:
+            raise MirobotUsageError(
+                f"view(host={host!r}): not a loopback address; anyone who reaches it with the "
+                "URL sees the arm. Pass allow_remote=True to serve it anyway"
+            )
+        if not 0 <= port <= 65535:
+            raise MirobotUsageError(f"view(port={port!r}): must be 0..65535")
+        self._arm = arm
+        self._observers = observers
+        self._host = host
+        self._port = port
+        self._open_browser = open_browser
+        self._allow_remote = allow_remote
+        self._url: str | None = None
+        self._server: viser.ViserServer | None = None
+        self._tasks: list[asyncio.Task[None]] = []
+        self._entered = False
+        self._lines: ScriptLines | None = None  # what the page shows of the script's lines
+
+    @property
+    def url(self) -> str:
+        """The page's URL with its secret (``http://127.0.0.1:PORT/?token=...``)."""
+        if self._url is None:
+            raise MirobotUsageError("the view's URL is known once its block is entered")
+        return self._url
+
+    @property
+    def clients(self) -> int:
+        """Pages connected now."""
+        return 0 if self._server is None else len(self._server.get_clients())
+
+    # ---- the block ------------------------------------------------------------------------
+
+    async def __aenter__(self) -> ArmView:
+        """Serve the page (the URL is printed on stderr, and opened in a browser if asked).
+        Waits, at most :data:`SETUP_TIMEOUT` s, for the arm at rest when its firmware (or, on
+        2021, its base offset ``$41..$43``) is not known yet: one ``$$``."""
+        if self._entered:
+            raise MirobotUsageError("a view can be entered only once; call arm.view() again")
+        self._entered = True
+        firmware = await self._learn(self._arm)
+        first = await self._arm.status(fresh=True)  # the path starts here if at rest
+        import viser
+
+        from mirobot_async._view.gate import Gate, guarded_serve
+
+        gate = Gate(allow_remote=self._allow_remote)
+        with contextlib.redirect_stdout(sys.stderr), guarded_serve(gate):  # viser's banner
+            server = viser.ViserServer(host=self._host, port=self._port, verbose=False)
+        try:
+            if not gate.installed:  # fail closed
+                raise MirobotUsageError(
+                    f"viser {viser.__version__} serves its websocket in a way this version "
+                    "cannot guard; refusing to serve the view"
+                )
+            self._build(server, firmware, first)  # no await: no line is written meanwhile
+        except BaseException:
+            with contextlib.redirect_stdout(sys.stderr):
+                server.stop()
+            raise
+        shown = "127.0.0.1" if self._host in ("0.0.0.0", "::", "") else self._host
+        self._url = gate.url(shown, server.get_port())
+        print(f"mirobot: view: {self._url}", file=sys.stderr, flush=True)
+        self._server = server
+        self._tasks = [
+            asyncio.create_task(self._follow(), name="mirobot-view-status"),
+            asyncio.create_task(self._redraw(), name="mirobot-view-redraw"),
+        ]
+        if self._open_browser:
+            webbrowser.open(self._url)
+        return self
+
+    async def __aexit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        """Tell the page how the script ended, give it :data:`END_GRACE` s to hear it, stop."""
+        if self._server is None:
+            return
+        self._observers.remove(self._watcher)
+        for task in self._tasks:
+            task.cancel()
+        await asyncio.gather(*self._tasks, return_exceptions=True)
+        self._draw()
+        if exc is None:
+            ended = "ended"
+        elif isinstance(exc, asyncio.CancelledError | KeyboardInterrupt):
+            ended = "stopped (interrupted)"
+        else:
+            ended = f"ended with an error: {type(exc).__name__}: {exc}"
+        assert self._lines is not None
+        self._script.content = (
+            self._lines.describe(ended) + "\n\n*The script has ended: this page no longer updates.*"
+        )
+        server = self._server
+        self._server = None
+        try:
+            server.flush()
+            await asyncio.sleep(END_GRACE)
+        finally:
+            with contextlib.redirect_stdout(sys.stderr):  # and says "Server stopped"
+                server.stop()
+
+    # ---- inside ---------------------------------------------------------------------------
+
+    def _build(self, server: viser.ViserServer, firmware: str, first: StatusReport) -> None:
+        """The page's widgets and scene, and the ear on the connection."""
+        from mirobot_async._view.scene import ArmScene
+
+        server.gui.configure_theme(
+            control_width="large", dark_mode=False, show_logo=False, show_share_button=False
+        )
+        self._status = server.gui.add_markdown("**State:** connecting ...")
+        self._script = server.gui.add_markdown("**Script: running**")
+        self._scene = ArmScene(server, firmware)
+        envelope = self._arm.envelope
+        if envelope is not None:
+            self._scene.show_envelope(envelope)
+        self._dh = dh_of(firmware)
+        self._trail: deque[tuple[float, float, float]] = deque(maxlen=_TRAIL_POINTS)
+        self._trail_version = 0
+        self._marks: list[Any] = []
+        self._lines = ScriptLines(firmware, envelope)
+        self._show(first)
+        self._watcher = _Watcher(self._lines, asyncio.get_running_loop().time())
+        self._observers.add(self._watcher)
+
+    @staticmethod
+    async def _learn(arm: WatchedArm) -> str:
+        """The arm's profile (for its geometry) and, off classic, its settings (the base
+        offset the path of absolute ``M20`` lines needs): read once, at rest, if unknown."""
+        firmware = arm.firmware
+        try:
+            if firmware is None:
+                firmware = await arm.detect_firmware(timeout=SETUP_TIMEOUT)
+            if firmware != "classic":
+                await arm.settings(timeout=SETUP_TIMEOUT)
+        except MirobotTimeoutError as err:
+            raise MirobotTimeoutError(
+                f"the arm to come to rest, to open its view ({err.waited_for})", SETUP_TIMEOUT
+            ) from err
+        return firmware
+
+    async def _follow(self) -> None:
+        """Show every status report until cancelled; the path starts at rest."""
+        assert self._lines is not None
+        while True:
+            try:
+                async with contextlib.aclosing(self._arm.statuses(STATUS_INTERVAL)) as reports:
+                    async for report in reports:
+                        self._show(report)
+            except MirobotTimeoutError:
+                self._status.content = "**State:** no status reply (homing?)"
+            except MirobotConnectionError as err:
+                self._status.content = f"**State: LINK LOST** ({err}); the arm's state is unknown"
+                return
+            except MirobotError as err:  # an alarm that answers nothing but a reset
+                self._status.content = f"**State:** {err}"
+                await asyncio.sleep(STATUS_INTERVAL * 10)
+
+    def _show(self, report: StatusReport) -> None:
+        """One status report on the page; at rest with nothing in flight, the path's start."""
+        assert self._lines is not None
+        self._scene.show_status(report)
+        self._status.content = describe_status(report, None)
+        at_rest = report.state in (State.IDLE, State.ALARM)
+        if at_rest and self._arm.pending_count == 0:
+            self._lines.at_rest(report.joints)
+        x, y, z, *_ = forward(report.joints, self._dh)
+        point = (x * _M, y * _M, z * _M)
+        if not self._trail or self._trail[-1] != point:
+            self._trail.append(point)
+            self._trail_version += 1
+
+    async def _redraw(self) -> None:
+        while True:
+            await asyncio.sleep(REDRAW_INTERVAL)
+            self._draw()
+
+    def _draw(self) -> None:
+        """The predicted path, the markers, the trail and the script's text, if they changed."""
+        lines, server = self._lines, self._server
+        if lines is None or server is None:
+            return
+        scene = server.scene
+        if lines.version != getattr(self, "_drawn_version", -1):
+            self._drawn_version = lines.version
+            segments = [s for s in lines.path() if len(s.points) >= 2]
+            if segments:
+                pairs = np.concatenate(
+                    [np.stack([s.points[:-1], s.points[1:]], axis=1) for s in segments]
+                )
+                colours = np.concatenate(
+                    [
+                        np.tile(_PATH_COLOURS.get(s.kind, (0, 0, 0)), (len(s.points) - 1, 2, 1))
+                        for s in segments
+                    ]
+                ).astype(np.uint8)
+                scene.add_line_segments(
+                    "/script/path", pairs * _M, colours, thickness=3.0, thickness_units="screen"
+                )
+            for node in self._marks:
+                node.remove()
+            self._marks = []
+            for i, marker in enumerate(lines.markers):
+                x, y, z = marker.point
+                position = (x * _M, y * _M, z * _M)
+                self._marks.append(
+                    scene.add_icosphere(
+                        f"/script/refused/{i}", radius=0.009, color=_MARK_COLOUR, position=position
+                    )
+                )
+                self._marks.append(
+                    scene.add_label(
+                        f"/script/refused/{i}/label", marker.label, position=(0, 0, 0.02)
+                    )
+                )
+        self._script.content = lines.describe(None)
+        if self._trail_version != getattr(self, "_drawn_trail", -1) and len(self._trail) >= 2:
+            self._drawn_trail = self._trail_version
+            points = np.asarray(self._trail)
+            scene.add_line_segments(
+                "/script/trail",
+                np.stack([points[:-1], points[1:]], axis=1),
+                _TRAIL_COLOUR,
+                thickness=2.0,
+                thickness_units="screen",
+            )
+
+
+class _Watcher:
+    """The view's ear on the connection: each fact, on the loop, into :class:`ScriptLines`."""
+
+    def __init__(self, lines: ScriptLines, opened: float) -> None:
+        self._lines = lines
+        self._opened = opened
+        self._loop = asyncio.get_running_loop()
+
+    def _t(self) -> float:
+        return self._loop.time() - self._opened
+
+    def line_written(
+        self, line: OutgoingLine, modes: MotionModes, base_offset: Offset | None
+    ) -> None:
+        self._lines.written(id(line), line.parsed, line.command, modes, base_offset)
+
+    def line_answered(self, line: OutgoingLine, reply: LineAcknowledged | LineRejected) -> None:
+        key, text, t = id(line), line.command, self._t()
+        if isinstance(reply, LineRejected):
+            self._lines.answered(key, text, t, error=reply.text)
+        else:
+            refusal = reply.refusal
+            self._lines.answered(key, text, t, refused=None if refusal is None else refusal.text)
+
+    def line_not_sent(self, command: str, error: MirobotError) -> None:
+        self._lines.not_sent(command, str(error), self._t())
+
+    def alarm(self, text: str) -> None:
+        self._lines.alarm(text, self._t())
+
+    def reset(self) -> None:
+        self._lines.reset(self._t())
