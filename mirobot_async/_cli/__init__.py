@@ -18,6 +18,7 @@ Layout (each module imports only the ones below it):
 * :mod:`~mirobot_async._cli.ports`: ``mirobot ports``, listing and probing serial ports (the
   probe is :mod:`mirobot_async._client.ports`, which ``--auto`` and ``Mirobot.connect("auto")``
   use);
+* :mod:`~mirobot_async._cli.watching`: ``--view``, the 3D view on the command's connection;
 * :mod:`~mirobot_async._cli.session`: opening, preparing and pre-flighting the arm, background
   jobs, stopping safely on SIGINT/SIGTERM;
 * :mod:`~mirobot_async._cli.rendering`: status tables, progress bar, live monitor, summaries;

@@ -161,6 +161,19 @@ def _add_interrupt_option(parser: argparse.ArgumentParser) -> None:
 # --- envelope option (--envelope FILE) -------------------------------------------------------
 
 
+def _add_view_option(parser: argparse.ArgumentParser, what: str) -> None:
+    """``--view`` (and ``--no-browser``): the 3D view on the command's own connection."""
+    parser.add_argument(
+        "--view",
+        action="store_true",
+        help=f"also show the arm in 3D in a browser: its motion, {what} (needs the view extra; "
+        "the URL, with its secret, is printed on stderr)",
+    )
+    parser.add_argument(
+        "--no-browser", action="store_true", help="with --view: print the URL, open no browser"
+    )
+
+
 def add_envelope_option(parser: argparse.ArgumentParser) -> None:
     """``--envelope FILE`` for a command that moves the arm: every line is checked against the
     workspace safety envelope in that TOML file (see examples/envelope.toml)."""
@@ -253,6 +266,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--csv", metavar="FILE", help="also append every sample to this CSV file (a trace)"
     )
     monitor.add_argument("--samples", type=_positive_int, metavar="N", help="stop after N samples")
+    _add_view_option(monitor, "the path of what another task sends on this connection")
 
     home = add(
         "home",
@@ -343,6 +357,9 @@ def build_parser() -> argparse.ArgumentParser:
     _add_prepare_options(run, "home")
     _add_interrupt_option(run)
     add_envelope_option(run)
+    _add_view_option(
+        run, "the program's predicted path and its refused lines; it waits for the page first"
+    )
 
     demo = add(
         "demo",

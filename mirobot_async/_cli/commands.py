@@ -46,6 +46,7 @@ from mirobot_async._cli.session import (
     time_scale_of,
 )
 from mirobot_async._cli.targets import JOINT_KEYS, POSE_KEYS, parse_assignments
+from mirobot_async._cli.watching import watched
 from mirobot_async._core import gcode
 from mirobot_async._core.replies import State
 from mirobot_async.errors import (
@@ -125,7 +126,10 @@ async def cmd_monitor(args: argparse.Namespace) -> int:
     with open_trace(args.csv, append=True, time_scale=time_scale_of(args)) as trace:
         try:
             with LiveView(sys.stdout) as view:
-                async with open_robot(args, watch_silent=True) as arm:
+                async with (
+                    open_robot(args, watch_silent=True) as arm,
+                    watched(arm, args, wait_for_page=False),
+                ):
                     while args.samples is None or view.samples < args.samples:
                         try:
                             async with sampling(arm, args.interval) as statuses:
@@ -276,7 +280,7 @@ async def cmd_run(args: argparse.Namespace) -> int:
         raise CliError(f"{name}: no commands in the {'input' if args.file == '-' else 'file'}")
     scale = time_scale_of(args)
     with open_trace(args.trace, append=False, time_scale=scale) as trace:
-        async with open_robot(args) as arm:
+        async with open_robot(args) as arm, watched(arm, args, wait_for_page=True):
             if not args.no_check:
                 await _check_before_running(arm, args, name, program)
             else:

@@ -549,6 +549,7 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, ToolCommands, Settin
         port: int = 0,
         open_browser: bool = True,
         allow_remote: bool = False,
+        wait_for_page: float | None = None,
     ) -> ArmView:
         """The arm in 3D in a browser while a block runs: ``async with arm.view() as view:``.
 
@@ -559,6 +560,8 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, ToolCommands, Settin
         ended. Its URL (with a secret; also printed on stderr) is ``view.url``, opened in a
         browser unless ``open_browser=False``; it is served on ``host``:``port`` (a free port by
         default; an address other than loopback only with ``allow_remote=True``).
+        ``wait_for_page`` (seconds): entering also waits until a page is connected (a short
+        script would end before anyone watched); after that long it goes on without one.
 
         Entering waits, once, for the arm at rest when its firmware (or, off classic, its base
         offset) is not known yet (one ``$$``, at most 30 s: :class:`MirobotTimeoutError`).
@@ -581,4 +584,5 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, ToolCommands, Settin
             port=port,
             open_browser=open_browser,
             allow_remote=allow_remote,
+            wait_for_page=wait_for_page,
         )

@@ -6,9 +6,11 @@ connection's facts and draws it.
 The path is predicted line by line as the lines are written (pipelined: ahead of the arm),
 each from where the lines before it leave the arm, with the modes and the base offset the
 client knows before the line (:func:`~mirobot_async._view.preview.predict_line`). It starts at
-the first status that shows the arm at rest with nothing in flight; after a refusal, an alarm,
-a reset or a line it cannot predict (a mode or the position unknown) it stops, and starts
-again at the next such status. Lines written meanwhile are counted, not drawn.
+the first status that shows the arm at rest with nothing in flight. A refused line moves
+nothing: when it was the last line written the path goes on from before it; otherwise (the
+lines after it were predicted from its end), and after an alarm, a reset or a line it cannot
+predict (a mode or the position unknown), the path stops and starts again at the next such
+status. Lines written meanwhile are counted, not drawn.
 """
 
 from __future__ import annotations
@@ -77,7 +79,7 @@ class ScriptLines:
         """Lines written while the path was unknown (not drawn)."""
         self.version = 0
         """Changes whenever something drawn changed (the view redraws then)."""
-        self._pending: dict[int, tuple[int, tuple[float, float, float] | None]] = {}
+        self._pending: dict[int, tuple[int, MachineState]] = {}
 
     @property
     def predicting(self) -> bool:
@@ -105,16 +107,15 @@ class ScriptLines:
         number = self.count_written
         offset = (0.0, 0.0, 0.0) if self.firmware == "classic" else base_offset
         before = replace(self.state, modes=modes, base_offset=offset)
-        start = self._tool_point(before)
         if len(self._pending) >= _PENDING_KEPT:
             self._pending.clear()
-        self._pending[key] = (number, start)
+        self._pending[key] = (number, before)
         if before.joints is None:
-            if parsed.may_move:
-                self.undrawn += 1
             self.state = before
             if parsed.is_homing:  # homing ends at zero: known again
                 self.state = replace(before, joints=(0.0,) * 6, pose=None, parser=None)
+            elif parsed.may_move:
+                self.undrawn += 1
             return number
         step = predict_line(self.model, number, parsed, text, before)
         self.state = step.state
@@ -129,7 +130,7 @@ class ScriptLines:
     ) -> None:
         """Line ``key`` was answered: ``ok`` (``refused``: the firmware's text when it dropped
         the motion anyway) or an error reply (``error``: its text)."""
-        number, start = self._pending.pop(key, (0, None))
+        number, before = self._pending.pop(key, (0, None))
         self.count_answered += 1
         failure = error if error is not None else refused
         if failure is None:
@@ -137,9 +138,14 @@ class ScriptLines:
         self.count_failed += 1
         kind = "error" if error is not None else "refused"
         self.events.append(ScriptEvent(t, kind, f"line {number} `{text}`: {failure}"))
+        start = None if before is None else self._tool_point(before)
         if start is not None:
             self.markers.append(Marker(number, start, f"line {number}"))
-        self.forget()
+        if before is not None and number == self.count_written:
+            self.state = before  # the last line written moved nothing: the arm ends as before
+            self.version += 1
+        else:  # lines after it were predicted from where it would have ended
+            self.forget()
 
     def not_sent(self, text: str, reason: str, t: float) -> None:
         """Line ``text`` was refused by the client: nothing of it was written."""

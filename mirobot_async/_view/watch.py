@@ -101,6 +101,7 @@ class ArmView:
         port: int,
         open_browser: bool,
         allow_remote: bool,
+        wait_for_page: float | None,
     ) -> None:
         from mirobot_async._view.gate import is_loopback
 
@@ -109,6 +110,8 @@ class ArmView:
                 f"view(host={host!r}): not a loopback address; anyone who reaches it with the "
                 "URL sees the arm. Pass allow_remote=True to serve it anyway"
             )
+        if wait_for_page is not None and not wait_for_page >= 0:
+            raise MirobotUsageError(f"view(wait_for_page={wait_for_page!r}): must be >= 0 or None")
         if not 0 <= port <= 65535:
             raise MirobotUsageError(f"view(port={port!r}): must be 0..65535")
         self._arm = arm
@@ -117,6 +120,7 @@ class ArmView:
         self._port = port
         self._open_browser = open_browser
         self._allow_remote = allow_remote
+        self._wait_for_page = wait_for_page
         self._url: str | None = None
         self._server: viser.ViserServer | None = None
         self._tasks: list[asyncio.Task[None]] = []
@@ -138,7 +142,9 @@ class ArmView:
     # ---- the block ------------------------------------------------------------------------
 
     async def __aenter__(self) -> ArmView:
-        """Serve the page (the URL is printed on stderr, and opened in a browser if asked).
+        """Serve the page (the URL is printed on stderr, and opened in a browser if asked),
+        then wait for a page to connect if asked (at most ``wait_for_page`` s; the script goes
+        on without one then).
         Waits, at most :data:`SETUP_TIMEOUT` s, for the arm at rest when its firmware (or, on
         2021, its base offset ``$41..$43``) is not known yet: one ``$$``."""
         if self._entered:
@@ -174,6 +180,12 @@ class ArmView:
         ]
         if self._open_browser:
             webbrowser.open(self._url)
+        if self._wait_for_page and not self.clients:
+            try:
+                async with asyncio.timeout(self._wait_for_page):
+                    await self._page_connected.wait()
+            except TimeoutError:
+                _log.warning("no page connected to %s within %g s", self._url, self._wait_for_page)
         return self
 
     async def __aexit__(
@@ -229,6 +241,13 @@ class ArmView:
         self._trail_version = 0
         self._marks: list[Any] = []
         self._lines = ScriptLines(firmware, envelope)
+        self._page_connected = asyncio.Event()
+        loop = asyncio.get_running_loop()
+
+        def connected(_: viser.ClientHandle) -> None:
+            loop.call_soon_threadsafe(self._page_connected.set)
+
+        server.on_client_connect(connected)
         self._show(first)
         self._watcher = _Watcher(self._lines, asyncio.get_running_loop().time())
         self._observers.add(self._watcher)
