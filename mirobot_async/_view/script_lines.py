@@ -118,9 +118,8 @@ class ScriptLines:
                 self.undrawn += 1
             return number
         step = predict_line(self.model, number, parsed, text, before)
-        self.state = step.state
-        if step.unpredicted is not None and (parsed.may_move):
-            self.undrawn += 1
+        self.state = step.state  # a line the model cannot follow (beyond the joints' range):
+        # the path stops here; the firmware's reply says what it did
         for segment in step.segments:
             self._add(segment)
         return number
@@ -178,9 +177,10 @@ class ScriptLines:
     def describe(self, ended: str | None) -> str:
         """The panel's script block (Markdown); ``ended``: how the script ended, if it did."""
         head = "**Script: running**" if ended is None else f"**Script: {ended}**"
+        written = self.count_written
         counts = (
-            f"{self.count_written} lines written, {self.count_answered} answered, "
-            f"{self.count_failed} refused"
+            f"{written} line{'' if written == 1 else 's'} written, {self.count_answered} "
+            f"answered, {self.count_failed} refused"
             + (f", {self.undrawn} not drawn (position unknown)" if self.undrawn else "")
         )
         shown = list(self.events)[-8:]

@@ -80,6 +80,8 @@ class WatchedArm(Protocol):
     def envelope(self) -> Envelope | None: ...
     @property
     def pending_count(self) -> int: ...
+    @property
+    def last_status(self) -> StatusReport | None: ...
     def statuses(
         self, interval: float = ..., *, timeout: float | None = ...
     ) -> AsyncGenerator[StatusReport, None]: ...
@@ -201,6 +203,9 @@ class ArmView:
         for task in self._tasks:
             task.cancel()
         await asyncio.gather(*self._tasks, return_exceptions=True)
+        last = self._arm.last_status  # the newest report, though the poll was cancelled
+        if last is not None:
+            self._show(last)
         self._draw()
         if exc is None:
             ended = "ended"

@@ -71,7 +71,9 @@ def test_homing_puts_the_path_at_zero_and_an_unknown_mode_stops_it() -> None:
     _write(lines, 1, "$H")
     assert lines.state.joints == ZERO
     _write(lines, 2, "G0 X10", MotionModes.unknown())  # relies on modes nobody stated
-    assert not lines.predicting and lines.undrawn == 1
+    assert not lines.predicting and not lines.path()
+    _write(lines, 3, "G0 X20")  # its start is unknown: counted, not drawn
+    assert lines.undrawn == 1 and not lines.path()
 
 
 def test_the_path_kept_is_bounded() -> None:
