@@ -573,7 +573,7 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, ToolCommands, Settin
         if missing:
             raise MirobotUsageError(
                 f"arm.view() needs the view extra ({', '.join(missing)} not installed): "
-                "pip install 'mirobot-async[view]'"
+                "pip install 'mirobot-async[view]' (in a clone: pip install -e '.[view]')"
             )
         from mirobot_async._view.watch import ArmView
 
