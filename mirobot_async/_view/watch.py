@@ -17,13 +17,14 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import functools
 import logging
 import sys
 import webbrowser
 from collections import deque
-from collections.abc import AsyncGenerator
+from collections.abc import AsyncGenerator, Callable
 from types import TracebackType
-from typing import TYPE_CHECKING, Any, Final, Protocol
+from typing import TYPE_CHECKING, Final, Protocol
 
 import numpy as np
 
@@ -33,7 +34,8 @@ from mirobot_async._core.outgoing import OutgoingLine
 from mirobot_async._core.protocol import LineAcknowledged, LineRejected
 from mirobot_async._core.replies import State, StatusReport
 from mirobot_async._urdf import dh_of
-from mirobot_async._view.script_lines import ScriptLines
+from mirobot_async._view.preview import PathSegment
+from mirobot_async._view.script_lines import Marker, ScriptLines
 from mirobot_async._view.status_text import describe_status
 from mirobot_async.errors import (
     MirobotConnectionError,
@@ -41,7 +43,7 @@ from mirobot_async.errors import (
     MirobotTimeoutError,
     MirobotUsageError,
 )
-from mirobot_async.kinematics import forward
+from mirobot_async.kinematics import Joints, forward
 
 if TYPE_CHECKING:
     import viser
@@ -60,7 +62,12 @@ END_GRACE: Final = 0.5
 """Seconds the server stays up after the script ended, for the page to hear it."""
 SETUP_TIMEOUT: Final = 30.0
 """Seconds the view may wait, once, for the arm at rest to learn its firmware and settings."""
-_TRAIL_POINTS: Final = 5000
+_TRAIL_CHUNK: Final = 500
+"""Points of the trail per scene node (a full one is not sent again)."""
+_TRAIL_CHUNKS_KEPT: Final = 20
+_KEYS_KEPT: Final = 4096
+_PATH_CHUNK: Final = 100
+"""Lines of the predicted path per scene node (a full one is not sent again)."""
 _M: Final = 0.001
 _PATH_COLOURS: Final = {
     "joint": (40, 110, 230),
@@ -242,9 +249,14 @@ class ArmView:
         if envelope is not None:
             self._scene.show_envelope(envelope)
         self._dh = dh_of(firmware)
-        self._trail: deque[tuple[float, float, float]] = deque(maxlen=_TRAIL_POINTS)
-        self._trail_version = 0
-        self._marks: list[Any] = []
+        self._trail_points: list[tuple[float, float, float]] = []
+        self._trail_drawn = 0
+        self._trail_chunks = 0
+        self._trail_frozen: deque[viser.SceneNodeHandle] = deque()
+        self._marks: list[viser.SceneNodeHandle] = []
+        self._path_nodes: dict[int, tuple[viser.SceneNodeHandle, int]] = {}
+        self._drawn_version = -1
+        self._drawn_markers: list[Marker] = []
         self._lines = ScriptLines(firmware, envelope)
         self._page_connected = asyncio.Event()
         loop = asyncio.get_running_loop()
@@ -253,8 +265,8 @@ class ArmView:
             loop.call_soon_threadsafe(self._page_connected.set)
 
         server.on_client_connect(connected)
+        self._watcher = _Watcher(self._lines, loop.time())
         self._show(first)
-        self._watcher = _Watcher(self._lines, asyncio.get_running_loop().time())
         self._observers.add(self._watcher)
 
     @staticmethod
@@ -297,12 +309,11 @@ class ArmView:
         self._status.content = describe_status(report, None)
         at_rest = report.state in (State.IDLE, State.ALARM)
         if at_rest and self._arm.pending_count == 0:
-            self._lines.at_rest(report.joints)
+            self._watcher.at_rest(report.joints)
         x, y, z, *_ = forward(report.joints, self._dh)
         point = (x * _M, y * _M, z * _M)
-        if not self._trail or self._trail[-1] != point:
-            self._trail.append(point)
-            self._trail_version += 1
+        if not self._trail_points or self._trail_points[-1] != point:
+            self._trail_points.append(point)
 
     async def _redraw(self) -> None:
         while True:
@@ -310,85 +321,150 @@ class ArmView:
             self._draw()
 
     def _draw(self) -> None:
-        """The predicted path, the markers, the trail and the script's text, if they changed."""
+        """The predicted path, the markers, the trail and the script's text, where they
+        changed. Path and trail are drawn in chunks (:data:`_PATH_CHUNK` lines,
+        :data:`_TRAIL_CHUNK` points): only the newest chunk is sent again as it grows."""
         lines, server = self._lines, self._server
         if lines is None or server is None:
             return
-        scene = server.scene
-        if lines.version != getattr(self, "_drawn_version", -1):
+        self._watcher.catch_up()
+        if lines.version != self._drawn_version:
             self._drawn_version = lines.version
-            segments = [s for s in lines.path() if len(s.points) >= 2]
-            if segments:
-                pairs = np.concatenate(
-                    [np.stack([s.points[:-1], s.points[1:]], axis=1) for s in segments]
-                )
-                colours = np.concatenate(
-                    [
-                        np.tile(_PATH_COLOURS.get(s.kind, (0, 0, 0)), (len(s.points) - 1, 2, 1))
-                        for s in segments
-                    ]
-                ).astype(np.uint8)
-                scene.add_line_segments(
-                    "/script/path", pairs * _M, colours, thickness=3.0, thickness_units="screen"
-                )
-            for node in self._marks:
-                node.remove()
-            self._marks = []
-            for i, marker in enumerate(lines.markers):
-                x, y, z = marker.point
-                position = (x * _M, y * _M, z * _M)
-                self._marks.append(
-                    scene.add_icosphere(
-                        f"/script/refused/{i}", radius=0.009, color=_MARK_COLOUR, position=position
-                    )
-                )
-                self._marks.append(
-                    scene.add_label(
-                        f"/script/refused/{i}/label", marker.label, position=(0, 0, 0.02)
-                    )
-                )
-        self._script.content = lines.describe(None)
-        if self._trail_version != getattr(self, "_drawn_trail", -1) and len(self._trail) >= 2:
-            self._drawn_trail = self._trail_version
-            points = np.asarray(self._trail)
-            scene.add_line_segments(
-                "/script/trail",
-                np.stack([points[:-1], points[1:]], axis=1),
-                _TRAIL_COLOUR,
-                thickness=2.0,
-                thickness_units="screen",
+            self._draw_path(server, lines.path())
+            markers = list(lines.markers)
+            if markers != self._drawn_markers:
+                self._drawn_markers = markers
+                self._draw_markers(server, markers)
+        text = lines.describe(None)
+        if text != self._script.content:
+            self._script.content = text
+        self._draw_trail(server)
+
+    def _draw_path(self, server: viser.ViserServer, path: list[PathSegment]) -> None:
+        chunks: dict[int, list[PathSegment]] = {}
+        for segment in path:
+            if len(segment.points) >= 2:
+                chunks.setdefault(segment.number // _PATH_CHUNK, []).append(segment)
+        for key in [k for k in self._path_nodes if k not in chunks]:  # dropped (oldest)
+            self._path_nodes.pop(key)[0].remove()
+        for key, segments in chunks.items():
+            drawn = self._path_nodes.get(key)
+            if drawn is not None and drawn[1] == len(segments):
+                continue
+            pairs = np.concatenate(
+                [np.stack([s.points[:-1], s.points[1:]], axis=1) for s in segments]
             )
+            colours = np.concatenate(
+                [
+                    np.tile(_PATH_COLOURS.get(s.kind, (0, 0, 0)), (len(s.points) - 1, 2, 1))
+                    for s in segments
+                ]
+            ).astype(np.uint8)
+            node = server.scene.add_line_segments(
+                f"/script/path/{key}", pairs * _M, colours, thickness=3.0, thickness_units="screen"
+            )
+            self._path_nodes[key] = (node, len(segments))
+
+    def _draw_markers(self, server: viser.ViserServer, markers: list[Marker]) -> None:
+        for node in self._marks:
+            node.remove()
+        self._marks = []
+        seen: dict[tuple[float, float, float], int] = {}
+        for i, marker in enumerate(markers):
+            x, y, z = marker.point
+            above = seen.get(marker.point, 0)  # labels of one place stacked, not overlaid
+            seen[marker.point] = above + 1
+            self._marks.append(
+                server.scene.add_icosphere(
+                    f"/script/refused/{i}",
+                    radius=0.009,
+                    color=_MARK_COLOUR,
+                    position=(x * _M, y * _M, z * _M),
+                )
+            )
+            self._marks.append(
+                server.scene.add_label(
+                    f"/script/refused/{i}/label", marker.label, position=(0, 0, 0.02 + 0.02 * above)
+                )
+            )
+
+    def _draw_trail(self, server: viser.ViserServer) -> None:
+        points = self._trail_points
+        if len(points) < 2 or self._trail_drawn == len(points):
+            return
+        pairs = np.asarray(points)
+        self._trail_node = server.scene.add_line_segments(
+            f"/script/trail/{self._trail_chunks}",
+            np.stack([pairs[:-1], pairs[1:]], axis=1),
+            _TRAIL_COLOUR,
+            thickness=2.0,
+            thickness_units="screen",
+        )
+        self._trail_drawn = len(points)
+        if len(points) >= _TRAIL_CHUNK:  # frozen: the next chunk starts at its last point
+            self._trail_frozen.append(self._trail_node)
+            if len(self._trail_frozen) > _TRAIL_CHUNKS_KEPT:
+                self._trail_frozen.popleft().remove()
+            self._trail_chunks += 1
+            self._trail_points = [points[-1]]
+            self._trail_drawn = 1
 
 
 class _Watcher:
-    """The view's ear on the connection: each fact, on the loop, into :class:`ScriptLines`."""
+    """The view's ear on the connection. The client tells it each fact on the loop, in the
+    middle of writing lines: it only notes them (with the modes and the time they came with),
+    and :meth:`catch_up` hands them to :class:`ScriptLines` in order when the page is redrawn,
+    so that predicting the path never delays a line."""
 
     def __init__(self, lines: ScriptLines, opened: float) -> None:
         self._lines = lines
         self._opened = opened
         self._loop = asyncio.get_running_loop()
+        self._facts: list[Callable[[], object]] = []
+        self._keys: dict[int, tuple[OutgoingLine, int]] = {}  # the lines awaiting a reply
+        self._next_key = 0
 
     def _t(self) -> float:
         return self._loop.time() - self._opened
 
+    def catch_up(self) -> None:
+        """Hand every fact noted so far to the model, oldest first."""
+        facts, self._facts = self._facts, []
+        for fact in facts:
+            fact()
+
+    def at_rest(self, joints: Joints) -> None:
+        self._facts.append(functools.partial(self._lines.at_rest, joints))
+
     def line_written(
         self, line: OutgoingLine, modes: MotionModes, base_offset: Offset | None
     ) -> None:
-        self._lines.written(id(line), line.parsed, line.command, modes, base_offset)
+        self._next_key += 1
+        if len(self._keys) >= _KEYS_KEPT:  # lines a reset left unanswered
+            self._keys.clear()
+        self._keys[id(line)] = (line, self._next_key)
+        self._facts.append(
+            functools.partial(
+                self._lines.written, self._next_key, line.parsed, line.command, modes, base_offset
+            )
+        )
 
     def line_answered(self, line: OutgoingLine, reply: LineAcknowledged | LineRejected) -> None:
-        key, text, t = id(line), line.command, self._t()
+        _, key = self._keys.pop(id(line), (line, 0))
+        answered = functools.partial(self._lines.answered, key, line.command, self._t())
         if isinstance(reply, LineRejected):
-            self._lines.answered(key, text, t, error=reply.text)
+            self._facts.append(functools.partial(answered, error=reply.text))
         else:
             refusal = reply.refusal
-            self._lines.answered(key, text, t, refused=None if refusal is None else refusal.text)
+            self._facts.append(
+                functools.partial(answered, refused=None if refusal is None else refusal.text)
+            )
 
     def line_not_sent(self, command: str, error: MirobotError) -> None:
-        self._lines.not_sent(command, str(error), self._t())
+        self._facts.append(functools.partial(self._lines.not_sent, command, str(error), self._t()))
 
     def alarm(self, text: str) -> None:
-        self._lines.alarm(text, self._t())
+        self._facts.append(functools.partial(self._lines.alarm, text, self._t()))
 
     def reset(self) -> None:
-        self._lines.reset(self._t())
+        self._facts.append(functools.partial(self._lines.reset, self._t()))

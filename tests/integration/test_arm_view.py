@@ -15,6 +15,7 @@ import urllib.request
 from typing import Any
 
 import pytest
+from waiting import wait_until
 
 from mirobot_async import (
     ArmView,
@@ -54,8 +55,10 @@ async def test_the_view_hears_every_line_and_changes_no_outcome(
         assert result.ok, result
         lines = view._lines
         assert lines is not None
-        # the move, the refused line, two streamed lines and the stream's G4 P0 (wait=True)
-        assert lines.count_written == 5 and lines.count_answered == 5
+        # the move, the refused line, two streamed lines and the stream's G4 P0 (wait=True);
+        # the view takes them in at its next redraw (never in the middle of writing a line)
+        await wait_until(lambda: lines.count_answered == 5, 10, "the view to take in 5 replies")
+        assert lines.count_written == 5
         kinds = [(e.kind, e.text) for e in lines.events]
         assert kinds[0][0] == "refused" and "Soft limit" in kinds[0][1]
         assert kinds[1][0] == "not sent" and "M21 G90 G0 X170" in kinds[1][1]
