@@ -62,9 +62,9 @@ END_GRACE: Final = 0.5
 """Seconds the server stays up after the script ended, for the page to hear it."""
 SETUP_TIMEOUT: Final = 30.0
 """Seconds the view may wait, once, for the arm at rest to learn its firmware and settings."""
-_TRAIL_CHUNK: Final = 500
+_TRAIL_CHUNK: Final = 100
 """Points of the trail per scene node (a full one is not sent again)."""
-_TRAIL_CHUNKS_KEPT: Final = 20
+_TRAIL_CHUNKS_KEPT: Final = 100
 _KEYS_KEPT: Final = 4096
 _PATH_CHUNK: Final = 100
 """Lines of the predicted path per scene node (a full one is not sent again)."""
@@ -306,7 +306,9 @@ class ArmView:
         """One status report on the page; at rest with nothing in flight, the path's start."""
         assert self._lines is not None
         self._scene.show_status(report)
-        self._status.content = describe_status(report, None)
+        text = describe_status(report, None)
+        if text != self._status.content:
+            self._status.content = text
         at_rest = report.state in (State.IDLE, State.ALARM)
         if at_rest and self._arm.pending_count == 0:
             self._watcher.at_rest(report.joints)
