@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
+from typing import Final
 
 import numpy as np
 
@@ -36,6 +37,8 @@ from mirobot_async._urdf import dh_of
 from mirobot_async.kinematics import Joints, Pose, forward, forward_many
 
 __all__ = [
+    "PATH_COLOURS",
+    "REFUSED_COLOUR",
     "FlaggedLine",
     "LineStep",
     "PathSegment",
@@ -54,6 +57,16 @@ class FlaggedLine:
     number: int
     text: str
     message: str
+
+
+PATH_COLOURS: Final = {
+    "joint": (40, 110, 230),
+    "cartesian": (20, 160, 80),
+    "snap": (150, 150, 150),
+}
+"""How the views draw each kind of :class:`PathSegment` (blue, green, grey; RGB)."""
+REFUSED_COLOUR: Final = (220, 30, 30)
+"""How the views mark a line refused or flagged (red)."""
 
 
 @dataclass(frozen=True, slots=True)

@@ -18,7 +18,7 @@ import yourdfpy
 from viser.extras import ViserUrdf
 
 from mirobot_async._urdf import build_urdf, dh_of
-from mirobot_async._view.preview import ProgramPreview
+from mirobot_async._view.preview import PATH_COLOURS, REFUSED_COLOUR, ProgramPreview
 from mirobot_async.kinematics import forward
 
 if TYPE_CHECKING:
@@ -30,12 +30,6 @@ __all__ = ["ArmScene"]
 _M: Final = 0.001
 _REACH_MM: Final = 450.0
 """How far an open side of the envelope's box is drawn (beyond the arm's reach)."""
-_PATH_COLOURS: Final = {
-    "joint": (40, 110, 230),
-    "cartesian": (20, 160, 80),
-    "snap": (150, 150, 150),
-}
-_FLAG_COLOUR: Final = (220, 30, 30)
 
 
 class ArmScene:
@@ -119,7 +113,7 @@ class ArmScene:
                 scene.add_line_segments(
                     f"/program/path/{i}",
                     pairs,
-                    _PATH_COLOURS.get(segment.kind, (0, 0, 0)),
+                    PATH_COLOURS.get(segment.kind, (0, 0, 0)),
                     thickness=4.0,
                     thickness_units="screen",
                 )
@@ -131,7 +125,7 @@ class ArmScene:
                 scene.add_icosphere(
                     f"/program/flag/{flag.number}",
                     radius=0.011,
-                    color=_FLAG_COLOUR,
+                    color=REFUSED_COLOUR,
                     position=position,
                 )
             )

@@ -34,7 +34,7 @@ from mirobot_async._core.outgoing import OutgoingLine
 from mirobot_async._core.protocol import LineAcknowledged, LineRejected
 from mirobot_async._core.replies import State, StatusReport
 from mirobot_async._urdf import dh_of
-from mirobot_async._view.preview import PathSegment
+from mirobot_async._view.preview import PATH_COLOURS, REFUSED_COLOUR, PathSegment
 from mirobot_async._view.script_lines import Marker, ScriptLines
 from mirobot_async._view.status_text import describe_status
 from mirobot_async.errors import (
@@ -69,13 +69,7 @@ _KEYS_KEPT: Final = 4096
 _PATH_CHUNK: Final = 100
 """Lines of the predicted path per scene node (a full one is not sent again)."""
 _M: Final = 0.001
-_PATH_COLOURS: Final = {
-    "joint": (40, 110, 230),
-    "cartesian": (20, 160, 80),
-    "snap": (150, 150, 150),
-}
 _TRAIL_COLOUR: Final = (40, 40, 40)
-_MARK_COLOUR: Final = (220, 30, 30)
 
 
 class WatchedArm(Protocol):
@@ -358,7 +352,7 @@ class ArmView:
             )
             colours = np.concatenate(
                 [
-                    np.tile(_PATH_COLOURS.get(s.kind, (0, 0, 0)), (len(s.points) - 1, 2, 1))
+                    np.tile(PATH_COLOURS.get(s.kind, (0, 0, 0)), (len(s.points) - 1, 2, 1))
                     for s in segments
                 ]
             ).astype(np.uint8)
@@ -380,7 +374,7 @@ class ArmView:
                 server.scene.add_icosphere(
                     f"/script/refused/{i}",
                     radius=0.009,
-                    color=_MARK_COLOUR,
+                    color=REFUSED_COLOUR,
                     position=(x * _M, y * _M, z * _M),
                 )
             )

@@ -10,8 +10,6 @@ by git). Without Chromium or Playwright the tests skip with one line saying so;
 
 from __future__ import annotations
 
-import contextlib
-import io
 import os
 import subprocess
 import sys
@@ -21,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from viewpage import ARTIFACTS, UI_TIMEOUT, VIEWPORT, Page, ViewProcess
+from viewpage import ARTIFACTS, UI_TIMEOUT, VIEWPORT, Page, ViewProcess, drain
 
 CHROMIUM = os.environ.get("MIROBOT_CHROMIUM", "/usr/bin/chromium")
 CHROMIUM_ARGS = [
@@ -68,12 +66,6 @@ def browser() -> Iterator[Any]:
             chromium.close()
 
 
-def _drain(stream: io.TextIOBase, into: list[str]) -> None:
-    with contextlib.suppress(ValueError, OSError):
-        for line in stream:
-            into.append(line)
-
-
 @pytest.fixture
 def start_view(tmp_path: Path) -> Iterator[Callable[..., ViewProcess]]:
     """``start_view(*args)``: ``mirobot view ARGS --no-browser`` in ``tmp_path`` (so an export
@@ -93,7 +85,7 @@ def start_view(tmp_path: Path) -> Iterator[Callable[..., ViewProcess]]:
         view = ViewProcess(process, "")
         started.append(view)
         assert process.stderr is not None and process.stdout is not None
-        view.drain = threading.Thread(target=_drain, args=(process.stderr, view.stderr))
+        view.drain = threading.Thread(target=drain, args=(process.stderr, view.stderr))
         view.drain.start()
         first: list[str] = []
         reader = threading.Thread(target=lambda: first.append(process.stdout.readline()))  # type: ignore[union-attr]

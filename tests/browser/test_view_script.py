@@ -8,8 +8,6 @@ stops the script; the script's end is said on the page.
 
 from __future__ import annotations
 
-import contextlib
-import io
 import re
 import subprocess
 import sys
@@ -21,7 +19,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from viewpage import Page
+from viewpage import Page, drain
 from waiting import wait_for
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(300)]
@@ -76,8 +74,8 @@ class Command:
         self.stdout: list[str] = []
         self.stderr: list[str] = []
         self._threads = [
-            threading.Thread(target=_drain, args=(self.process.stdout, self.stdout)),
-            threading.Thread(target=_drain, args=(self.process.stderr, self.stderr)),
+            threading.Thread(target=drain, args=(self.process.stdout, self.stdout)),
+            threading.Thread(target=drain, args=(self.process.stderr, self.stderr)),
         ]
         for thread in self._threads:
             thread.start()
@@ -107,12 +105,6 @@ class Command:
         for pipe in (self.process.stdin, self.process.stdout, self.process.stderr):
             if pipe is not None:
                 pipe.close()
-
-
-def _drain(stream: io.TextIOBase, into: list[str]) -> None:
-    with contextlib.suppress(ValueError, OSError):
-        for line in stream:
-            into.append(line)
 
 
 @pytest.fixture

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import base64
+import contextlib
 import io
 import re
 import signal
@@ -120,6 +121,13 @@ class Page:
             if parsed.hostname not in LOCAL_HOSTS:
                 out.append(url)
         return out
+
+
+def drain(stream: io.TextIOBase, into: list[str]) -> None:
+    """Append each line of ``stream`` to ``into`` until it ends (a reader thread's body)."""
+    with contextlib.suppress(ValueError, OSError):
+        for line in stream:
+            into.append(line)
 
 
 def mirobot(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
