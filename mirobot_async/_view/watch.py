@@ -189,6 +189,9 @@ class ArmView:
                     await self._page_connected.wait()
             except TimeoutError:
                 _log.warning("no page connected to %s within %g s", self._url, self._wait_for_page)
+            except BaseException as err:  # cancelled (Ctrl-C) while waiting: stop the server
+                await self.__aexit__(type(err), err, err.__traceback__)
+                raise
         return self
 
     async def __aexit__(

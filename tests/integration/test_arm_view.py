@@ -95,3 +95,21 @@ def test_the_blocking_facade_enters_the_view_as_a_plain_block(emu: Any) -> None:
             arm.move_joints(j1=5, speed=2000)
             assert view.clients == 0
         arm.move_joints(j1=0, speed=2000)
+
+
+async def test_cancelled_while_waiting_for_a_page_the_view_stops_its_server(
+    ready_arm: Mirobot,
+) -> None:
+    import threading
+
+    before = {t.ident for t in threading.enumerate()}
+    view = ready_arm.view(open_browser=False, wait_for_page=30)
+    entering = asyncio.ensure_future(view.__aenter__())
+    await wait_until(lambda: "?token=" in (view._url or ""), 30, "the view to serve its page")
+    entering.cancel()
+    with pytest.raises(asyncio.CancelledError):
+        await entering
+    assert view._server is None  # stopped: nobody can open the page any more
+    await wait_until(
+        lambda: {t.ident for t in threading.enumerate()} <= before, 10, "viser's threads to end"
+    )
