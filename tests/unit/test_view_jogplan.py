@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from typing import Literal
+from typing import Any, Literal, cast
 
 import pytest
 from hypothesis import given
@@ -14,6 +14,8 @@ from mirobot_emulator.settings import default_settings
 
 from mirobot_async import kinematics
 from mirobot_async._urdf import dh_of
+from mirobot_async._view import holdjog
+from mirobot_async._view.holdjog import HoldJog
 from mirobot_async._view.jogplan import (
     CARTESIAN_JOINT_RATE,
     JOINT_RATE,
@@ -196,3 +198,68 @@ def test_every_hold_button_has_its_own_text() -> None:
     assert JogAxis("joint", 0, 1).label == "J1 +"
     assert JogAxis("pose", 3, -1).label == "RX -"
     assert JogAxis("pose", 2, 1).unit == "mm" and JogAxis("pose", 5, 1).unit == "deg"
+
+
+# ------------------------------------------------------------------------------------------
+# Which button is held (HoldJog's state: keep-alives and releases from viser's thread)
+
+X_PLUS = JogAxis("pose", 0, 1)
+X_MINUS = JogAxis("pose", 0, -1)
+
+
+def _jog() -> HoldJog:
+    said: list[str] = []
+    return HoldJog(cast(Any, None), said.append, "2021")
+
+
+def test_the_first_keep_alive_starts_a_jog_and_the_next_ones_keep_it() -> None:
+    jog = _jog()
+    assert jog.press(X_PLUS)
+    assert not jog.press(X_PLUS)
+    assert jog._holding(X_PLUS)
+    jog.release()
+    assert not jog._holding(X_PLUS)
+    assert jog.ended_by == "release" and jog.released_at is not None
+
+
+def test_a_keep_alive_of_another_button_lets_go_of_the_first() -> None:
+    """The page's click can be lost behind another press (it sends the latest message per
+    50 ms): the running jog ends, and the other one starts after it."""
+    jog = _jog()
+    assert jog.press(X_PLUS)
+    assert not jog.press(X_MINUS)  # the X + jog still runs (stopping)
+    assert not jog._holding(X_PLUS)
+    assert jog.ended_by == "another button"
+    jog._running = None  # run() ended
+    assert jog.take_next() == X_MINUS
+    assert jog._holding(X_MINUS)
+
+
+def test_no_keep_alive_for_the_watchdog_ends_the_jog() -> None:
+    said: list[str] = []
+    jog = HoldJog(cast(Any, None), said.append, "2021")
+    assert jog.press(X_PLUS)
+    assert jog._holding(X_PLUS)
+    jog._keepalive -= holdjog.WATCHDOG + 0.01  # the last keep-alive that long ago
+    assert not jog._holding(X_PLUS)
+    assert jog.ended_by == "watchdog"
+    assert said == ["**X + (hold): no keep-alive from the page**"]
+
+
+def test_a_jog_ended_at_an_edge_is_not_restarted_until_let_go() -> None:
+    jog = _jog()
+    assert jog.press(X_PLUS)
+    jog._running = None  # run() ended at the edge, the button still held
+    jog._stuck = X_PLUS
+    assert jog.take_next() is None
+    assert not jog.press(X_PLUS)
+    jog.release()
+    assert jog.press(X_PLUS)
+
+
+def test_a_refused_jog_is_forgotten() -> None:
+    jog = _jog()
+    assert jog.press(X_PLUS)
+    jog.refused()
+    assert jog.take_next() is None
+    assert jog.press(X_PLUS)
