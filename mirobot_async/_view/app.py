@@ -23,7 +23,8 @@ import viser
 
 from mirobot_async._core.replies import StatusReport
 from mirobot_async._view.holdjog import HoldJog
-from mirobot_async._view.panel import CARTESIAN_AXES, ControlPanel
+from mirobot_async._view.jogplan import CARTESIAN_AXES, JogAxis
+from mirobot_async._view.panel import ControlPanel
 from mirobot_async._view.preview import ProgramPreview
 from mirobot_async._view.scene import ArmScene
 from mirobot_async._view.status_text import describe_status
@@ -82,10 +83,8 @@ class ViewController:
         self.scene = ArmScene(server, firmware)
         self.panel = ControlPanel(server, self, program=None if program is None else program.name)
         self.teacher = Teacher(server, self.panel.teach, firmware=firmware, export_dir=export_dir)
-        self.holdjog = HoldJog(arm, self.panel.say)
-        server.on_client_disconnect(
-            lambda _: self.holdjog.release("page closed")
-        )  # a page gone: stop
+        self.holdjog = HoldJog(arm, self.panel.say, firmware)
+        server.on_client_disconnect(self._page_gone)
         self.last: StatusReport | None = None
         self.reports = 0
         self.current: str | None = None
@@ -209,17 +208,29 @@ class ViewController:
             lambda: self.arm.move_pose(*steps, relative=True, linear=True, speed=speed),
         )
 
-    def hold_jog(self, joint: int, sign: int) -> None:
-        """A keep-alive of a held jog button; the first one queues the jog."""
-        if self.holdjog.press(joint, sign):
-            self._submit(
-                f"J{joint} {'+' if sign > 0 else '-'} (hold)",
-                lambda: self.holdjog.run(joint, sign),
-                refused=self.holdjog.refused,
-            )
+    def hold_jog(self, axis: JogAxis) -> None:
+        """A keep-alive of a held jog button (any thread: returns at once); the first one
+        queues the jog."""
+        if self.holdjog.press(axis):
+            self._start_hold(axis)
 
     def hold_release(self) -> None:
+        """A hold button was let go (any thread: returns at once)."""
         self.holdjog.release()
+
+    async def _page_gone(self, _: viser.ClientHandle) -> None:
+        # async: viser runs it on its event loop at once (a page gone mid-jog: stop)
+        self.holdjog.release("page closed")
+
+    def _start_hold(self, axis: JogAxis) -> None:
+        async def jog() -> str:
+            outcome = await self.holdjog.run(axis)
+            follow = self.holdjog.take_next()  # another hold button pressed meanwhile
+            if follow is not None:
+                self._start_hold(follow)
+            return outcome
+
+        self._submit(f"{axis.label} (hold)", jog, refused=self.holdjog.refused)
 
     def command(self, name: str) -> None:
         arm = self.arm

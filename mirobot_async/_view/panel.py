@@ -8,17 +8,23 @@ person and the browser tests find each control by its text.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Final, Protocol
+from typing import Protocol
 
 import viser
 from viser._gui_handles import GuiProgressBarHandle
 
-from mirobot_async._view.holdjog import KEEPALIVE_HZ, SPEED
+from mirobot_async._view.holdjog import KEEPALIVE_HZ
+from mirobot_async._view.jogplan import (
+    CARTESIAN_AXES,
+    CARTESIAN_JOINT_RATE,
+    JOINT_RATE,
+    LINEAR_RATE_MAX,
+    TURN_RATE_MAX,
+    JogAxis,
+)
 from mirobot_async._view.teach_ui import TeachPanel
 
-__all__ = ["CARTESIAN_AXES", "Actions", "ControlPanel"]
-
-CARTESIAN_AXES: Final = ("X", "Y", "Z", "RX", "RY", "RZ")
+__all__ = ["Actions", "ControlPanel"]
 
 
 class Actions(Protocol):
@@ -26,7 +32,7 @@ class Actions(Protocol):
 
     def jog_joint(self, joint: int, sign: int) -> None: ...
     def jog_cartesian(self, axis: int, sign: int) -> None: ...
-    def hold_jog(self, joint: int, sign: int) -> None: ...
+    def hold_jog(self, axis: JogAxis) -> None: ...
     def hold_release(self) -> None: ...
     def command(self, name: str) -> None: ...
     def realtime(self, name: str) -> None: ...
@@ -69,12 +75,19 @@ class ControlPanel:
                 group = gui.add_button_group(f"J{j}", (f"J{j} -", f"J{j} +"))
                 group.on_click(_pick(_jog(actions.jog_joint, j)))
         with gui.add_folder("Hold to jog"):
-            gui.add_markdown(f"Moves while held, at {SPEED:g} deg/min; stops on release.")
-            for j in range(1, 7):
-                for sign, word in ((-1, "-"), (1, "+")):
-                    button = gui.add_button(f"J{j} {word} (hold)")
-                    button.on_hold(_held(actions.hold_jog, j, sign), callback_hz=KEEPALIVE_HZ)
-                    button.on_click(lambda _: actions.hold_release())
+            gui.add_markdown(f"Moves while held, at {JOINT_RATE * 60:g} deg/min; stops on release.")
+            for j in range(6):
+                for sign in (-1, 1):
+                    _hold_button(gui, actions, JogAxis("joint", j, sign))
+        with gui.add_folder("Hold to jog Cartesian"):
+            gui.add_markdown(
+                f"Moves the tool while held, at up to {LINEAR_RATE_MAX:g} mm/s (X, Y, Z) or "
+                f"{TURN_RATE_MAX:g} deg/s (RX, RY, RZ), slower where its joints would exceed "
+                f"{CARTESIAN_JOINT_RATE * 60:g} deg/min; stops on release."
+            )
+            for i in range(6):
+                for sign in (-1, 1):
+                    _hold_button(gui, actions, JogAxis("pose", i, sign))
         with gui.add_folder("Jog Cartesian"):
             self.move_step = gui.add_number("Step (mm)", 10.0, min=0.1, max=100.0, step=0.1)
             self.turn_step = gui.add_number("Turn step (deg)", 5.0, min=0.1, max=90.0, step=0.1)
@@ -115,12 +128,16 @@ def _jog(action: Callable[[int, int], None], which: int) -> Callable[[str], None
     return handler
 
 
-def _held(
-    action: Callable[[int, int], None], joint: int, sign: int
-) -> Callable[[viser.GuiEvent[viser.GuiButtonHandle]], None]:
-    """A hold button's keep-alive: ``action(joint, sign)``."""
+def _hold_button(gui: viser.GuiApi, actions: Actions, axis: JogAxis) -> None:
+    """A hold button: its keep-alives and its release go to ``actions`` on viser's event loop
+    as they arrive (async callbacks; plain ones would wait for viser's thread pool)."""
 
-    def callback(_: viser.GuiEvent[viser.GuiButtonHandle]) -> None:
-        action(joint, sign)
+    async def held(_: viser.GuiEvent[viser.GuiButtonHandle]) -> None:
+        actions.hold_jog(axis)
 
-    return callback
+    async def released(_: viser.GuiEvent[viser.GuiButtonHandle]) -> None:
+        actions.hold_release()
+
+    button = gui.add_button(f"{axis.label} (hold)")
+    button.on_hold(held, callback_hz=KEEPALIVE_HZ)
+    button.on_click(released)
