@@ -1,8 +1,9 @@
 """Hold to jog's motion (``mirobot view``'s :class:`HoldJog`, without the page) against a
-virtual arm at its own speed: the jog moves while keep-alives come and stands still once they
-stop, along its one axis; a joint's range, the arm's reach and the envelope end it at the edge
-with the reason, and the next jog moves from where the arm stands (no desync). The latency from
-a real page's release is measured by ``tests/browser/test_view_holdjog.py``.
+virtual arm at its own speed (the real-time lane: each jog takes what it takes on an arm): the
+jog moves while keep-alives come and stands still once they stop, along its one axis; a joint's
+range, the arm's reach and the envelope end it at the edge with the reason, and the next jog
+moves from where the arm stands (no desync). The latency from a real page's release is measured
+by ``tests/browser/test_view_holdjog.py``.
 """
 
 from __future__ import annotations
@@ -22,7 +23,6 @@ from mirobot_async.testing import EmulatorProcess
 pytestmark = [
     pytest.mark.timeout(60),
     pytest.mark.usefixtures("no_leftover_tasks"),
-    pytest.mark.mirobot_emulator(time_scale=1),
     pytest.mark.parametrize("profile", ["2021"]),
 ]
 
@@ -60,6 +60,13 @@ async def _jog(jog: HoldJog, axis: JogAxis, seconds: float) -> str:
 
 
 @pytest.fixture
+async def ready_arm(arm: Mirobot) -> Mirobot:
+    """The real-time arm, unlocked (it powers on locked)."""
+    await arm.unlock()
+    return arm
+
+
+@pytest.fixture
 async def jog(ready_arm: Mirobot) -> HoldJog:
     return HoldJog(ready_arm, lambda _: None, "2021")
 
@@ -83,11 +90,12 @@ async def test_a_held_cartesian_jog_moves_along_its_axis_only(
 ) -> None:
     before = (await ready_arm.status(fresh=True)).pose
     sign = 1 if axis % 2 == 0 else -1
-    said = await _jog(jog, JogAxis("pose", axis, sign), 0.6)
+    turn = axis >= 3  # the wrist moves a coarse motor step at a time: under 1 deg/s
+    said = await _jog(jog, JogAxis("pose", axis, sign), 1.0 if turn else 0.6)
     assert "stopped at" in said and "after the release" in said, said
     after = (await ready_arm.status(fresh=True)).pose
     moved = [a - b for a, b in zip(after, before, strict=True)]
-    assert moved[axis] * sign > 0.3, (moved, said)  # 1 to 2 mm or deg per second here
+    assert moved[axis] * sign > (0.2 if turn else 0.3), (moved, said)  # about 1-2 mm/s here
     for other in range(6):
         if other != axis:
             assert abs(moved[other]) < 0.1, moved
