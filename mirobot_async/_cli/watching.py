@@ -30,13 +30,13 @@ async def watched(
     if not getattr(args, "view", False):
         yield
         return
-    if wait_for_page:
-        note(f"--view: waits for the page to connect before moving (at most {PAGE_WAIT:g} s)")
     try:
         view = arm.view(
             open_browser=not args.no_browser, wait_for_page=PAGE_WAIT if wait_for_page else None
         )
     except MirobotUsageError as err:
         raise CliError(str(err)) from None
+    if wait_for_page:
+        note(f"--view: waits for the page to connect before moving (at most {PAGE_WAIT:g} s)")
     async with view:
         yield

@@ -572,7 +572,8 @@ class Mirobot(MotionCommands, PathCommands, StatusCommands, ToolCommands, Settin
         missing = [m for m in ("viser", "yourdfpy") if importlib.util.find_spec(m) is None]
         if missing:
             raise MirobotUsageError(
-                f"arm.view() needs the view extra ({', '.join(missing)} not installed): "
+                f"the 3D view (arm.view(), --view) needs the view extra ({', '.join(missing)} "
+                "not installed): "
                 "pip install 'mirobot-async[view]' (in a clone: pip install -e '.[view]')"
             )
         from mirobot_async._view.watch import ArmView
