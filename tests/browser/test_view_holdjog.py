@@ -113,7 +113,7 @@ def _release(page: Page) -> tuple[float, float]:
 def _hold(page: Page, name: str, seconds: float) -> tuple[float, float]:
     """Press ``name``, hold it ``seconds``, let go: :func:`_release`'s instants."""
     _press(page, name)
-    time.sleep(seconds)
+    time.sleep(seconds)  # the button held this long (the jog's length)
     return _release(page)
 
 
@@ -195,7 +195,7 @@ def test_cartesian_hold_jog_moves_the_tool_and_stops_at_the_envelope(
             before,
             after,
         )
-        time.sleep(0.5)
+        time.sleep(0.5)  # the measurement window: the tool must not move during it
         assert _tool(page) == after, "the tool moved after the jog stopped"
     text = _report("Cartesian (X)", latencies, handled, _server_latencies(view))
     (ARTIFACTS / "holdjog-latency-cartesian.txt").write_text(text + "\n")
@@ -225,7 +225,7 @@ def test_closing_the_page_mid_jog_stops_the_arm(
     page = open_page(view.url)
     page.expect_text("State: Idle")
     _press(page, "J2 + (hold)")
-    time.sleep(0.6)
+    time.sleep(0.6)  # the button held this long (the jog's length), not a settling delay
     closed = time.time()
     page.page.context.close()
     (stopped,) = wait_for(
@@ -238,7 +238,7 @@ def test_closing_the_page_mid_jog_stops_the_arm(
     again.expect_text("State: Idle")
     first = _joint(again, 2)
     assert 0.5 < first < 3.0, first  # about 2 deg/s for 0.6 s, and no further
-    time.sleep(1.0)
+    time.sleep(1.0)  # the measurement window: the arm must not move during it
     assert _joint(again, 2) == first
     assert view.stop() in (0, 130), "".join(view.stderr)
 

@@ -39,7 +39,7 @@ async def _held(jog: HoldJog, axis: JogAxis) -> AsyncIterator[asyncio.Task[str]]
 
     async def keep_alive() -> None:
         while True:
-            await asyncio.sleep(1 / holdjog.KEEPALIVE_HZ)
+            await asyncio.sleep(1 / holdjog.KEEPALIVE_HZ)  # the page's keep-alive cadence
             jog.press(axis)
 
     alive = asyncio.create_task(keep_alive())
@@ -55,7 +55,7 @@ async def _held(jog: HoldJog, axis: JogAxis) -> AsyncIterator[asyncio.Task[str]]
 async def _jog(jog: HoldJog, axis: JogAxis, seconds: float) -> str:
     """Hold ``axis``'s button ``seconds`` and let go: the jog's outcome."""
     async with _held(jog, axis) as task:
-        await asyncio.sleep(seconds)
+        await asyncio.sleep(seconds)  # the button held this long (the jog's length)
     return await task
 
 
@@ -165,5 +165,5 @@ async def test_no_keep_alive_ends_the_jog(ready_arm: Mirobot) -> None:
     assert said == ["**J1 + (hold): no keep-alive from the page**"]
     first = (await ready_arm.status(fresh=True)).joints[0]
     assert 1.0 < first < 3.0, first  # 2 deg/s for the watchdog's second
-    await asyncio.sleep(0.3)
+    await asyncio.sleep(0.3)  # the measurement window: the arm must not move during it
     assert (await ready_arm.status(fresh=True)).joints[0] == first
