@@ -27,7 +27,7 @@ import numpy as np
 from mirobot_async._cli.exits import CliError, note
 from mirobot_async._cli.programs import read_lines, read_program
 from mirobot_async._view.listen import parse_listen
-from mirobot_async.errors import MirobotLinkLostError
+from mirobot_async.errors import MirobotLinkLostError, MirobotUsageError
 
 if TYPE_CHECKING:
     import viser
@@ -92,7 +92,7 @@ async def serve_view(args: argparse.Namespace) -> int:
     is lost (said on the page, then :class:`MirobotLinkLostError`: exit 1); ``--run`` streams
     the program once a browser shows the scene."""
     try:
-        import viser
+        import viser  # noqa: F401  (the view extra is installed)
     except ImportError:
         raise CliError(
             "mirobot view needs the view extra: pip install 'mirobot-async[view]'"
@@ -102,7 +102,7 @@ async def serve_view(args: argparse.Namespace) -> int:
 
         return await serve_replay(args)
     from mirobot_async._view.app import ProgramSource, ViewController
-    from mirobot_async._view.gate import Gate, guarded_serve, is_loopback
+    from mirobot_async._view.gate import is_loopback, serve_guarded, stop_server
     from mirobot_async._view.preview import preview_program
 
     host, port = parse_listen(args.listen)
@@ -149,17 +149,11 @@ async def serve_view(args: argparse.Namespace) -> int:
                 base_offset=offset,
                 gate_lift=lift,
             )
-        gate = Gate(allow_remote=allow_remote)
-        with contextlib.redirect_stdout(sys.stderr), guarded_serve(gate):  # viser's banner
-            server = viser.ViserServer(host=host, port=port, verbose=False)
-        stack.callback(_stop_server, server)
-        if not gate.installed:  # fail closed: never serve the arm to any page
-            raise CliError(
-                f"viser {viser.__version__} serves its websocket in a way this version of "
-                "mirobot view cannot guard; refusing to serve"
-            )
-        shown = "127.0.0.1" if host in ("0.0.0.0", "::", "") else host
-        url = gate.url(shown, server.get_port())
+        try:
+            server, url = serve_guarded(host, port, allow_remote=allow_remote)
+        except MirobotUsageError as err:  # fail closed: never serve the arm to any page
+            raise CliError(str(err)) from None
+        stack.callback(stop_server, server)
         print(url, flush=True)
         view = ViewController(
             server,
@@ -243,11 +237,6 @@ def _export_dir(given: str | None) -> Path:
     if not folder.is_dir():
         raise CliError(f"--export-dir {folder}: not a folder")
     return folder
-
-
-def _stop_server(server: viser.ViserServer) -> None:
-    with contextlib.redirect_stdout(sys.stderr):  # and says "Server stopped"
-        server.stop()
 
 
 async def _detect_firmware(port: str) -> str:

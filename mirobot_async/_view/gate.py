@@ -27,13 +27,25 @@ import secrets
 import sys
 from collections.abc import Callable, Iterator
 from http.cookies import CookieError, SimpleCookie
-from typing import Any, Final
+from typing import TYPE_CHECKING, Any, Final
 from urllib.parse import parse_qs, urlsplit
 
 from websockets.datastructures import Headers
 from websockets.http11 import Request, Response
 
-__all__ = ["LOOPBACK_HOSTS", "Gate", "guarded_serve", "is_loopback"]
+from mirobot_async.errors import MirobotUsageError
+
+if TYPE_CHECKING:
+    import viser
+
+__all__ = [
+    "LOOPBACK_HOSTS",
+    "Gate",
+    "guarded_serve",
+    "is_loopback",
+    "serve_guarded",
+    "stop_server",
+]
 
 LOOPBACK_HOSTS: Final = frozenset({"127.0.0.1", "localhost", "::1"})
 _HELP: Final = "open the URL that mirobot view printed (it carries this run's secret)"
@@ -140,3 +152,33 @@ def guarded_serve(gate: Gate) -> Iterator[None]:
         yield
     finally:
         server_module.serve = original  # type: ignore[misc]
+
+
+def serve_guarded(host: str, port: int, *, allow_remote: bool) -> tuple[viser.ViserServer, str]:
+    """A viser server on ``host``:``port`` (0: a free one) with a new :class:`Gate` in front,
+    and the URL that opens it (with the gate's secret; a wildcard host shown as
+    ``127.0.0.1``). Fails closed: when the gate could not be put in front, the server is
+    stopped and :class:`MirobotUsageError` says so. viser's banner goes to stderr."""
+    import sys
+
+    import viser
+
+    gate = Gate(allow_remote=allow_remote)
+    with contextlib.redirect_stdout(sys.stderr), guarded_serve(gate):
+        server = viser.ViserServer(host=host, port=port, verbose=False)
+    if not gate.installed:
+        stop_server(server)
+        raise MirobotUsageError(
+            f"viser {viser.__version__} serves its websocket in a way this version cannot "
+            "guard; refusing to serve the page"
+        )
+    shown = "127.0.0.1" if host in ("0.0.0.0", "::", "") else host
+    return server, gate.url(shown, server.get_port())
+
+
+def stop_server(server: viser.ViserServer) -> None:
+    """Stop ``server`` (viser's "Server stopped" goes to stderr)."""
+    import sys
+
+    with contextlib.redirect_stdout(sys.stderr):
+        server.stop()

@@ -11,8 +11,6 @@ from __future__ import annotations
 
 import argparse
 import asyncio
-import contextlib
-import sys
 import threading
 import webbrowser
 from typing import Any, Final
@@ -173,7 +171,7 @@ class ReplayView:
 
 async def serve_replay(args: argparse.Namespace) -> int:
     """Serve the replay of ``args.replay`` until interrupted (no arm is opened)."""
-    from mirobot_async._view.gate import Gate, guarded_serve, is_loopback
+    from mirobot_async._view.gate import is_loopback, serve_guarded, stop_server
     from mirobot_async._view.listen import parse_listen
 
     try:
@@ -184,14 +182,11 @@ async def serve_replay(args: argparse.Namespace) -> int:
     allow_remote = bool(getattr(args, "allow_remote", False))
     if not is_loopback(host) and not allow_remote:
         raise CliError(f"--listen {args.listen}: {host} is not a loopback address (--allow-remote)")
-    gate = Gate(allow_remote=allow_remote)
-    with contextlib.redirect_stdout(sys.stderr), guarded_serve(gate):
-        server = viser.ViserServer(host=host, port=port, verbose=False)
     try:
-        if not gate.installed:
-            raise CliError(f"viser {viser.__version__}: cannot guard its websocket; refusing")
-        shown = "127.0.0.1" if host in ("0.0.0.0", "::", "") else host
-        url = gate.url(shown, server.get_port())
+        server, url = serve_guarded(host, port, allow_remote=allow_remote)
+    except MirobotUsageError as err:
+        raise CliError(str(err)) from None
+    try:
         print(url, flush=True)
         note(f"replaying {line.source}: {len(line.samples)} reports, {len(line.events)} events")
         view = ReplayView(server, line, getattr(args, "firmware", None) or "2021")
@@ -199,6 +194,5 @@ async def serve_replay(args: argparse.Namespace) -> int:
             webbrowser.open(url)
         await view.play()
     finally:
-        with contextlib.redirect_stdout(sys.stderr):
-            server.stop()
+        stop_server(server)
     return 0

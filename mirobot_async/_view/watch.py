@@ -155,26 +155,15 @@ class ArmView:
         self._entered = True
         firmware = await self._learn(self._arm)
         first = await self._arm.status(fresh=True)  # the path starts here if at rest
-        import viser
+        from mirobot_async._view.gate import serve_guarded, stop_server
 
-        from mirobot_async._view.gate import Gate, guarded_serve
-
-        gate = Gate(allow_remote=self._allow_remote)
-        with contextlib.redirect_stdout(sys.stderr), guarded_serve(gate):  # viser's banner
-            server = viser.ViserServer(host=self._host, port=self._port, verbose=False)
+        server, url = serve_guarded(self._host, self._port, allow_remote=self._allow_remote)
         try:
-            if not gate.installed:  # fail closed
-                raise MirobotUsageError(
-                    f"viser {viser.__version__} serves its websocket in a way this version "
-                    "cannot guard; refusing to serve the view"
-                )
             self._build(server, firmware, first)  # no await: no line is written meanwhile
         except BaseException:
-            with contextlib.redirect_stdout(sys.stderr):
-                server.stop()
+            stop_server(server)
             raise
-        shown = "127.0.0.1" if self._host in ("0.0.0.0", "::", "") else self._host
-        self._url = gate.url(shown, server.get_port())
+        self._url = url
         print(f"mirobot: view: {self._url}", file=sys.stderr, flush=True)
         self._server = server
         self._tasks = [
@@ -227,8 +216,9 @@ class ArmView:
             server.flush()
             await asyncio.sleep(END_GRACE)
         finally:
-            with contextlib.redirect_stdout(sys.stderr):  # and says "Server stopped"
-                server.stop()
+            from mirobot_async._view.gate import stop_server
+
+            stop_server(server)
 
     # ---- inside ---------------------------------------------------------------------------
 

@@ -210,6 +210,10 @@ def test_nearest_branch_recovers_joints(q: tuple[float, ...], dh: DH) -> None:
 def test_inverse_all_contains_original_and_all_solve(q: tuple[float, ...], dh: DH) -> None:
     assume(not wrist_singular(q) and not elbow_stretched(q, dh))
     pose = forward(q, dh)
+    # At ry = +-90 (to the last bit) the reported rx/rz split is the firmware's formula on
+    # rounding noise (matrix_to_rpy): another branch's report then names another orientation,
+    # and the round trip below would compare noise (q = (0, 0, 90, 1, 0, 0), DH_2021).
+    assume(abs(math.cos(math.radians(pose[4]))) > 1e-9)
     sols = inverse_all(pose, dh)
     assert 1 <= len(sols) <= 8
     assert any(all(angle_diff(a, b) <= 1e-6 for a, b in zip(s, q, strict=True)) for s in sols)
